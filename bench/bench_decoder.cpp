@@ -1,0 +1,98 @@
+// Decoding and scan assembly throughput, in points per second and as a multiple of each model's
+// real-time rate (sensor seconds processed per wall second, one core).
+//   build/bin/bench_decoder --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
+#include <benchmark/benchmark.h>
+
+#include <deque>
+#include <memory>
+
+#include "../test/driver/synthetic_stream.hpp"
+#include "lidartag/driver/scan_batcher.hpp"
+#include "lidartag/driver/scan_buffer.hpp"
+
+namespace lidartag::velodyne {
+namespace {
+
+struct Fixture {
+  const ModelSpec& spec;
+  ReturnMode mode;
+  std::vector<testing::StreamPacket> packets;
+  explicit Fixture(Model m, ReturnMode md) : spec(model_spec(m)), mode(md) {
+    // Half a second of packets: several rotations, realistic azimuth steps.
+    packets = testing::make_stream(spec, md, static_cast<int>(spec.packet_rate_hz(md) / 2));
+  }
+};
+
+void report(benchmark::State& state, const Fixture& f, size_t packets, size_t points) {
+  state.counters["points_per_s"] =
+      benchmark::Counter(static_cast<double>(points), benchmark::Counter::kIsRate);
+  // Sensor seconds decoded per second of CPU = multiple of real time.
+  state.counters["x_realtime"] = benchmark::Counter(
+      static_cast<double>(packets) / f.spec.packet_rate_hz(f.mode), benchmark::Counter::kIsRate);
+}
+
+void BM_Decode(benchmark::State& state, Model m, ReturnMode mode) {
+  Fixture f(m, mode);
+  Decoder decoder(Calibration::builtin(m));
+  SensorClock clock;
+  DecodedPacket out;
+  size_t packets = 0, points = 0;
+  for (auto _ : state) {
+    for (const auto& p : f.packets) {
+      const DecodeStatus st = decoder.decode(p.bytes, clock, p.time_ns, out);
+      benchmark::DoNotOptimize(st);
+      benchmark::DoNotOptimize(out.x.data());
+      points += static_cast<size_t>(out.columns * out.rings * out.returns);
+    }
+    packets += f.packets.size();
+  }
+  report(state, f, packets, points);
+}
+
+// Decode + cut into rotations + hand over through the lock-free buffer, as the daemon does.
+void BM_DecodeAndAssemble(benchmark::State& state, Model m, ReturnMode mode) {
+  Fixture f(m, mode);
+  Decoder decoder(Calibration::builtin(m));
+  SensorClock clock;
+  DecodedPacket out;
+  ScanBuffer buffer(4, 1, f.spec.lasers, mode == ReturnMode::kDual ? 2 : 1,
+                    ScanBatcher::column_capacity(f.spec));
+  ScanBatcher batcher(f.spec, mode, {}, buffer);
+  size_t packets = 0, points = 0;
+  int64_t shift = 0;
+  const int64_t span = f.packets.back().time_ns - f.packets.front().time_ns +
+                       static_cast<int64_t>(f.spec.packet_period_us(mode) * 1e3);
+  for (auto _ : state) {
+    for (const auto& p : f.packets) {
+      (void)decoder.decode(p.bytes, clock, p.time_ns + shift, out);
+      out.stamp_ns = p.time_ns + shift;  // keep time running across iterations
+      batcher.add(out);
+      points += static_cast<size_t>(out.columns * out.rings * out.returns);
+      if (Scan* s = buffer.pop()) buffer.release(s);
+    }
+    shift += span;
+    packets += f.packets.size();
+  }
+  report(state, f, packets, points);
+}
+
+#define LIDARTAG_MODEL_BENCH(fn, model, mode)                                 \
+  BENCHMARK_CAPTURE(fn, model##_##mode, Model::k##model, ReturnMode::k##mode) \
+      ->Unit(benchmark::kMillisecond)
+
+LIDARTAG_MODEL_BENCH(BM_Decode, VLP16, Strongest);
+LIDARTAG_MODEL_BENCH(BM_Decode, VLP16, Dual);
+LIDARTAG_MODEL_BENCH(BM_Decode, VLP32C, Strongest);
+LIDARTAG_MODEL_BENCH(BM_Decode, VLP32C, Dual);
+LIDARTAG_MODEL_BENCH(BM_Decode, HDL32E, Strongest);
+LIDARTAG_MODEL_BENCH(BM_Decode, VLS128, Strongest);
+LIDARTAG_MODEL_BENCH(BM_Decode, VLS128, Dual);
+LIDARTAG_MODEL_BENCH(BM_DecodeAndAssemble, VLP16, Strongest);
+LIDARTAG_MODEL_BENCH(BM_DecodeAndAssemble, VLP32C, Strongest);
+LIDARTAG_MODEL_BENCH(BM_DecodeAndAssemble, HDL32E, Strongest);
+LIDARTAG_MODEL_BENCH(BM_DecodeAndAssemble, VLS128, Strongest);
+
+}  // namespace
+}  // namespace lidartag::velodyne
+
+BENCHMARK_MAIN();

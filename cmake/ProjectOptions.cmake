@@ -1,0 +1,24 @@
+# One place for warnings and sanitizers. Applied to the project's own targets only.
+add_library(lidartag_warnings INTERFACE)
+target_compile_options(lidartag_warnings INTERFACE
+  -Wall -Wextra -Wpedantic -Wconversion -Wsign-conversion -Wshadow -Wnon-virtual-dtor
+  -Wold-style-cast -Wcast-align -Woverloaded-virtual -Wnull-dereference -Werror)
+
+if(LIDARTAG_SANITIZE STREQUAL "address")
+  add_compile_options(-fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=all)
+  add_link_options(-fsanitize=address,undefined)
+elseif(LIDARTAG_SANITIZE STREQUAL "thread")
+  add_compile_options(-fsanitize=thread -fno-omit-frame-pointer)
+  add_link_options(-fsanitize=thread)
+elseif(NOT LIDARTAG_SANITIZE STREQUAL "")
+  message(FATAL_ERROR "LIDARTAG_SANITIZE must be '', 'address' or 'thread'")
+endif()
+
+# lidartag_add_library(name SOURCES ... PUBLIC_LINK ... PRIVATE_LINK ...)
+function(lidartag_add_library name)
+  cmake_parse_arguments(ARG "" "" "SOURCES;PUBLIC_LINK;PRIVATE_LINK" ${ARGN})
+  add_library(${name} STATIC ${ARG_SOURCES})
+  target_include_directories(${name} PUBLIC ${CMAKE_CURRENT_SOURCE_DIR}/include)
+  target_link_libraries(${name} PUBLIC ${ARG_PUBLIC_LINK} PRIVATE ${ARG_PRIVATE_LINK} lidartag_warnings)
+  set_target_properties(${name} PROPERTIES POSITION_INDEPENDENT_CODE ON)
+endfunction()

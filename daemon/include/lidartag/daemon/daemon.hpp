@@ -1,0 +1,63 @@
+// lidartagd's orchestration: the LCM bus, the shared oneTBB arena, one SensorPipeline per sensor,
+// the status heartbeat, the systemd notifications and the signals. main() parses the command line
+// and the configuration, blocks the signals, builds a Daemon and runs it.
+#pragma once
+
+#include <tbb/global_control.h>
+
+#include <csignal>
+#include <cstdio>
+#include <memory>
+#include <vector>
+
+#include "lidartag/daemon/config.hpp"
+#include "lidartag/daemon/lcm_bus.hpp"
+#include "lidartag/daemon/logging.hpp"
+#include "lidartag/daemon/notifier.hpp"
+#include "lidartag/daemon/sensor_pipeline.hpp"
+#include "lidartag/status_t.hpp"
+
+namespace lidartag::daemon {
+
+// Blocks SIGINT, SIGTERM and SIGHUP in the calling thread and in every thread it starts later
+// (call first in main); Daemon::run() takes them with sigtimedwait.
+void block_signals();
+
+struct RunOptions {
+  std::FILE* print_detections = nullptr;  // one line per rotation, or null
+};
+
+class Daemon {
+ public:
+  // Opens everything (LCM, sources, calibrations, detectors, the --record file): setup errors
+  // throw here, before READY=1. `logging` may be null (no SIGHUP reopen).
+  Daemon(DaemonOptions options, RunOptions run, Logging* logging);
+  ~Daemon();
+
+  // Runs until SIGINT/SIGTERM or until every source has ended (replays). Returns the exit
+  // status: 0, or 1 when a pipeline stopped on an error.
+  int run();
+
+  int workers() const { return workers_; }
+
+ private:
+  void publish_status(bool final);
+  std::string summary() const;
+  bool healthy() const;
+
+  DaemonOptions options_;
+  Logging* logging_;
+  int workers_;
+  Notifier notifier_;
+  std::unique_ptr<LcmBus> bus_;
+  std::unique_ptr<tbb::global_control> threads_;
+  std::unique_ptr<tbb::task_arena> arena_;
+  std::unique_ptr<PcapRecorder> recorder_;
+  std::unique_ptr<LinePrinter> printer_;
+  std::vector<std::unique_ptr<SensorPipeline>> pipelines_;
+  std::vector<SensorStatus> last_status_;
+  lidartag::status_t status_message_;
+  int64_t started_ns_ = 0;
+};
+
+}  // namespace lidartag::daemon

@@ -1,0 +1,52 @@
+// Replays the raw packets of an LCM log (raw_packet_t on one channel, as recorded by lcm-logger
+// from lidartagd's raw channel) as a PacketSource. Messages that do not decode are counted as
+// malformed and skipped, never fatal (LCM's generated decode() throws on some bad input).
+#pragma once
+
+#include <chrono>
+#include <memory>
+#include <string>
+
+#include "lidartag/driver/io/pcap_source.hpp"
+#include "lidartag/driver/packet_source.hpp"
+#include "lidartag/raw_packet_t.hpp"
+
+namespace lcm {
+class LogFile;
+}
+
+namespace lidartag::daemon {
+
+struct LcmLogSourceOptions {
+  std::string channel = "LIDARTAG_RAW";  // events on other channels are ignored
+  double rate = 0.0;                     // 0: as fast as possible; 1: the recorded pace
+  bool loop = false;                     // start again at the end (times keep growing)
+};
+
+class LcmLogSource final : public velodyne::PacketSource {
+ public:
+  // Opens the log; throws velodyne::IoError naming the file.
+  LcmLogSource(const std::string& path, LcmLogSourceOptions options);
+  ~LcmLogSource() override;
+
+  velodyne::ReadStatus next(velodyne::RawPacket& out, std::chrono::milliseconds timeout) override;
+  velodyne::SourceStats stats() const override { return stats_; }
+  uint64_t events() const { return events_; }  // log events read, all channels and passes
+
+ private:
+  bool read_one();  // the next deliverable packet into message_; false at the end of the file
+
+  std::string path_;
+  LcmLogSourceOptions options_;
+  std::unique_ptr<lcm::LogFile> log_;
+  lidartag::raw_packet_t message_;
+  velodyne::ReplaySchedule schedule_;
+  velodyne::SourceStats stats_{};
+  uint64_t events_ = 0;
+  bool pending_ = false;
+  int64_t time_ns_ = 0;  // receive time of message_, shifted for loops
+  int64_t first_ns_ = 0, last_ns_ = 0, last_interval_ns_ = 0, shift_ns_ = 0;
+  bool have_first_ = false;
+};
+
+}  // namespace lidartag::daemon

@@ -1,0 +1,35 @@
+// Conversions from the pipeline's results to the LCM types of lcmtypes/ (package lidartag). Fill
+// a message object that the caller reuses, so that steady state does not allocate.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "lidartag/daemon/ordered_results.hpp"
+#include "lidartag/daemon/sensor_status.hpp"
+#include "lidartag/detector/detector.hpp"
+#include "lidartag/driver/packet_source.hpp"
+#include "lidartag/raw_packet_t.hpp"
+#include "lidartag/status_t.hpp"
+#include "lidartag/tag_detection_t.hpp"
+#include "lidartag/tag_detections_t.hpp"
+
+namespace lidartag::daemon {
+
+void fill_detection(const detector::Detection& d, lidartag::tag_detection_t& out);
+
+// Every field of tag_detections_t: `publish_utime` host time (µs since the epoch), `latency_ms`
+// assembled -> published, `dropped` rotations dropped so far.
+void fill_detections(const RotationResult& r, const std::string& sensor,
+                     const std::string& frame_id, int64_t publish_utime, double latency_ms,
+                     int64_t dropped, lidartag::tag_detections_t& out);
+
+void fill_status(const SensorStatus& s, int64_t utime, double uptime_s, lidartag::status_t& out);
+
+void fill_raw_packet(const velodyne::RawPacket& p, const std::string& sensor,
+                     lidartag::raw_packet_t& out);
+
+// Host time, microseconds since the epoch.
+int64_t wall_utime();
+
+}  // namespace lidartag::daemon

@@ -1,0 +1,31 @@
+// A sensor pipeline's health and counters at one moment: what status_t and systemd's STATUS=
+// report. Plain data, no LCM.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "lidartag/daemon/latency_window.hpp"
+
+namespace lidartag::daemon {
+
+struct SensorStatus {
+  std::string sensor, frame_id;
+  bool healthy = true;
+  std::string model;        // "" until decided
+  std::string return_mode;  // "" until the first data packet
+  float rpm = 0;
+  int time_source = 0;  // velodyne::TimeSource
+  int pps = 0;          // velodyne::PpsStatus
+  uint64_t position_packets = 0, gprmc_valid = 0;
+  uint64_t packets_received = 0, packets_dropped = 0, packets_malformed = 0, packets_ignored = 0;
+  uint64_t rotations_assembled = 0, rotations_dropped = 0, rotations_processed = 0;
+  uint64_t rotations_published = 0, detections = 0;
+  uint64_t buffer_occupancy = 0, buffer_depth = 0;
+  std::vector<std::string> stage_names;  // "queue", "detect", "order", "publish", "total", ...
+  std::vector<Percentiles> stages;       // milliseconds, same order
+  std::string error;                     // why the pipeline stopped early, if it did
+};
+
+}  // namespace lidartag::daemon

@@ -1,0 +1,200 @@
+#include "lidartag/daemon/daemon.hpp"
+
+#include <fmt/format.h>
+#include <pthread.h>
+#include <spdlog/spdlog.h>
+#include <tbb/global_control.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <ctime>
+#include <thread>
+
+#include "lidartag/daemon/messages.hpp"
+
+namespace lidartag::daemon {
+
+namespace {
+
+sigset_t handled_signals() {
+  sigset_t set;
+  sigemptyset(&set);
+  sigaddset(&set, SIGINT);
+  sigaddset(&set, SIGTERM);
+  sigaddset(&set, SIGHUP);
+  return set;
+}
+
+int64_t to_ns(double seconds) {
+  return static_cast<int64_t>(seconds * 1e9);
+}
+
+}  // namespace
+
+void block_signals() {
+  const sigset_t set = handled_signals();
+  pthread_sigmask(SIG_BLOCK, &set, nullptr);
+}
+
+Daemon::Daemon(DaemonOptions options, RunOptions run, Logging* logging)
+    : options_(std::move(options)), logging_(logging) {
+  workers_ = options_.pipeline.worker_threads > 0
+                 ? options_.pipeline.worker_threads
+                 : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  // The arena's threads are all workers (no slot kept for a master thread: nobody joins it), and
+  // the global limit must allow that many beside the main thread.
+  const auto limit = static_cast<size_t>(workers_ + 1);
+  threads_ = std::make_unique<tbb::global_control>(
+      tbb::global_control::max_allowed_parallelism,
+      std::max(limit,
+               tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)));
+  arena_ = std::make_unique<tbb::task_arena>(workers_, 0);
+  bus_ = std::make_unique<LcmBus>(options_.lcm.url);
+  if (!options_.record_pcap.empty()) {
+    recorder_ = std::make_unique<PcapRecorder>(options_.record_pcap);
+  }
+  if (run.print_detections != nullptr) {
+    printer_ = std::make_unique<LinePrinter>(run.print_detections);
+  }
+  for (const auto& sensor : options_.sensors) {
+    pipelines_.push_back(std::make_unique<SensorPipeline>(
+        sensor, options_, *bus_, *arena_, workers_, recorder_.get(), printer_.get()));
+  }
+}
+
+Daemon::~Daemon() {
+  for (auto& p : pipelines_) p->stop();
+  for (auto& p : pipelines_) p->join();
+}
+
+bool Daemon::healthy() const {
+  const int64_t now = steady_ns();
+  const int64_t stall = to_ns(options_.watchdog.stall_timeout_s);
+  return std::all_of(pipelines_.begin(), pipelines_.end(),
+                     [&](const auto& p) { return p->healthy(now, stall); });
+}
+
+std::string Daemon::summary() const {
+  std::string text;
+  for (const auto& s : last_status_) {
+    if (!text.empty()) text += "; ";
+    text += fmt::format("{}: {} {} rotations published, {} dropped, {} tags, {}", s.sensor,
+                        s.model.empty() ? "(model unknown)" : s.model, s.rotations_published,
+                        s.rotations_dropped, s.detections, s.healthy ? "healthy" : "UNHEALTHY");
+  }
+  return text;
+}
+
+void Daemon::publish_status(bool final) {
+  const int64_t now = steady_ns();
+  const double uptime = static_cast<double>(now - started_ns_) * 1e-9;
+  last_status_.clear();
+  for (auto& p : pipelines_) {
+    SensorStatus s = p->status(now, to_ns(options_.watchdog.stall_timeout_s));
+    fill_status(s, wall_utime(), uptime, status_message_);
+    bus_->publish(channel_of(p->sensor(), options_.lcm.channels.status), status_message_);
+    last_status_.push_back(std::move(s));
+  }
+  const std::string text = summary();
+  if (final) {
+    spdlog::info("final status: {}", text);
+  } else {
+    notifier_.status(text);
+    spdlog::debug("status: {}", text);
+  }
+}
+
+int Daemon::run() {
+  started_ns_ = steady_ns();
+  for (auto& p : pipelines_) p->start();
+  for (const auto& s : options_.sensors) {
+    spdlog::info("sensor {}: {} source{}{}, frame {}, channels {}*", s.name,
+                 source_kind_name(s.source.kind), s.source.file.empty() ? "" : " ", s.source.file,
+                 s.frame_id, s.channel_prefix + "LIDARTAG_");
+  }
+  spdlog::info("running: {} sensor(s), {} detector thread(s), LCM {}", pipelines_.size(), workers_,
+               options_.lcm.url.empty() ? "(default URL)" : options_.lcm.url);
+  notifier_.ready(fmt::format("running: {} sensor(s)", pipelines_.size()));
+
+  using Clock = std::chrono::steady_clock;
+  const auto status_period = std::chrono::duration_cast<Clock::duration>(
+      std::chrono::duration<double>(options_.status.period_s));
+  const auto ping = notifier_.ping_interval();
+  if (ping) {
+    spdlog::info("systemd watchdog: pinging every {} ms while healthy",
+                 std::chrono::duration_cast<std::chrono::milliseconds>(*ping).count());
+  }
+  auto next_status = Clock::now() + status_period;
+  auto next_ping = Clock::now();
+  bool was_healthy = true;
+  const sigset_t signals = handled_signals();
+  int stop_signal = 0;
+
+  for (;;) {
+    const auto now = Clock::now();
+    if (ping && now >= next_ping) {
+      const bool ok = healthy();
+      if (ok) notifier_.watchdog();
+      if (ok != was_healthy) {
+        spdlog::warn("pipeline {}", ok ? "healthy again" : "stalled: watchdog pings suspended");
+      }
+      was_healthy = ok;
+      next_ping = now + *ping;
+    }
+    if (now >= next_status) {
+      publish_status(false);
+      next_status = now + status_period;
+    }
+    if (std::all_of(pipelines_.begin(), pipelines_.end(),
+                    [](const auto& p) { return p->finished(); })) {
+      break;
+    }
+    // Sleep until the next duty or a signal, at most 100 ms (to notice finished replays).
+    auto wake = std::min(next_status, now + std::chrono::milliseconds(100));
+    if (ping) wake = std::min(wake, next_ping);
+    const auto wait = std::max<Clock::duration>(wake - Clock::now(), Clock::duration::zero());
+    const auto wait_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(wait).count();
+    timespec ts{static_cast<time_t>(wait_ns / 1000000000), static_cast<long>(wait_ns % 1000000000)};
+    const int sig = sigtimedwait(&signals, nullptr, &ts);
+    if (sig == SIGHUP) {
+      spdlog::info("SIGHUP: reopening the log");
+      if (logging_ != nullptr) {
+        try {
+          logging_->reopen();
+        } catch (const std::exception& e) {
+          spdlog::error("cannot reopen the log: {}", e.what());
+        }
+      }
+    } else if (sig == SIGINT || sig == SIGTERM) {
+      stop_signal = sig;
+      break;
+    }
+  }
+
+  if (stop_signal != 0) {
+    spdlog::info("{}: stopping", stop_signal == SIGINT ? "SIGINT" : "SIGTERM");
+  } else {
+    spdlog::info("every source ended: stopping");
+  }
+  notifier_.stopping("stopping");
+  for (auto& p : pipelines_) p->stop();
+  for (auto& p : pipelines_) p->join();
+  publish_status(true);
+  if (recorder_) {
+    recorder_->close();
+    if (!recorder_->error().empty()) {
+      spdlog::error("recording {} failed: {}", options_.record_pcap, recorder_->error());
+    } else {
+      spdlog::info("recorded {} packets to {}", recorder_->records(), options_.record_pcap);
+    }
+  }
+  int status = 0;
+  for (const auto& p : pipelines_) {
+    if (!p->error().empty()) status = 1;
+  }
+  if (logging_ != nullptr) logging_->flush();
+  return status;
+}
+
+}  // namespace lidartag::daemon

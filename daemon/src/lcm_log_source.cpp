@@ -1,0 +1,124 @@
+#include "lidartag/daemon/lcm_log_source.hpp"
+
+#include <lcm/lcm-cpp.hpp>
+#include <algorithm>
+#include <stdexcept>
+#include <thread>
+
+#include "lidartag/driver/io/errors.hpp"
+
+namespace lidartag::daemon {
+
+using velodyne::ReadStatus;
+
+namespace {
+
+int32_t read_be32(const uint8_t* p) {
+  return static_cast<int32_t>((static_cast<uint32_t>(p[0]) << 24) |
+                              (static_cast<uint32_t>(p[1]) << 16) |
+                              (static_cast<uint32_t>(p[2]) << 8) | static_cast<uint32_t>(p[3]));
+}
+
+// Checks the lengths inside an encoded raw_packet_t before decode() trusts them: a corrupt
+// `nbytes` would otherwise make it allocate up to 2 GB before failing. Layout: hash (8), utime
+// (8), receive_time_ns (8), sensor (int32 length with the NUL, bytes), source_ipv4 (4), port (4),
+// nbytes (4), data.
+bool plausible_raw_packet(const uint8_t* data, size_t size) {
+  size_t offset = 24;
+  if (size < offset + 4) return false;
+  const int32_t string_size = read_be32(data + offset);
+  offset += 4;
+  if (string_size <= 0 || static_cast<size_t>(string_size) > size - offset) return false;
+  offset += static_cast<size_t>(string_size);
+  if (size < offset + 12) return false;
+  const int32_t nbytes = read_be32(data + offset + 8);
+  return nbytes >= 0 && static_cast<size_t>(nbytes) == size - offset - 12;
+}
+
+}  // namespace
+
+LcmLogSource::LcmLogSource(const std::string& path, LcmLogSourceOptions options)
+    : path_(path),
+      options_(std::move(options)),
+      log_(std::make_unique<lcm::LogFile>(path, "r")),
+      schedule_(options_.rate > 0 ? options_.rate : 1.0) {
+  if (!log_->good()) throw velodyne::IoError("cannot open LCM log '" + path + "'");
+  if (options_.rate < 0) throw velodyne::IoError("LCM log replay rate must be >= 0");
+}
+
+LcmLogSource::~LcmLogSource() = default;
+
+bool LcmLogSource::read_one() {
+  for (;;) {
+    const lcm::LogEvent* event = log_->readNextEvent();
+    if (event == nullptr) return false;
+    ++events_;
+    if (event->channel != options_.channel) {
+      ++stats_.ignored;
+      continue;
+    }
+    int used = -1;
+    const auto* bytes = static_cast<const uint8_t*>(event->data);
+    const auto size = static_cast<size_t>(std::max<int32_t>(event->datalen, 0));
+    if (plausible_raw_packet(bytes, size)) {
+      try {
+        used = message_.decode(bytes, 0, static_cast<int>(size));
+      } catch (const std::exception&) {
+        used = -1;  // LCM's decode throws std::length_error on some corrupt lengths
+      }
+    }
+    if (used < 0 || message_.nbytes < 0 ||
+        static_cast<size_t>(message_.nbytes) != message_.data.size() || message_.port <= 0 ||
+        message_.port > 65535) {
+      ++stats_.malformed;
+      continue;
+    }
+    const int64_t t = message_.receive_time_ns;
+    if (!have_first_) {
+      have_first_ = true;
+      first_ns_ = t;
+    } else if (t > last_ns_) {
+      last_interval_ns_ = t - last_ns_;
+    }
+    last_ns_ = t;
+    time_ns_ = t + shift_ns_;
+    return true;
+  }
+}
+
+ReadStatus LcmLogSource::next(velodyne::RawPacket& out, std::chrono::milliseconds timeout) {
+  if (!pending_) {
+    if (!read_one()) {
+      if (!options_.loop || !have_first_) return ReadStatus::kEnd;
+      // Next pass: reopen, and shift times so that they keep growing.
+      shift_ns_ += last_ns_ - first_ns_ + last_interval_ns_;
+      have_first_ = false;
+      log_ = std::make_unique<lcm::LogFile>(path_, "r");
+      if (!log_->good()) {
+        ++stats_.errors;
+        return ReadStatus::kError;
+      }
+      if (!read_one()) return ReadStatus::kEnd;
+    }
+    pending_ = true;
+  }
+  if (options_.rate > 0) {
+    const auto now = velodyne::ReplaySchedule::Clock::now();
+    const auto due = schedule_.due(time_ns_, now);
+    if (due - now > timeout) {
+      std::this_thread::sleep_for(timeout);
+      return ReadStatus::kTimeout;
+    }
+    std::this_thread::sleep_until(due);
+  }
+  pending_ = false;
+  out.payload = std::span<const uint8_t>(message_.data.data(), message_.data.size());
+  out.receive_time_ns = time_ns_;
+  out.source_ipv4 = static_cast<uint32_t>(message_.source_ipv4);
+  out.destination_port = static_cast<uint16_t>(message_.port);
+  ++stats_.packets;
+  stats_.bytes += message_.data.size();
+  return ReadStatus::kPacket;
+}
+
+}  // namespace lidartag::daemon

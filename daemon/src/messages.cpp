@@ -1,0 +1,108 @@
+#include "lidartag/daemon/messages.hpp"
+
+#include <chrono>
+
+namespace lidartag::daemon {
+
+int64_t wall_utime() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+void fill_detection(const detector::Detection& d, lidartag::tag_detection_t& out) {
+  out.family.assign(d.family.data(), d.family.size());
+  out.family_index = d.family_index;
+  out.id = d.id;
+  out.size_m = d.size_m;
+  for (int i = 0; i < 3; ++i) out.position[i] = d.position[i];
+  out.orientation[0] = d.orientation.w();
+  out.orientation[1] = d.orientation.x();
+  out.orientation[2] = d.orientation.y();
+  out.orientation[3] = d.orientation.z();
+  for (size_t c = 0; c < 4; ++c) {
+    for (int i = 0; i < 3; ++i) out.corners[c][i] = d.corners[c][i];
+  }
+  out.score = d.score;
+  out.margin = d.margin;
+  out.points = d.points;
+  out.fit_cost = d.fit_cost;
+}
+
+void fill_detections(const RotationResult& r, const std::string& sensor,
+                     const std::string& frame_id, int64_t publish_utime, double latency_ms,
+                     int64_t dropped, lidartag::tag_detections_t& out) {
+  out.utime = r.stamp_ns / 1000;
+  out.frame_id = frame_id;
+  out.sensor = sensor;
+  out.sequence = static_cast<int64_t>(r.sequence);
+  out.end_utime = r.end_stamp_ns / 1000;
+  out.publish_utime = publish_utime;
+  out.latency_ms = latency_ms;
+  out.detection_ms = r.detection.total_ms();
+  out.dropped_rotations = dropped;
+  out.complete = r.complete;
+  out.columns = r.columns;
+  out.points = r.points;
+  out.rpm = r.rpm;
+  out.features = r.detection.features;
+  out.clusters = r.detection.clusters;
+  const auto& detections = r.detection.detections;
+  out.ndetections = static_cast<int32_t>(detections.size());
+  out.detections.resize(detections.size());
+  for (size_t i = 0; i < detections.size(); ++i) fill_detection(detections[i], out.detections[i]);
+}
+
+void fill_status(const SensorStatus& s, int64_t utime, double uptime_s, lidartag::status_t& out) {
+  auto i64 = [](uint64_t v) { return static_cast<int64_t>(v); };
+  out.utime = utime;
+  out.frame_id = s.frame_id;
+  out.sensor = s.sensor;
+  out.uptime_s = uptime_s;
+  out.healthy = s.healthy;
+  out.model = s.model;
+  out.return_mode = s.return_mode;
+  out.rpm = s.rpm;
+  out.time_source = static_cast<int8_t>(s.time_source);
+  out.pps = static_cast<int8_t>(s.pps);
+  out.position_packets = i64(s.position_packets);
+  out.gprmc_valid = i64(s.gprmc_valid);
+  out.packets_received = i64(s.packets_received);
+  out.packets_dropped = i64(s.packets_dropped);
+  out.packets_malformed = i64(s.packets_malformed);
+  out.packets_ignored = i64(s.packets_ignored);
+  out.rotations_assembled = i64(s.rotations_assembled);
+  out.rotations_dropped = i64(s.rotations_dropped);
+  out.rotations_processed = i64(s.rotations_processed);
+  out.rotations_published = i64(s.rotations_published);
+  out.detections = i64(s.detections);
+  out.buffer_occupancy = static_cast<int32_t>(s.buffer_occupancy);
+  out.buffer_depth = static_cast<int32_t>(s.buffer_depth);
+  const size_t n = std::min(s.stage_names.size(), s.stages.size());
+  out.nstages = static_cast<int32_t>(n);
+  out.stage_names.assign(s.stage_names.begin(),
+                         s.stage_names.begin() + static_cast<std::ptrdiff_t>(n));
+  out.p50_ms.resize(n);
+  out.p90_ms.resize(n);
+  out.p99_ms.resize(n);
+  out.max_ms.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    out.p50_ms[i] = s.stages[i].p50;
+    out.p90_ms[i] = s.stages[i].p90;
+    out.p99_ms[i] = s.stages[i].p99;
+    out.max_ms[i] = s.stages[i].max;
+  }
+}
+
+void fill_raw_packet(const velodyne::RawPacket& p, const std::string& sensor,
+                     lidartag::raw_packet_t& out) {
+  out.utime = p.receive_time_ns / 1000;
+  out.receive_time_ns = p.receive_time_ns;
+  out.sensor = sensor;
+  out.source_ipv4 = static_cast<int32_t>(p.source_ipv4);
+  out.port = p.destination_port;
+  out.nbytes = static_cast<int32_t>(p.payload.size());
+  out.data.assign(p.payload.begin(), p.payload.end());
+}
+
+}  // namespace lidartag::daemon

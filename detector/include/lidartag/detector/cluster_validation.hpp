@@ -1,0 +1,59 @@
+// Stage 3 (paper Sec. IV-C): fill-in of a cluster from the scan, point-count bounds and payload
+// boundary points, eq. (GI).
+#pragma once
+
+#include <span>
+#include <vector>
+
+#include "lidartag/detector/clustering.hpp"
+#include "lidartag/detector/types.hpp"
+#include "lidartag/driver/scan.hpp"
+
+namespace lidartag::detector {
+
+struct ValidationOptions {
+  // Fewest features and rings a cluster needs to be looked at. Defaults 4 and 3: a tag crossed by
+  // fewer rings cannot be decoded.
+  int min_features = 4;
+  int min_rings = 3;
+  // Lower bound eta = min_returns_per_cell * total_width^2 (the paper assumes 5 returns per cell,
+  // i.e. 5 (d+4)^2; the published code 2 (d+2)^2). Default 1.0: a 1.2 m tag16h5 at 16 m on a
+  // VLP-32C returns about 4 points per cell, at 20 m and 45 degrees fewer than 2.
+  float min_returns_per_cell = 1.0f;
+  // Upper bound = max_points_scale * M t sqrt(2) / (D sin theta) (M rings on the cluster, D its
+  // mean range, theta the horizontal resolution). Default 1.3 (slack for range noise).
+  float max_points_scale = 1.3f;
+  // Fill-in: points within this distance (metres) outside the features' x-y box are kept.
+  // Default 0.02.
+  float fill_margin_m = 0.02f;
+  // eq. (GI): l (columns) and the threshold, a fraction of the cluster's mean intensity (default
+  // 0.5, as published) but at least min_intensity_step (default 8 of 255).
+  int gi_ell = 1;
+  float boundary_ratio = 0.5f;
+  float min_intensity_step = 8.0f;
+  // psi >= boundary_scale * 2 (d + 2) payload boundary points (d payload cells across).
+  // Default 1 (the paper's bound).
+  float boundary_scale = 1.0f;
+};
+
+// Fill-in: the points of return 0 on each ring of `cluster` between that ring's first and last
+// feature (`members` indexes `features`) and inside the features' x-y box padded by
+// fill_margin_m. Points come out ring by ring, by column; the first and last of a ring are marked
+// `edge`. `ring_cols` is a work buffer. Returns kNone, kFewFeatures or kTooLarge.
+Rejection fill_cluster(const Scan& scan, std::span<const Feature> features,
+                       std::span<const int> members, const Cluster& cluster,
+                       const ValidationOptions& opt, float max_extent_m,
+                       std::vector<ClusterPoint>& out, std::vector<int>& ring_cols);
+
+// The paper's upper bound on the returns of a tag of size t_max at the cluster's distance.
+double max_tag_points(std::span<const ClusterPoint> points, double t_max,
+                      double horizontal_resolution_rad);
+
+// Number of rings holding points (M in the paper's upper bound).
+int rings_in(std::span<const ClusterPoint> points);
+
+// eq. (GI) along each ring: grad I = |I_{i+l} - I_i| - |I_{i-l} - I_i|; a point whose gradient
+// exceeds the threshold is a payload boundary point. Returns their number.
+int count_boundary_points(std::span<const ClusterPoint> points, const ValidationOptions& opt);
+
+}  // namespace lidartag::detector

@@ -1,0 +1,42 @@
+// Stage 1 (paper Sec. IV-A): distance-gradient edge points per ring, eq. (GD).
+#pragma once
+
+#include <vector>
+
+#include "lidartag/detector/types.hpp"
+#include "lidartag/driver/scan.hpp"
+
+namespace lidartag::detector {
+
+struct FeatureOptions {
+  // l of eq. (GD): the neighbours compared are l columns away. Default 1 (the paper's). Larger
+  // values tolerate noisier rings but blur the edges.
+  int ell = 1;
+  // zeta of eq. (GD), metres. Default 0.5. A tag must stand this far in front of its background;
+  // smaller values find tags closer to walls but give more clutter clusters.
+  float zeta_m = 0.5f;
+  // "One edge among n+1 consecutive points" (the paper's n). Default 2. Drops runs of edges
+  // (vegetation, mixed pixels); 0 keeps every edge point.
+  int n = 2;
+  // Points outside [min_range_m, max_range_m] are ignored. Defaults 0.5 m and 40 m: beyond 40 m a
+  // 1.2 m tag has too few points to decode on a 32-beam sensor.
+  float min_range_m = 0.5f;
+  float max_range_m = 40.0f;
+  // Longest run (metres, chord between its ends) whose two edges are paired as the two sides of
+  // one object, so that a tag mounted as a square (left and right sides a full tag apart) forms
+  // one cluster. Set by the detector from the largest tag size; 0 disables pairing.
+  float max_pair_chord_m = 0.0f;
+};
+
+// Appends the features of return 0 (the strongest echo) of every ring to `out` (cleared first),
+// ring by ring from ring 0 upward and by column within a ring. A missing neighbour (no return)
+// counts as infinitely far, so a tag against the sky still has edges. Only the near side of a
+// jump is an edge point: the features lie on the foreground object.
+// True when the scan's columns cover the full circle, so that the last column neighbours the
+// first (a complete rotation); features and fill-in then wrap around.
+bool rotation_wraps(const Scan& scan);
+
+void detect_edge_features(const Scan& scan, const FeatureOptions& opt, std::vector<Feature>& out,
+                          std::vector<float>& gradient_buffer);
+
+}  // namespace lidartag::detector

@@ -1,0 +1,102 @@
+// Stage 5 (paper Sec. V): Procrustes initial guess, eq. (procrustes); the L1-inspired fitting cost,
+// eqs. (L1cost) and (JKHcost), minimised with NLopt using its closed-form gradient, eq. (Pose); the
+// coverage check (convex hull, surveyor's formula).
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <optional>
+#include <span>
+#include <string_view>
+#include <vector>
+
+#include "lidartag/detector/types.hpp"
+
+namespace lidartag::detector {
+
+enum class PoseAlgorithm : uint8_t {
+  kMMA,     // NLOPT_LD_MMA, gradient based (the paper's choice)
+  kCCSAQ,   // NLOPT_LD_CCSAQ, gradient based
+  kSLSQP,   // NLOPT_LD_SLSQP, gradient based
+  kSBPLX,   // NLOPT_LN_SBPLX, derivative free (the Tier IV fork's choice)
+  kBOBYQA,  // NLOPT_LN_BOBYQA, derivative free
+};
+std::string_view pose_algorithm_name(PoseAlgorithm a);
+std::optional<PoseAlgorithm> pose_algorithm_from_name(std::string_view name);
+
+struct PoseOptions {
+  // NLopt algorithm for eq. (Pose). Default MMA: in the comparison printed by
+  // test/detector/pose_fit_test.cpp (PoseFit.AlgorithmsCompared) it had the lowest mean
+  // translation error with the fewest evaluations (about 56, against about 200 for LN_SBPLX).
+  PoseAlgorithm algorithm = PoseAlgorithm::kMMA;
+  // Search box around the initial guess: metres and radians. Defaults 0.2 m and 0.5 rad.
+  double translation_bound_m = 0.2;
+  double rotation_bound_rad = 0.5;
+  // Stopping rules: relative parameter tolerance (default 1e-6) and most cost evaluations (200).
+  double xtol_rel = 1e-6;
+  int max_evaluations = 200;
+  // epsilon of eq. (JKHcost): the depth slack, the plane's smallest principal standard deviation
+  // but at least this many metres. Default 0.01.
+  double min_depth_epsilon_m = 0.01;
+  // Fit-error gate: largest mean cost per point after the fit, metres. Default 0.05 (the paper
+  // rejects above 10 % of the point count, i.e. 0.1 m per point).
+  double max_mean_cost_m = 0.05;
+  // Coverage: the convex hull of the pulled-back points must cover this fraction of t^2. Default
+  // 0.75 (the paper's).
+  double min_coverage = 0.75;
+};
+
+// H_T^L: x_tag = R x_sensor + p (the paper's pull-back to the template at the origin).
+struct RigidPose {
+  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d p = Eigen::Vector3d::Zero();
+  Eigen::Vector3d apply(const Eigen::Vector3d& x) const { return R * x + p; }
+};
+
+// Template corners of a tag of size t: (0, -t/2, -t/2), (0, t/2, -t/2), (0, t/2, t/2),
+// (0, -t/2, t/2) (bottom-left, bottom-right, top-right, top-left seen from the front).
+std::array<Eigen::Vector3d, 4> template_corners(double t);
+
+// eq. (procrustes): the rotation and translation taking `corners` (sensor frame, in template
+// order) onto the template, with the corners' mean mapped to the origin.
+RigidPose procrustes_initial_guess(const std::array<Eigen::Vector3d, 4>& corners, double t);
+
+// eq. (JKHcost) of the points pulled back by `pose`, with eq. (L1cost) per coordinate.
+double fitting_cost(std::span<const ClusterPoint> points, const RigidPose& pose, double t,
+                    double epsilon);
+
+struct PoseFitResult {
+  RigidPose pose;
+  double initial_cost = 0.0;
+  double cost = 0.0;
+  int evaluations = 0;
+  bool solver_ok = false;  // NLopt returned a success code
+};
+
+// Minimises eq. (JKHcost) over SE(3) near `initial` with NLopt. One instance per thread; the
+// NLopt object and buffers are kept between calls.
+class PoseSolver {
+ public:
+  explicit PoseSolver(PoseAlgorithm algorithm);
+  ~PoseSolver();
+  PoseSolver(const PoseSolver&) = delete;
+  PoseSolver& operator=(const PoseSolver&) = delete;
+
+  PoseFitResult fit(std::span<const ClusterPoint> points, double t, double epsilon,
+                    const RigidPose& initial, const PoseOptions& opt);
+
+  // The objective in the solver's parameters (rotation vector, translation offset) around the
+  // initial guess of the last fit(); public so that its closed-form gradient can be tested.
+  double objective(const double* theta, double* grad) const;
+
+ private:
+  struct Impl;
+  Impl* impl_;
+};
+
+// Fraction of t^2 covered by the convex hull of the pulled-back points in the tag's y-z plane
+// (surveyor's formula).
+double coverage_ratio(std::span<const ClusterPoint> points, const RigidPose& pose, double t,
+                      std::vector<Eigen::Vector2d>& buffer, std::vector<Eigen::Vector2d>& hull);
+
+}  // namespace lidartag::detector

@@ -1,0 +1,39 @@
+// Scans without ring numbers (a PCD from another tool): rings regressed from elevation angles
+// (paper Sec. IV-B, remark), so that an unorganised cloud becomes a ring-major Scan.
+#pragma once
+
+#include <span>
+#include <vector>
+
+#include "lidartag/driver/scan.hpp"
+
+namespace lidartag::detector {
+
+struct CloudPoint {
+  float x = 0, y = 0, z = 0;  // metres, sensor frame
+  float intensity = 0;        // 0..255
+};
+
+struct RingRegressionOptions {
+  // Beam elevations in degrees (any order). Empty: estimated from the cloud with `rings` beams.
+  std::vector<double> elevations_deg;
+  // Number of beams when the elevations are not given. Default 0 (then elevations are required).
+  int rings = 0;
+  // Width of a column of the organised scan, degrees of azimuth. Default 0.2 (a Velodyne at
+  // 10 Hz); use the sensor's horizontal resolution.
+  double horizontal_resolution_deg = 0.2;
+};
+
+// The `rings` beam elevations (ascending, degrees) of a single-axis spinning sensor: the cloud's
+// elevation angles atan(z / sqrt(x^2 + y^2)) split at the rings - 1 widest gaps, each group's mean.
+// Returns an empty vector when the cloud has fewer distinct elevations than rings.
+std::vector<double> estimate_elevations(std::span<const CloudPoint> cloud, int rings);
+
+// Ring of each point: the nearest beam elevation (ring 0 = lowest); column: the nearest multiple
+// of the horizontal resolution in azimuth (azimuth
+// clockwise from +x, as the sensor's). A cell hit twice keeps the nearer point. `out` is resized
+// when its dimensions differ. Returns false (and leaves `out` empty) when no elevations are given
+// or can be estimated.
+bool regress_rings(std::span<const CloudPoint> cloud, const RingRegressionOptions& opt, Scan& out);
+
+}  // namespace lidartag::detector

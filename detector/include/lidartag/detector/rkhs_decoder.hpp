@@ -1,0 +1,79 @@
+// Stage 6 (paper Sec. VI): decoding by inner products of RKHS functions, eqs. (InnerProduct),
+// (kernel), (kernel_intensity) and the 3-D lifting remark, against a function dictionary of every
+// code x 4 rotations built from the family's code words.
+#pragma once
+
+#include <span>
+#include <vector>
+
+#include "lidartag/detector/tag_family.hpp"
+#include "lidartag/detector/types.hpp"
+
+namespace lidartag::detector {
+
+struct DecodeOptions {
+  // Template points per cell along each axis (the dictionary functions' representers).
+  // Default 2.
+  int samples_per_cell = 2;
+  // Length scale of the spatial kernel eq. (kernel), in cells. Default 0.25: the paper's half a
+  // bit lets the eight neighbours of an isolated cell outweigh it (flipped-cell tests mis-decode).
+  double length_scale_cells = 0.25;
+  // l_I of eq. (kernel_intensity) on intensities normalised to black 0, white 1. Default 0.35 (the
+  // paper's 10 of 255 assumes one fixed contrast).
+  double intensity_length_scale = 0.35;
+  // 3-D lifting: a white point moves this many cells along the normal. Default 0.5 (the paper's
+  // t / (2 (d+4)) for the brightest point).
+  double lift_cells = 0.5;
+  // Fewest intensity units between the black and the white level. Default 8.
+  double min_contrast = 8.0;
+  // Decision: the best normalised score (1 = every cell agrees) must reach min_score (default
+  // 0.5) and beat the second best function (another code or another rotation) by min_margin_bits
+  // payload cells' worth of evidence (default 1.0: with tag16h5's 5-bit distance, two wrong cells
+  // still decode, more are rejected, never decoded as another code).
+  double min_score = 0.5;
+  double min_margin_bits = 1.0;
+  // Score the dictionary with TBB when it holds at least this many functions. Default 4096.
+  int parallel_min_functions = 4096;
+};
+
+// The function dictionary of one family: for code k and quarter turn q (clockwise, seen from the
+// front), the sign (+1 white, -1 black) of each of the W x W cells of the rotated marker image.
+class RkhsDictionary {
+ public:
+  explicit RkhsDictionary(const tags::TagFamily& family);
+  const tags::TagFamily& family() const { return family_; }
+  int width() const { return width_; }
+  int functions() const { return static_cast<int>(signs_.size()) / (width_ * width_); }
+  // Cell signs of function f = 4 * code_index + quarter_turns, row-major, row 0 at the top.
+  const float* signs(int f) const {
+    return signs_.data() + static_cast<size_t>(f) * static_cast<size_t>(width_ * width_);
+  }
+
+ private:
+  tags::TagFamily family_;
+  int width_ = 0;
+  std::vector<float> signs_;
+};
+
+struct DecodeWorkspace {
+  std::vector<float> acc_white, acc_black;  // kernel sums at the template sample points
+  std::vector<float> evidence;              // per cell: white minus black evidence
+  std::vector<float> scores;                // per dictionary function
+  std::vector<float> ex, ez;                // per point kernel factors
+  std::vector<float> sorted;                // intensity medians
+};
+
+struct DecodeResult {
+  Rejection rejection = Rejection::kLowContrast;
+  int code_index = -1;       // index into the family's codes
+  int quarter_turns = 0;     // the marker image, turned this many times clockwise, fits the points
+  double score = 0.0;        // normalised inner product of the best function, <= 1
+  double margin_bits = 0.0;  // best minus second best, in mean payload cells' worth of evidence
+};
+
+// `points` are pulled back into the estimated tag frame (x normal, y right, z up, metres) with
+// their intensities; t is the tag size.
+DecodeResult decode_tag(std::span<const ClusterPoint> points, double t, const RkhsDictionary& dict,
+                        const DecodeOptions& opt, DecodeWorkspace& ws);
+
+}  // namespace lidartag::detector

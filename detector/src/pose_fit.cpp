@@ -1,0 +1,239 @@
+#include "lidartag/detector/pose_fit.hpp"
+
+#include <nlopt.h>
+
+#include <Eigen/Geometry>
+#include <Eigen/SVD>
+#include <cmath>
+#include <stdexcept>
+
+#include "geometry.hpp"
+
+namespace lidartag::detector {
+namespace {
+
+constexpr std::array<std::pair<PoseAlgorithm, std::string_view>, 5> kNames = {{
+    {PoseAlgorithm::kMMA, "mma"},
+    {PoseAlgorithm::kCCSAQ, "ccsaq"},
+    {PoseAlgorithm::kSLSQP, "slsqp"},
+    {PoseAlgorithm::kSBPLX, "sbplx"},
+    {PoseAlgorithm::kBOBYQA, "bobyqa"},
+}};
+
+nlopt_algorithm to_nlopt(PoseAlgorithm a) {
+  switch (a) {
+    case PoseAlgorithm::kMMA:
+      return NLOPT_LD_MMA;
+    case PoseAlgorithm::kCCSAQ:
+      return NLOPT_LD_CCSAQ;
+    case PoseAlgorithm::kSLSQP:
+      return NLOPT_LD_SLSQP;
+    case PoseAlgorithm::kSBPLX:
+      return NLOPT_LN_SBPLX;
+    case PoseAlgorithm::kBOBYQA:
+      return NLOPT_LN_BOBYQA;
+  }
+  return NLOPT_LD_MMA;
+}
+
+Eigen::Matrix3d hat(const Eigen::Vector3d& w) {
+  Eigen::Matrix3d m;
+  m << 0, -w.z(), w.y(), w.z(), 0, -w.x(), -w.y(), w.x(), 0;
+  return m;
+}
+
+Eigen::Matrix3d exp_so3(const Eigen::Vector3d& w) {
+  const double th = w.norm();
+  if (th < 1e-12) return Eigen::Matrix3d::Identity() + hat(w);
+  return Eigen::AngleAxisd(th, w / th).toRotationMatrix();
+}
+
+// Right Jacobian of SO(3): Exp(w + dw) ~ Exp(w) Exp(J_r(w) dw).
+Eigen::Matrix3d right_jacobian(const Eigen::Vector3d& w) {
+  const double th = w.norm();
+  const Eigen::Matrix3d W = hat(w);
+  if (th < 1e-6) return Eigen::Matrix3d::Identity() - 0.5 * W;
+  const double th2 = th * th;
+  return Eigen::Matrix3d::Identity() - (1 - std::cos(th)) / th2 * W +
+         (th - std::sin(th)) / (th2 * th) * W * W;
+}
+
+// eq. (L1cost) and its derivative in lambda.
+inline double l1(double lambda, double a, double& d) {
+  const double m = std::abs(lambda);
+  if (m <= a) {
+    d = 0.0;
+    return 0.0;
+  }
+  d = lambda > 0 ? 1.0 : -1.0;
+  return m - a;
+}
+
+}  // namespace
+
+std::string_view pose_algorithm_name(PoseAlgorithm a) {
+  for (const auto& [k, n] : kNames)
+    if (k == a) return n;
+  return "?";
+}
+
+std::optional<PoseAlgorithm> pose_algorithm_from_name(std::string_view name) {
+  for (const auto& [k, n] : kNames)
+    if (n == name) return k;
+  return std::nullopt;
+}
+
+std::array<Eigen::Vector3d, 4> template_corners(double t) {
+  const double h = t / 2;
+  return {Eigen::Vector3d(0, -h, -h), Eigen::Vector3d(0, h, -h), Eigen::Vector3d(0, h, h),
+          Eigen::Vector3d(0, -h, h)};
+}
+
+RigidPose procrustes_initial_guess(const std::array<Eigen::Vector3d, 4>& corners, double t) {
+  const auto tmpl = template_corners(t);
+  Eigen::Vector3d x0 = Eigen::Vector3d::Zero();
+  for (const auto& c : corners) x0 += c;
+  x0 /= 4.0;
+  // M = Xbar X^T = U S V^T, R = U V^T (with the sign fix that keeps det R = +1).
+  Eigen::Matrix3d m = Eigen::Matrix3d::Zero();
+  for (size_t i = 0; i < 4; ++i) m += tmpl[i] * (corners[i] - x0).transpose();
+  Eigen::JacobiSVD<Eigen::Matrix3d> svd(m, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d d = Eigen::Matrix3d::Identity();
+  d(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0 ? -1.0 : 1.0;
+  RigidPose pose;
+  pose.R = svd.matrixU() * d * svd.matrixV().transpose();
+  pose.p = -pose.R * x0;  // p = -R X_0
+  return pose;
+}
+
+double fitting_cost(std::span<const ClusterPoint> points, const RigidPose& pose, double t,
+                    double epsilon) {
+  double c = 0.0, d = 0.0;
+  for (const auto& p : points) {
+    const Eigen::Vector3d q = pose.apply(Eigen::Vector3d(p.x, p.y, p.z));
+    c += l1(q.x(), epsilon, d) + l1(q.y(), t / 2, d) + l1(q.z(), t / 2, d);
+  }
+  return c;
+}
+
+struct PoseSolver::Impl {
+  nlopt_opt opt = nullptr;
+  bool gradient_based = true;
+  std::vector<Eigen::Vector3d> y;  // R0 (X_i - c): the points, centred and pre-rotated
+  Eigen::Matrix3d R0 = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  Eigen::Vector3d q0 = Eigen::Vector3d::Zero();
+  double half = 0.5, eps = 0.01;
+  int evaluations = 0;
+};
+
+PoseSolver::PoseSolver(PoseAlgorithm algorithm) : impl_(new Impl) {
+  impl_->opt = nlopt_create(to_nlopt(algorithm), 6);
+  if (impl_->opt == nullptr) {
+    delete impl_;
+    throw std::runtime_error("NLopt: cannot create the pose solver");
+  }
+  impl_->gradient_based = algorithm == PoseAlgorithm::kMMA || algorithm == PoseAlgorithm::kCCSAQ ||
+                          algorithm == PoseAlgorithm::kSLSQP;
+}
+
+PoseSolver::~PoseSolver() {
+  nlopt_destroy(impl_->opt);
+  delete impl_;
+}
+
+// theta = (w, dq): x_bar_i = Exp(w) y_i + q0 + dq. Cost eq. (JKHcost); closed-form gradient:
+// dC/ddq = sum r_i, dC/dw = J_r(w)^T sum y_i x (Exp(w)^T r_i), r_i the per-axis L1 slopes.
+double PoseSolver::objective(const double* theta, double* grad) const {
+  Impl& s = *impl_;
+  ++s.evaluations;
+  const Eigen::Vector3d w(theta[0], theta[1], theta[2]);
+  const Eigen::Vector3d q = s.q0 + Eigen::Vector3d(theta[3], theta[4], theta[5]);
+  const Eigen::Matrix3d R = exp_so3(w);
+  double cost = 0.0;
+  Eigen::Vector3d gq = Eigen::Vector3d::Zero(), gw = Eigen::Vector3d::Zero();
+  for (const auto& y : s.y) {
+    const Eigen::Vector3d x = R * y + q;
+    Eigen::Vector3d r;
+    cost += l1(x.x(), s.eps, r.x()) + l1(x.y(), s.half, r.y()) + l1(x.z(), s.half, r.z());
+    if (grad != nullptr && !r.isZero()) {
+      gq += r;
+      gw += y.cross(R.transpose() * r);
+    }
+  }
+  if (grad != nullptr) {
+    gw = right_jacobian(w).transpose() * gw;
+    for (int k = 0; k < 3; ++k) {
+      grad[k] = gw(k);
+      grad[k + 3] = gq(k);
+    }
+  }
+  return cost;
+}
+
+PoseFitResult PoseSolver::fit(std::span<const ClusterPoint> points, double t, double epsilon,
+                              const RigidPose& initial, const PoseOptions& opt) {
+  Impl& s = *impl_;
+  PoseFitResult res;
+  res.pose = initial;
+  s.c.setZero();
+  for (const auto& p : points) s.c += Eigen::Vector3d(p.x, p.y, p.z);
+  if (!points.empty()) s.c /= static_cast<double>(points.size());
+  s.R0 = initial.R;
+  s.q0 = initial.R * s.c + initial.p;
+  s.y.clear();
+  for (const auto& p : points) s.y.push_back(s.R0 * (Eigen::Vector3d(p.x, p.y, p.z) - s.c));
+  s.half = t / 2;
+  s.eps = epsilon;
+  s.evaluations = 0;
+  std::array<double, 6> x{}, lb{}, ub{};
+  for (size_t k = 0; k < 3; ++k) {
+    lb[k] = -opt.rotation_bound_rad;
+    ub[k] = opt.rotation_bound_rad;
+    lb[k + 3] = -opt.translation_bound_m;
+    ub[k + 3] = opt.translation_bound_m;
+  }
+  res.initial_cost = objective(x.data(), nullptr);
+  nlopt_set_lower_bounds(s.opt, lb.data());
+  nlopt_set_upper_bounds(s.opt, ub.data());
+  nlopt_set_xtol_rel(s.opt, opt.xtol_rel);
+  nlopt_set_maxeval(s.opt, opt.max_evaluations);
+  if (!s.gradient_based) {
+    const std::array<double, 6> step = {0.02, 0.02, 0.02, 0.02, 0.02, 0.02};
+    nlopt_set_initial_step(s.opt, step.data());
+  }
+  nlopt_set_min_objective(
+      s.opt,
+      [](unsigned, const double* th, double* g, void* self) {
+        return static_cast<const PoseSolver*>(self)->objective(th, g);
+      },
+      this);
+  double f = res.initial_cost;
+  const nlopt_result rc = nlopt_optimize(s.opt, x.data(), &f);
+  res.solver_ok = rc > 0;
+  res.evaluations = s.evaluations;
+  if (rc < 0 || !std::isfinite(f) || f > res.initial_cost) {
+    x.fill(0.0);
+    f = res.initial_cost;
+  }
+  const Eigen::Matrix3d R = exp_so3(Eigen::Vector3d(x[0], x[1], x[2])) * s.R0;
+  const Eigen::Vector3d q = s.q0 + Eigen::Vector3d(x[3], x[4], x[5]);
+  res.pose.R = R;
+  res.pose.p = q - R * s.c;  // x_bar = R (X - c) + q
+  res.cost = f;
+  return res;
+}
+
+double coverage_ratio(std::span<const ClusterPoint> points, const RigidPose& pose, double t,
+                      std::vector<Eigen::Vector2d>& buffer, std::vector<Eigen::Vector2d>& hull) {
+  buffer.clear();
+  for (const auto& p : points) {
+    const Eigen::Vector3d q = pose.apply(Eigen::Vector3d(p.x, p.y, p.z));
+    buffer.emplace_back(q.y(), q.z());
+  }
+  geometry::convex_hull(buffer, hull);
+  if (hull.size() < 3) return 0.0;
+  return geometry::polygon_area(hull) / (t * t);
+}
+
+}  // namespace lidartag::detector

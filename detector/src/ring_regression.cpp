@@ -1,0 +1,95 @@
+#include "lidartag/detector/ring_regression.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+namespace lidartag::detector {
+namespace {
+
+double elevation_deg(const CloudPoint& p) {
+  return std::atan2(double{p.z}, std::hypot(double{p.x}, double{p.y})) * 180.0 / std::numbers::pi;
+}
+
+}  // namespace
+
+std::vector<double> estimate_elevations(std::span<const CloudPoint> cloud, int rings) {
+  std::vector<double> e;
+  if (rings <= 0) return e;
+  e.reserve(cloud.size());
+  for (const auto& p : cloud)
+    if (p.x != 0.0f || p.y != 0.0f || p.z != 0.0f) e.push_back(elevation_deg(p));
+  if (e.size() < static_cast<size_t>(rings)) return {};
+  std::sort(e.begin(), e.end());
+  // The rings - 1 widest gaps between consecutive elevations separate the beams.
+  std::vector<size_t> gap(e.size() - 1);
+  for (size_t i = 0; i + 1 < e.size(); ++i) gap[i] = i;
+  const auto nr = static_cast<size_t>(rings);
+  std::partial_sort(gap.begin(), gap.begin() + static_cast<std::ptrdiff_t>(nr - 1), gap.end(),
+                    [&](size_t a, size_t b) { return e[a + 1] - e[a] > e[b + 1] - e[b]; });
+  std::vector<size_t> cut(gap.begin(), gap.begin() + static_cast<std::ptrdiff_t>(nr - 1));
+  std::sort(cut.begin(), cut.end());
+  if (nr > 1 && e[cut.front() + 1] - e[cut.front()] <= 0.0) return {};
+  std::vector<double> out;
+  size_t begin = 0;
+  for (size_t k = 0; k <= cut.size(); ++k) {
+    const size_t end = k < cut.size() ? cut[k] + 1 : e.size();
+    double sum = 0.0;
+    for (size_t i = begin; i < end; ++i) sum += e[i];
+    out.push_back(sum / static_cast<double>(end - begin));
+    begin = end;
+  }
+  return out;
+}
+
+bool regress_rings(std::span<const CloudPoint> cloud, const RingRegressionOptions& opt, Scan& out) {
+  std::vector<double> elev = opt.elevations_deg;
+  if (elev.empty()) elev = estimate_elevations(cloud, opt.rings);
+  if (elev.empty() || opt.horizontal_resolution_deg <= 0.0) {
+    out.clear();
+    return false;
+  }
+  std::sort(elev.begin(), elev.end());
+  const int rings = static_cast<int>(elev.size());
+  const int cols = static_cast<int>(std::ceil(360.0 / opt.horizontal_resolution_deg));
+  if (out.rings != rings || out.returns != 1 || out.column_capacity != cols)
+    out.reserve(rings, 1, cols);
+  out.clear();
+  std::fill(out.range.begin(), out.range.end(), 0.0f);
+  std::fill(out.return_type.begin(), out.return_type.end(), ReturnType::kNone);
+  out.columns = cols;
+  for (int c = 0; c < cols; ++c) {
+    out.column_azimuth_deg[static_cast<size_t>(c)] =
+        static_cast<float>(c * opt.horizontal_resolution_deg);
+    out.column_time_s[static_cast<size_t>(c)] = 0.0;
+  }
+  for (const auto& p : cloud) {
+    const double range = std::sqrt(double{p.x} * p.x + double{p.y} * p.y + double{p.z} * p.z);
+    if (!(range > 0.0) || !std::isfinite(range)) continue;
+    const double e = elevation_deg(p);
+    // Nearest beam elevation.
+    const auto it = std::lower_bound(elev.begin(), elev.end(), e);
+    int ring = static_cast<int>(it - elev.begin());
+    if (ring == rings ||
+        (ring > 0 && e - elev[static_cast<size_t>(ring - 1)] < elev[static_cast<size_t>(ring)] - e))
+      --ring;
+    double az = std::atan2(-double{p.y}, double{p.x}) * 180.0 / std::numbers::pi;
+    if (az < 0) az += 360.0;
+    // Column c is centred on azimuth c * resolution (as a sensor's firing azimuths are).
+    int col = static_cast<int>(std::lround(az / opt.horizontal_resolution_deg));
+    if (col >= cols) col -= cols;
+    const size_t i = out.at(0, ring, col);
+    if (out.range[i] > 0.0f && out.range[i] <= range) continue;
+    out.x[i] = p.x;
+    out.y[i] = p.y;
+    out.z[i] = p.z;
+    out.range[i] = static_cast<float>(range);
+    out.azimuth_deg[i] = static_cast<float>(az);
+    out.time_s[i] = 0.0f;
+    out.intensity[i] = static_cast<uint8_t>(std::clamp(p.intensity, 0.0f, 255.0f));
+    out.return_type[i] = ReturnType::kStrongest;
+  }
+  return true;
+}
+
+}  // namespace lidartag::detector

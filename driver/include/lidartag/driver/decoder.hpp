@@ -1,0 +1,124 @@
+// Data packet -> points of up to 24 columns, in ring order. Pure: no I/O, no allocation per packet.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+
+#include "lidartag/driver/calibration.hpp"
+#include "lidartag/driver/packet.hpp"
+#include "lidartag/driver/scan.hpp"
+#include "lidartag/driver/sensor_clock.hpp"
+#include "lidartag/driver/sensor_model.hpp"
+
+namespace lidartag::velodyne {
+
+enum class DecodeStatus : uint8_t {
+  kOk = 0,
+  kWrongSize,      // payload is not 1206 bytes
+  kBadBlockFlag,   // a block does not start with a flag of this model
+  kBadAzimuth,     // an azimuth above 35999
+  kBadReturnMode,  // byte 1204 is not 0x37/0x38/0x39 (0x00, old firmware, reads as strongest)
+};
+std::string_view decode_status_name(DecodeStatus s);
+
+// The points of one data packet. Cells are indexed [ret][col][ring]; ring 0 is the lowest beam.
+struct DecodedPacket {
+  static constexpr int kMaxColumns = 24;
+  static constexpr int kMaxRings = 128;
+  static constexpr int kMaxCells = 2 * 384;  // returns x columns x rings, all models
+
+  int columns = 0;
+  int rings = 0;
+  int returns = 1;
+  ReturnMode mode = ReturnMode::kStrongest;
+  uint32_t usec_since_hour = 0;  // packet timestamp field
+  int64_t stamp_ns = 0;          // absolute time of the packet's first firing (SensorClock)
+  std::array<float, kMaxColumns> column_azimuth_deg{};  // firing azimuth, [0, 360)
+  std::array<double, kMaxColumns> column_time_us{};     // from the packet's first firing
+
+  std::array<float, kMaxCells> x{}, y{}, z{}, range{}, azimuth_deg{}, time_us{};
+  std::array<uint8_t, kMaxCells> intensity{};
+  std::array<ReturnType, kMaxCells> return_type{};
+
+  int at(int ret, int col, int ring) const { return (ret * columns + col) * rings + ring; }
+};
+
+// The model decoded is the calibration's: the caller picks it from configuration or from the
+// product byte (ModelCheck tells whether that byte fits the packets' timing).
+struct DecoderOptions {
+  // Returns closer than this or farther than max are dropped. <= 0: the model's own limits.
+  double min_range_m = 0.0;
+  double max_range_m = 0.0;
+};
+
+// Decodes data packets of one sensor. Holds the calibration, sin/cos tables and the last measured
+// rotation rate (used where a packet's own azimuths cannot give it).
+class Decoder {
+ public:
+  // `calibration.model` is the model decoded; the calibration must match it (lasers count).
+  explicit Decoder(Calibration calibration, DecoderOptions options = {});
+
+  // Decodes `payload` into `out`; `clock` turns the packet timestamp into absolute time.
+  [[nodiscard]] DecodeStatus decode(std::span<const uint8_t> payload, const SensorClock& clock,
+                                    int64_t receive_time_ns, DecodedPacket& out);
+
+  const Calibration& calibration() const { return calibration_; }
+  const ModelSpec& spec() const { return *spec_; }
+  // Last rotation rate measured from block azimuths, degrees per microsecond.
+  double rate_deg_per_us() const { return rate_deg_per_us_; }
+
+ private:
+  Calibration calibration_;
+  DecoderOptions options_;
+  const ModelSpec* spec_;
+  double min_range_m_, max_range_m_;
+  // Per-laser constants, flattened for the per-point loop.
+  std::array<double, 128> sin_el_{}, cos_el_{}, laser_time_us_{};
+  std::array<double, 128> az_offset_{}, vert_offset_{}, horiz_offset_{}, dist_offset_{};
+  std::array<int, 128> ring_{};
+  double rate_deg_per_us_;
+  const float* sin_table_;  // sin of azimuth in 0.01 deg steps, 36001 entries
+  const float* cos_table_;
+  // Previous packet, to measure the rate where a packet holds one azimuth (VLS-128 dual).
+  bool have_previous_ = false;
+  uint16_t previous_azimuth_ = 0;
+  uint32_t previous_usec_ = 0;
+};
+
+// Reads the model and return mode bytes of a data packet without decoding it.
+struct PacketHeader {
+  uint8_t product_id = 0;
+  uint8_t return_mode = 0;
+  uint32_t usec_since_hour = 0;
+};
+[[nodiscard]] bool read_header(std::span<const uint8_t> payload, PacketHeader& out);
+
+// Model autodetection checked against structure and timing: accumulates the packets' timestamp
+// steps and block flags, and tells which model they fit, so that a capture whose product byte
+// contradicts its timing is noticed (the real VLP-16 captures with product byte 0x21 exist).
+class ModelCheck {
+ public:
+  void add(std::span<const uint8_t> payload);
+  // Needs a few packets; empty while undecided.
+  std::optional<Model> product_model() const { return product_model_; }
+  std::optional<Model> timing_model() const;
+  double median_packet_period_us() const;
+  std::optional<ReturnMode> return_mode() const { return mode_; }
+  // Human-readable mismatch, empty when the product byte fits the timing.
+  std::string mismatch() const;
+  size_t packets() const { return packets_; }
+
+ private:
+  std::optional<Model> product_model_;
+  std::optional<ReturnMode> mode_;
+  std::array<uint32_t, 64> steps_{};
+  size_t step_count_ = 0;
+  size_t packets_ = 0;
+  bool has_bank_flags_ = false;
+  std::optional<uint32_t> last_usec_;
+};
+
+}  // namespace lidartag::velodyne

@@ -1,0 +1,114 @@
+// Capture -> rotations: the plumbing shared by `lidartag info/dump/detect` and the daemon's replay.
+// PacketSource -> (data: ModelCheck, Decoder with a SensorClock; position: parse_position_packet,
+// SensorClock::update) -> ScanBatcher -> a small pool of scans handed out one at a time.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "lidartag/driver/calibration.hpp"
+#include "lidartag/driver/decoder.hpp"
+#include "lidartag/driver/io/pcap_source.hpp"
+#include "lidartag/driver/packet.hpp"
+#include "lidartag/driver/packet_source.hpp"
+#include "lidartag/driver/scan.hpp"
+#include "lidartag/driver/scan_batcher.hpp"
+#include "lidartag/driver/sensor_clock.hpp"
+
+namespace lidartag::velodyne {
+
+struct CaptureReaderOptions {
+  // Ports tell data from position packets; the file constructor also opens the capture with these
+  // options (as fast as possible unless pacing is set).
+  PcapSourceOptions source;
+  // Model to decode as. Empty: the product byte of the data packets, checked against their timing
+  // by ModelCheck (see model_mismatch()); the timing's model when the byte names none.
+  std::optional<Model> model;
+  // ros-drivers calibration file; empty: the model's built-in table.
+  std::string calibration_file;
+  // Range limits.
+  DecoderOptions decoder;
+  BatcherOptions batcher;
+  // Data packets examined before the model is decided when it is not given (held back, then
+  // decoded in order). ModelCheck needs about ten for the timing.
+  size_t probe_packets = 32;
+  // Scans allocated for rotations in flight: one being filled, the one handed out, and a queue.
+  size_t scan_pool = 4;
+};
+
+// What the reader saw, by kind.
+struct CaptureCounts {
+  uint64_t data_packets = 0;                // payloads on the data port
+  uint64_t position_packets = 0;            // payloads on the position port
+  uint64_t decoded = 0;                     // data packets decoded into columns
+  std::array<uint64_t, 8> decode_errors{};  // indexed by DecodeStatus (kOk unused)
+  uint64_t undecodable = 0;            // data packets with no model to decode them (unknown sensor)
+  uint64_t position_ok = 0;            // position packets parsed
+  uint64_t position_errors = 0;        // wrong size or bad PPS byte
+  uint64_t gprmc_valid = 0;            // position packets with a valid GPRMC fix
+  PpsStatus pps = PpsStatus::kAbsent;  // of the last parsed position packet
+  std::string last_nmea;               // the last NMEA sentence seen
+  int64_t first_time_ns = 0, last_time_ns = 0;  // receive times of the first and last packet
+};
+
+class CaptureReader {
+ public:
+  // Opens the capture file (IoError) and, with a model given, the calibration (CalibrationError).
+  CaptureReader(const std::string& path, CaptureReaderOptions options);
+  // Reads from any source (live or replay); ends when the source reports kEnd or kError.
+  CaptureReader(std::unique_ptr<PacketSource> source, CaptureReaderOptions options);
+  ~CaptureReader();
+  CaptureReader(const CaptureReader&) = delete;
+  CaptureReader& operator=(const CaptureReader&) = delete;
+
+  // The next rotation (complete or not: see Scan::complete), valid until the next call; nullptr
+  // once the source has ended and everything was flushed. May throw CalibrationError once, when
+  // the model is decided from the data and the calibration file does not fit it.
+  const Scan* next();
+
+  std::optional<Model> model() const { return model_; }  // empty until decided
+  std::optional<ReturnMode> return_mode() const { return mode_; }
+  const ModelCheck& model_check() const { return check_; }
+  // ModelCheck's complaint when the product byte contradicts the timing, else empty.
+  std::string model_mismatch() const { return check_.mismatch(); }
+  const CaptureCounts& counts() const { return counts_; }
+  SourceStats source_stats() const { return source_->stats(); }
+  BatcherStats batcher_stats() const;
+  const SensorClock& clock() const { return clock_; }
+  const Calibration* calibration() const;
+
+ private:
+  struct Held {
+    std::vector<uint8_t> payload;
+    int64_t time_ns;
+    uint16_t port;
+  };
+  class Pool;
+
+  void take(const RawPacket& packet);
+  void handle(std::span<const uint8_t> payload, int64_t time_ns, uint16_t port);
+  void decide();
+
+  std::unique_ptr<PacketSource> source_;
+  CaptureReaderOptions options_;
+  std::unique_ptr<Pool> pool_;
+  std::unique_ptr<Decoder> decoder_;
+  std::unique_ptr<ScanBatcher> batcher_;
+  std::unique_ptr<DecodedPacket> packet_;
+  SensorClock clock_;
+  ModelCheck check_;
+  CaptureCounts counts_;
+  std::optional<Model> model_;
+  std::optional<ReturnMode> mode_;
+  bool decided_ = false;
+  bool finished_ = false;
+  std::vector<Held> held_;  // packets read while probing
+  Scan* out_ = nullptr;     // the scan handed out by next()
+};
+
+}  // namespace lidartag::velodyne

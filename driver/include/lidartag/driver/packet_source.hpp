@@ -1,0 +1,38 @@
+// One interface for live sockets, live interface capture and pcap replay: each packet carries its
+// receive (or capture) time, so recorded captures drive the tests and the daemon alike.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <span>
+
+namespace lidartag::velodyne {
+
+struct RawPacket {
+  std::span<const uint8_t> payload;  // UDP payload; valid until the next call to next()
+  int64_t receive_time_ns = 0;       // host receive time or capture timestamp, ns since epoch
+  uint32_t source_ipv4 = 0;          // sender address, host byte order (0 if unknown)
+  uint16_t destination_port = 0;
+};
+
+enum class ReadStatus : uint8_t { kPacket, kTimeout, kEnd, kError };
+
+struct SourceStats {
+  uint64_t packets = 0;  // UDP payloads delivered
+  uint64_t bytes = 0;
+  uint64_t ignored = 0;       // other traffic: wrong port, address, protocol, not IPv4/UDP
+  uint64_t truncated = 0;     // records shorter than their headers claim (never read past)
+  uint64_t malformed = 0;     // corrupt headers
+  uint64_t kernel_drops = 0;  // reported by the kernel / libpcap
+  uint64_t errors = 0;        // read errors
+};
+
+class PacketSource {
+ public:
+  virtual ~PacketSource() = default;
+  // Next packet, or kTimeout after `timeout`, kEnd at the end of a finite source.
+  virtual ReadStatus next(RawPacket& out, std::chrono::milliseconds timeout) = 0;
+  virtual SourceStats stats() const = 0;
+};
+
+}  // namespace lidartag::velodyne

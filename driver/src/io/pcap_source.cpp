@@ -1,0 +1,170 @@
+#include "lidartag/driver/io/pcap_source.hpp"
+
+#include <pcap/pcap.h>
+
+#include <cmath>
+#include <thread>
+
+namespace lidartag::velodyne {
+namespace {
+
+pcap_t* as_pcap(void* p) {
+  return static_cast<pcap_t*>(p);
+}
+
+// One microsecond: the smallest step between two passes of a looped file.
+constexpr int64_t kMinLoopGapNs = 1000;
+
+}  // namespace
+
+ReplaySchedule::Clock::time_point ReplaySchedule::due(int64_t capture_ns, Clock::time_point now) {
+  if (!anchored_) {
+    anchored_ = true;
+    first_capture_ns_ = capture_ns;
+    anchor_ = now;
+  }
+  const double offset_ns = static_cast<double>(capture_ns - first_capture_ns_) / rate_;
+  return anchor_ + std::chrono::nanoseconds(static_cast<int64_t>(std::llround(offset_ns)));
+}
+
+PcapSource::PcapSource(const std::string& path, PcapSourceOptions options)
+    : path_(path), options_(options), schedule_(options.rate) {
+  if (!(options_.rate > 0.0) || !std::isfinite(options_.rate)) {
+    throw IoError("replay rate must be a positive number (got " + std::to_string(options_.rate) +
+                  ") for '" + path + "'");
+  }
+  open();
+}
+
+PcapSource::~PcapSource() {
+  close();
+}
+
+void PcapSource::open() {
+  char errbuf[PCAP_ERRBUF_SIZE] = {};
+  // Nanosecond precision: libpcap scales microsecond files up, so one code path serves both.
+  pcap_t* pcap =
+      pcap_open_offline_with_tstamp_precision(path_.c_str(), PCAP_TSTAMP_PRECISION_NANO, errbuf);
+  if (pcap == nullptr) throw IoError("cannot open capture '" + path_ + "': " + errbuf);
+  const int dlt = pcap_datalink(pcap);
+  if (!is_supported_link_type(dlt)) {
+    const char* name = pcap_datalink_val_to_name(dlt);
+    pcap_close(pcap);
+    throw IoError("capture '" + path_ + "' has unsupported link type " + std::to_string(dlt) +
+                  (name != nullptr ? std::string(" (") + name + ")" : std::string()) +
+                  "; supported: Ethernet, Linux cooked capture (v1, v2), raw IP");
+  }
+  pcap_ = pcap;
+  link_type_ = dlt;
+}
+
+void PcapSource::close() {
+  if (pcap_ != nullptr) pcap_close(as_pcap(pcap_));
+  pcap_ = nullptr;
+}
+
+bool PcapSource::read_packet() {
+  if (pcap_ == nullptr) return false;
+  for (;;) {
+    pcap_pkthdr* header = nullptr;
+    const u_char* data = nullptr;
+    const int rc = pcap_next_ex(as_pcap(pcap_), &header, &data);
+    if (rc == PCAP_ERROR_BREAK) return false;  // clean end of file
+    if (rc != 1) {
+      // A record header that promises more than the file holds, or a corrupt one: libpcap cannot
+      // resynchronise, so this pass ends here.
+      last_error_ = pcap_geterr(as_pcap(pcap_));
+      if (last_error_.find("truncated") != std::string::npos) {
+        ++stats_.truncated;
+      } else {
+        ++stats_.malformed;
+      }
+      return false;
+    }
+    ++records_;
+    const int64_t stamp_ns = static_cast<int64_t>(header->ts.tv_sec) * 1'000'000'000 +
+                             static_cast<int64_t>(header->ts.tv_usec);  // ns precision
+    if (have_first_) {
+      if (stamp_ns > last_ns_) last_interval_ns_ = stamp_ns - last_ns_;
+    } else {
+      have_first_ = true;
+      first_ns_ = stamp_ns;
+    }
+    last_ns_ = stamp_ns;
+
+    UdpView udp;
+    const std::span<const uint8_t> frame(data, header->caplen);
+    switch (parse_udp_frame(static_cast<LinkType>(link_type_), frame, udp)) {
+      case FrameStatus::kUdp:
+        break;
+      case FrameStatus::kIgnored:
+        ++stats_.ignored;
+        continue;
+      case FrameStatus::kFragment:
+        ++fragments_;
+        ++stats_.ignored;
+        continue;
+      case FrameStatus::kTruncated:
+        ++stats_.truncated;
+        continue;
+      case FrameStatus::kMalformed:
+        ++stats_.malformed;
+        continue;
+    }
+    if ((udp.destination_port != options_.data_port &&
+         udp.destination_port != options_.position_port) ||
+        (options_.sensor_ipv4 && udp.source_ipv4 != *options_.sensor_ipv4)) {
+      ++stats_.ignored;
+      continue;
+    }
+    pending_packet_.payload = udp.payload;
+    pending_packet_.receive_time_ns = stamp_ns + shift_ns_;
+    pending_packet_.source_ipv4 = udp.source_ipv4;
+    pending_packet_.destination_port = udp.destination_port;
+    return true;
+  }
+}
+
+bool PcapSource::restart() {
+  // A pass that delivered nothing would loop forever without progress.
+  if (!options_.loop || delivered_this_pass_ == 0) return false;
+  close();
+  open();
+  shift_ns_ += (last_ns_ - first_ns_) + std::max(last_interval_ns_, kMinLoopGapNs);
+  have_first_ = false;
+  delivered_this_pass_ = 0;
+  return true;
+}
+
+ReadStatus PcapSource::next(RawPacket& out, std::chrono::milliseconds timeout) {
+  while (!pending_) {
+    if (read_packet()) {
+      pending_ = true;
+      break;
+    }
+    ++passes_;
+    if (!restart()) {
+      close();
+      return ReadStatus::kEnd;
+    }
+  }
+  if (options_.pacing == ReplayPacing::kCaptureTime) {
+    const auto now = ReplaySchedule::Clock::now();
+    const auto due = schedule_.due(pending_packet_.receive_time_ns, now);
+    if (due > now) {
+      if (due - now > timeout) {
+        std::this_thread::sleep_for(timeout);
+        return ReadStatus::kTimeout;
+      }
+      std::this_thread::sleep_until(due);
+    }
+  }
+  pending_ = false;
+  out = pending_packet_;
+  ++delivered_this_pass_;
+  ++stats_.packets;
+  stats_.bytes += out.payload.size();
+  return ReadStatus::kPacket;
+}
+
+}  // namespace lidartag::velodyne

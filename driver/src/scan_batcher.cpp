@@ -1,0 +1,207 @@
+#include "lidartag/driver/scan_batcher.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace lidartag::velodyne {
+namespace {
+
+inline double wrap360(double deg) {
+  deg = std::fmod(deg, 360.0);
+  return deg < 0 ? deg + 360.0 : deg;
+}
+
+// A time step this far from the firing period is a discontinuity of the stream (sensor restart,
+// replay loop), not loss.
+constexpr double kMaxGapUs = 1e6;
+
+}  // namespace
+
+ScanBatcher::ScanBatcher(const ModelSpec& spec, ReturnMode mode, BatcherOptions options,
+                         ScanSink& sink)
+    : spec_(spec), mode_(mode), options_(options), sink_(sink) {}
+
+int ScanBatcher::column_capacity(const ModelSpec& spec) {
+  // One rotation at 300 rpm lasts 200 ms; 10 % margin for clock drift and jitter.
+  return static_cast<int>(std::ceil(1.1 * 200000.0 / spec.firing_period_us));
+}
+
+bool ScanBatcher::crossed_cut(double from_deg, double to_deg) const {
+  // The cut lies in the half-open arc (from, to] travelled clockwise.
+  const double step = wrap360(to_deg - from_deg);
+  const double to_cut = wrap360(options_.cut_azimuth_deg - from_deg);
+  return to_cut > 0 && to_cut <= step;
+}
+
+void ScanBatcher::begin(double /*column_azimuth*/) {
+  scan_ = sink_.acquire();
+  if (scan_ == nullptr) return;
+  scan_->clear();
+  scan_->sequence = sequence_++;
+  scan_->model = static_cast<uint8_t>(spec_.model);
+  scan_->return_mode = static_cast<uint8_t>(mode_);
+  scan_->starts_at_cut = next_starts_at_cut_;
+  rate_steps_deg_ = 0;
+  rate_time_us_ = 0;
+}
+
+void ScanBatcher::finish(bool ends_at_cut) {
+  next_starts_at_cut_ = ends_at_cut;
+  if (scan_ == nullptr) return;
+  Scan* s = scan_;
+  scan_ = nullptr;
+  s->ends_at_cut = ends_at_cut;
+  s->complete = s->starts_at_cut && s->ends_at_cut && s->missing_packets == 0 && !overflowed_;
+  if (rate_time_us_ > 0) s->rpm = static_cast<float>(rate_steps_deg_ / rate_time_us_ * 1e6 / 6.0);
+  overflowed_ = false;
+  ++stats_.rotations;
+  ++(s->complete ? stats_.complete : stats_.incomplete);
+  sink_.publish(s);
+}
+
+void ScanBatcher::flush() {
+  if (scan_ != nullptr) finish(false);
+  next_starts_at_cut_ = false;
+  have_last_ = false;
+}
+
+void ScanBatcher::poll(int64_t now_ns) {
+  if (scan_ != nullptr &&
+      static_cast<double>(now_ns - last_packet_stamp_ns_) > options_.flush_timeout_s * 1e9)
+    flush();
+}
+
+void ScanBatcher::add(const DecodedPacket& pk) {
+  if (pk.mode != mode_) {
+    // Another return mode changes the layout of the scan: close the rotation in progress.
+    flush();
+    mode_ = pk.mode;
+    ++stats_.mode_changes;
+  }
+  if (have_last_ && pk.stamp_ns <= last_column_stamp_ns_ &&
+      static_cast<double>(last_column_stamp_ns_ - pk.stamp_ns) < kMaxGapUs * 1e3) {
+    // A duplicate, or a packet overtaken by a later one (whose gap was already counted).
+    ++stats_.late_packets;
+    return;
+  }
+  last_packet_stamp_ns_ = pk.stamp_ns;
+  const double fp = spec_.firing_period_us;
+  const int per_packet = spec_.columns_per_packet(pk.mode);
+  for (int c = 0; c < pk.columns; ++c) {
+    const auto uc = static_cast<size_t>(c);
+    const double az = pk.column_azimuth_deg[uc];
+    const int64_t stamp =
+        pk.stamp_ns + static_cast<int64_t>(std::llround(pk.column_time_us[uc] * 1e3));
+    uint32_t missing = 0;
+    bool cut = false;
+    if (have_last_) {
+      const double dt = static_cast<double>(stamp - last_column_stamp_ns_) * 1e-3;  // us
+      const double step = wrap360(az - last_column_azimuth_);
+      if (dt <= 0 || dt > kMaxGapUs) {
+        // Discontinuity: restart, clock reset or replay loop.
+        ++stats_.azimuth_jumps;
+        if (scan_ != nullptr) ++scan_->azimuth_jumps;
+        finish(false);
+        dropping_ = false;
+      } else {
+        const double rate = last_rate_deg_per_us_;
+        const double normal_step = rate * fp;
+        if (dt > 1.5 * fp && step > 1.5 * normal_step + 0.02 && step < 360.0 - 1.5 * normal_step) {
+          // Time and azimuth advanced together: packets were lost on the way.
+          const double lost_columns = std::max(0.0, std::round(dt / fp) - 1.0);
+          missing = static_cast<uint32_t>(std::ceil(lost_columns / per_packet));
+          stats_.missing_packets += missing;
+        } else if (dt > 1.5 * fp) {
+          // Time gap, azimuth continuous: the sensor paused outside its field of view.
+          ++stats_.fov_gaps;
+        } else if (step > options_.max_column_step_deg &&
+                   step < 360.0 - options_.max_column_step_deg) {
+          // Azimuth jump without a time gap: restricted field of view (the sensor skips the
+          // blanked sector inside a packet).
+          ++stats_.fov_gaps;
+        } else if (step > 0) {
+          rate_steps_deg_ += step;
+          rate_time_us_ += dt;
+          if (dt > 0.5 * fp) last_rate_deg_per_us_ = step / dt;
+        }
+        cut = crossed_cut(last_column_azimuth_, az);
+      }
+    }
+    if (cut) {
+      // A loss that straddles the cut leaves both rotations short.
+      if (scan_ != nullptr) scan_->missing_packets += missing;
+      finish(true);
+      dropping_ = false;
+    }
+    if (scan_ == nullptr && !dropping_) {
+      begin(az);
+      if (scan_ == nullptr) {
+        dropping_ = true;  // no free scan: the columns up to the next cut are lost
+        ++stats_.dropped_no_buffer;
+      } else {
+        scan_->stamp_ns = stamp;
+      }
+    }
+    if (scan_ == nullptr) {
+      have_last_ = true;
+      last_column_azimuth_ = az;
+      last_column_stamp_ns_ = stamp;
+      continue;
+    }
+    scan_->missing_packets += missing;
+    if (scan_->columns >= scan_->column_capacity) {
+      overflowed_ = true;
+      ++stats_.overflows;
+      finish(false);
+      begin(az);
+      if (scan_ == nullptr) {
+        dropping_ = true;
+        ++stats_.dropped_no_buffer;
+        continue;
+      }
+      scan_->stamp_ns = stamp;
+    }
+    copy_column(pk, c, stamp);
+    have_last_ = true;
+    last_column_azimuth_ = az;
+    last_column_stamp_ns_ = stamp;
+  }
+}
+
+void ScanBatcher::copy_column(const DecodedPacket& pk, int c, int64_t stamp) {
+  Scan& s = *scan_;
+  const int col = s.columns++;
+  const auto ucol = static_cast<size_t>(col);
+  const double t0 = static_cast<double>(stamp - s.stamp_ns) * 1e-9;  // column start from scan start
+  const double col_us = pk.column_time_us[static_cast<size_t>(c)];
+  s.column_azimuth_deg[ucol] = pk.column_azimuth_deg[static_cast<size_t>(c)];
+  s.column_time_s[ucol] = t0;
+  if (col == 0) ++s.packets;
+  if (c == 0 && col > 0) ++s.packets;
+  const int rings = std::min(s.rings, pk.rings);
+  const auto cap = static_cast<size_t>(s.column_capacity);
+  const auto t_off = static_cast<float>(t0 - col_us * 1e-6);
+  for (int r = 0; r < s.returns; ++r) {
+    size_t dst = s.at(r, 0, col);
+    if (r >= pk.returns) {  // a single-return packet in a dual-return scan
+      for (int ring = 0; ring < rings; ++ring, dst += cap) {
+        s.range[dst] = 0.0f;
+        s.return_type[dst] = ReturnType::kNone;
+      }
+      continue;
+    }
+    auto src = static_cast<size_t>(pk.at(r, c, 0));
+    for (int ring = 0; ring < rings; ++ring, dst += cap, ++src) {
+      s.x[dst] = pk.x[src];
+      s.y[dst] = pk.y[src];
+      s.z[dst] = pk.z[src];
+      s.range[dst] = pk.range[src];
+      s.azimuth_deg[dst] = pk.azimuth_deg[src];
+      s.time_s[dst] = t_off + pk.time_us[src] * 1e-6f;
+      s.intensity[dst] = pk.intensity[src];
+      s.return_type[dst] = pk.return_type[src];
+    }
+  }
+}
+
+}  // namespace lidartag::velodyne

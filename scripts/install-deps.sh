@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# Installs every Debian 12 package the project needs to build, test and run. Idempotent.
+set -euo pipefail
+packages=(
+  build-essential cmake ninja-build pkg-config git clang-format
+  libeigen3-dev libnlopt-dev libnlopt-cxx-dev libtbb-dev libboost-dev libboost-system-dev
+  libpcap-dev liblcm-dev liblcm-bin liblcm-java libglib2.0-dev libsystemd-dev
+  libspdlog-dev libfmt-dev libyaml-cpp-dev libcli11-dev nlohmann-json3-dev
+  libgtest-dev libgmock-dev libbenchmark-dev
+  iproute2 util-linux
+  # lidartagd: LCM type jar and lcm-spy (Java 17), the lcm-spy screenshot under Xvfb, systemd-analyze
+  liblcm-java libjchart2d-java openjdk-17-jdk-headless xvfb xauth imagemagick x11-utils systemd
+)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  sudo=""
+  [ "$(id -u)" -eq 0 ] || sudo="sudo"
+  export DEBIAN_FRONTEND=noninteractive
+  $sudo apt-get update -qq
+  $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi

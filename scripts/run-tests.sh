@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Quick start, tests: installs the Debian packages, configures, builds everything and runs every
+# test; then the ThreadSanitizer build of the lock-free scan buffer and the AddressSanitizer +
+# UndefinedBehaviorSanitizer build of the driver tests.
+# Usage: scripts/run-tests.sh [--no-sanitizers]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/install-deps.sh
+jobs=$(nproc)
+
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo
+cmake --build build -j "$jobs"
+ctest --test-dir build --output-on-failure -j "$jobs"
+
+if [ "${1:-}" != "--no-sanitizers" ]; then
+  # Only some targets are built here, so their binaries run directly (ctest would list the rest
+  # as not built).
+  echo "== ThreadSanitizer: scan buffer =="
+  cmake -S . -B build-tsan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLIDARTAG_SANITIZE=thread \
+    -DLIDARTAG_BUILD_BENCHMARKS=OFF
+  cmake --build build-tsan -j "$jobs" --target test_scan_buffer
+  TSAN_OPTIONS="halt_on_error=1" build-tsan/bin/test_scan_buffer
+
+  echo "== AddressSanitizer + UndefinedBehaviorSanitizer: driver and I/O =="
+  cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLIDARTAG_SANITIZE=address \
+    -DLIDARTAG_BUILD_BENCHMARKS=OFF
+  targets=$(cmake --build build-asan --target help | sed -n 's/^\(test_\(driver\|io\)[a-z_]*\):.*/\1/p' | sort -u)
+  cmake --build build-asan -j "$jobs" --target $targets
+  for t in $targets; do
+    echo "-- $t"
+    ASAN_OPTIONS="detect_leaks=1" UBSAN_OPTIONS="print_stacktrace=1" "build-asan/bin/$t"
+  done
+fi

@@ -1,0 +1,234 @@
+// The configuration mapping: defaults, the shipped file, overrides, and one error per bad input.
+#include "lidartag/daemon/config.hpp"
+
+#include <gtest/gtest.h>
+#include <yaml-cpp/yaml.h>
+
+#include <fstream>
+#include <functional>
+#include <set>
+#include <sstream>
+
+namespace lidartag::daemon {
+namespace {
+
+const std::string kShippedConfig = LIDARTAG_SOURCE_DIR "/config/lidartagd.yaml";
+
+// Every leaf key of a YAML document, as dotted paths (list elements as [i]).
+void leaf_keys(const YAML::Node& node, const std::string& path, std::set<std::string>& out) {
+  if (node.IsMap()) {
+    for (const auto& kv : node) {
+      leaf_keys(kv.second, path.empty() ? kv.first.Scalar() : path + "." + kv.first.Scalar(), out);
+    }
+  } else if (node.IsSequence() && node.size() > 0 && node[0].IsMap()) {
+    for (size_t i = 0; i < node.size(); ++i) {
+      leaf_keys(node[i], path + "[" + std::to_string(i) + "]", out);
+    }
+  } else {
+    out.insert(path);
+  }
+}
+
+TEST(Config, ShippedFileHoldsEveryKeyWithItsDefault) {
+  const DaemonOptions defaults;
+  const DaemonOptions shipped = load_config(kShippedConfig);
+  EXPECT_EQ(print_config(shipped), print_config(defaults));
+  std::set<std::string> shipped_keys, all_keys;
+  leaf_keys(YAML::LoadFile(kShippedConfig), "", shipped_keys);
+  leaf_keys(YAML::Load(print_config(defaults)), "", all_keys);
+  EXPECT_EQ(shipped_keys, all_keys);
+}
+
+// Number of fields of an aggregate: the largest N for which T{x1, ..., xN} compiles.
+struct AnyField {
+  template <class T>
+  operator T() const;  // NOLINT: only used in unevaluated contexts
+};
+template <class T, class... A>
+constexpr size_t field_count() {
+  if constexpr (requires { T{A{}..., AnyField{}}; }) {
+    return field_count<T, A..., AnyField>();
+  } else {
+    return sizeof...(A);
+  }
+}
+
+// The detector's option structs are still growing: a new field must get its key in config.cpp
+// (visit_detector) and config/lidartagd.yaml, then its count here.
+TEST(Config, EveryDetectorOptionIsMapped) {
+  EXPECT_EQ(field_count<detector::DetectorOptions>(), 10u);
+  EXPECT_EQ(field_count<detector::FeatureOptions>(), 6u);  // max_pair_chord_m is derived
+  EXPECT_EQ(field_count<detector::ClusterOptions>(), 2u);
+  EXPECT_EQ(field_count<detector::ValidationOptions>(), 9u);
+  EXPECT_EQ(field_count<detector::PlaneOptions>(), 3u);
+  EXPECT_EQ(field_count<detector::CornerOptions>(), 6u);
+  EXPECT_EQ(field_count<detector::PoseOptions>(), 8u);
+  EXPECT_EQ(field_count<detector::DecodeOptions>(), 8u);
+  std::set<std::string> keys;
+  leaf_keys(YAML::Load(print_config(DaemonOptions{})), "", keys);
+  size_t detector_keys = 0;
+  for (const auto& k : keys) detector_keys += k.rfind("detector.", 0) == 0 ? 1u : 0u;
+  EXPECT_EQ(detector_keys, 3u + 5u + 2u + 9u + 3u + 6u + 8u + 8u);
+}
+
+TEST(Config, PrintedConfigParsesBackToTheSameOptions) {
+  DaemonOptions o;
+  o.sensors[0].model = velodyne::Model::kVLP32C;
+  o.sensors[0].source.kind = SourceKind::kPcap;
+  o.sensors[0].source.file = "/tmp/a b.pcap";
+  o.sensors.push_back(o.sensors[0]);
+  o.sensors[1].name = "rear";
+  o.sensors[1].channel_prefix = "REAR_";
+  o.detector.tag_sizes_m = {0.8, 0.6};
+  o.detector.pose.algorithm = detector::PoseAlgorithm::kSBPLX;
+  o.lcm.url = "udpm://239.255.76.67:7667?ttl=1";
+  o.logging.journald = JournalMode::kNever;
+  const std::string text = print_config(o);
+  EXPECT_EQ(print_config(parse_config(text)), text);
+  const DaemonOptions back = parse_config(text);
+  ASSERT_EQ(back.sensors.size(), 2u);
+  EXPECT_EQ(back.sensors[1].channel_prefix, "REAR_");
+  EXPECT_EQ(back.sensors[0].source.file, "/tmp/a b.pcap");
+  EXPECT_EQ(back.detector.tag_sizes_m, (std::vector<double>{0.8, 0.6}));
+  EXPECT_EQ(back.detector.pose.algorithm, detector::PoseAlgorithm::kSBPLX);
+}
+
+TEST(Config, PartialFileKeepsDefaultsAndSensorEntriesStartFromDefaults) {
+  const DaemonOptions o = parse_config(R"(
+sensors:
+  - name: front
+    model: vls128
+  - name: rear
+    channel_prefix: REAR_
+    source: {data_port: 2369, position_port: 8309}
+detector:
+  plane: {iterations: 7}
+)");
+  ASSERT_EQ(o.sensors.size(), 2u);
+  EXPECT_EQ(o.sensors[0].model, velodyne::Model::kVLS128);
+  EXPECT_EQ(o.sensors[1].model, std::nullopt);
+  EXPECT_EQ(o.sensors[1].frame_id, "velodyne");
+  EXPECT_EQ(o.sensors[1].source.data_port, 2369);
+  EXPECT_EQ(o.detector.plane.iterations, 7);
+  EXPECT_EQ(o.detector.plane.inlier_m, detector::PlaneOptions{}.inlier_m);
+  EXPECT_EQ(o.lcm.channels.detections, "LIDARTAG_DETECTIONS");
+}
+
+TEST(Config, OverridesApplyBeforeChecking) {
+  const DaemonOptions o =
+      parse_config("sensors: [{name: a}]\n", {"sensors[0].source.data_port=3000", "lcm.url=memq://",
+                                              "detector.tag_sizes_m=[0.5, 0.7]",
+                                              "sensors[1].name=b", "sensors[1].channel_prefix=B_"});
+  EXPECT_EQ(o.sensors[0].source.data_port, 3000);
+  EXPECT_EQ(o.lcm.url, "memq://");
+  EXPECT_EQ(o.detector.tag_sizes_m, (std::vector<double>{0.5, 0.7}));
+  ASSERT_EQ(o.sensors.size(), 2u);
+  EXPECT_EQ(o.sensors[1].name, "b");
+}
+
+struct BadCase {
+  std::string yaml;
+  std::string key, value, reason_part;
+};
+
+TEST(Config, EachBadKeyOrValueNamesKeyValueAndReason) {
+  const std::vector<BadCase> cases = {
+      {"bogus: 1", "bogus", "1", "unknown key"},
+      {"lcm: {urll: x}", "lcm.urll", "x", "unknown key"},
+      {"sensors: [{name: a, sauce: {}}]", "sensors[0].sauce", "{}", "unknown key"},
+      {"sensors: [{source: {kind: serial}}]", "sensors[0].source.kind", "serial", "expected udp"},
+      {"sensors: [{source: {data_port: 70000}}]", "sensors[0].source.data_port", "70000",
+       "integer"},
+      {"sensors: [{source: {data_port: 0}}]", "sensors[0].source.data_port", "0", ">= 1"},
+      {"sensors: [{source: {data_port: two}}]", "sensors[0].source.data_port", "two", "integer"},
+      {"sensors: [{model: vlp64}]", "sensors[0].model", "vlp64", "expected auto"},
+      {"sensors: [{cut_azimuth_deg: 360}]", "sensors[0].cut_azimuth_deg", "360", "[0, 360)"},
+      {"sensors: [{source: {sensor_address: 10.0.0}}]", "sensors[0].source.sensor_address",
+       "10.0.0", "IPv4"},
+      {"sensors: [{source: {loop: maybe}}]", "sensors[0].source.loop", "maybe", "true or false"},
+      {"sensors: [{source: {kind: pcap}}]", "sensors[0].source.file", "", "required"},
+      {"sensors: [{source: {kind: interface}}]", "sensors[0].source.interface", "", "required"},
+      {"sensors: [{name: a}, {name: a}]", "sensors[1].name", "a", "another sensor"},
+      {"sensors: [{name: a}, {name: b}]", "sensors[1].channel_prefix", "", "collide"},
+      {"sensors: []", "sensors", "[]", "non-empty list"},
+      {"sensors: [{name: \"\"}]", "sensors[0].name", "", "must not be empty"},
+      {"pipeline: {queue_depth: 0}", "pipeline.queue_depth", "0", "[1, 1024]"},
+      {"pipeline: {worker_threads: -1}", "pipeline.worker_threads", "-1", "[0, 256]"},
+      {"status: {period_s: fast}", "status.period_s", "fast", "number"},
+      {"logging: {level: loud}", "logging.level", "loud", "expected trace"},
+      {"logging: {journald: sometimes}", "logging.journald", "sometimes", "expected auto"},
+      {"lcm: {channels: {status: \"\"}}", "lcm.channels.status", "", "must not be empty"},
+      {"detector: {tag_sizes_m: [1.2, -1]}", "detector.tag_sizes_m[1]", "-1", "(0, 20)"},
+      {"detector: {tag_sizes_m: 1.2}", "detector.tag_sizes_m", "1.2", "expected a list"},
+      {"detector: {families: [tag99h1]}", "detector.families[0]", "tag99h1", "unknown tag family"},
+      {"detector: {plane: {max_outlier_ratio: 1.0}}", "detector.plane.max_outlier_ratio", "1.0",
+       "[0, 1)"},
+      {"detector: {pose: {algorithm: newton}}", "detector.pose.algorithm", "newton",
+       "expected mma"},
+      {"detector: {decode: {samples_per_cell: 9}}", "detector.decode.samples_per_cell", "9",
+       "[1, 8]"},
+      {"detector: {features: {min_range_m: 50}}", "detector.features.max_range_m", "40",
+       "above detector.features.min_range_m"},
+      {"detector: {features: [1, 2]}", "detector.features", "[1, 2]", "expected a map"},
+      {"[1, 2]", "config", "[1, 2]", "expected a map"},
+  };
+  for (const auto& c : cases) {
+    SCOPED_TRACE(c.yaml);
+    try {
+      (void)parse_config(c.yaml);
+      ADD_FAILURE() << "accepted";
+    } catch (const ConfigError& e) {
+      EXPECT_EQ(e.key(), c.key);
+      EXPECT_EQ(e.value(), c.value);
+      EXPECT_NE(e.reason().find(c.reason_part), std::string::npos) << e.reason();
+      EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos);
+    }
+  }
+}
+
+TEST(Config, BadYamlAndBadOverridesAreConfigErrors) {
+  EXPECT_THROW((void)parse_config("a: [1, 2"), ConfigError);
+  EXPECT_THROW((void)parse_config("", {"no_equals_sign"}), ConfigError);
+  EXPECT_THROW((void)parse_config("", {"sensors[3].name=x"}), ConfigError);
+  EXPECT_THROW((void)load_config("/nonexistent/lidartagd.yaml"), ConfigError);
+}
+
+TEST(Config, ValidateChecksOptionsBuiltInCode) {
+  DaemonOptions o;
+  EXPECT_NO_THROW(validate(o));
+  o.pipeline.queue_depth = 0;
+  try {
+    validate(o);
+    ADD_FAILURE() << "accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.key(), "pipeline.queue_depth");
+  }
+  o = DaemonOptions{};
+  o.sensors[0].source.kind = SourceKind::kLcm;
+  EXPECT_THROW(validate(o), ConfigError);
+}
+
+TEST(Config, DetectorSectionAloneForTheCli) {
+  const std::string path = ::testing::TempDir() + "/detector_only.yaml";
+  {
+    std::ofstream out(path);
+    out << "sensors: [{name: ignored}]\ndetector:\n  tag_sizes_m: [0.8]\n  corners: "
+           "{size_tolerance: 0.3}\n";
+  }
+  const detector::DetectorOptions d = load_detector_config(path);
+  EXPECT_EQ(d.tag_sizes_m, (std::vector<double>{0.8}));
+  EXPECT_FLOAT_EQ(d.corners.size_tolerance, 0.3f);
+  {
+    std::ofstream out(path);
+    out << "detector:\n  corners: {size_tol: 0.3}\n";
+  }
+  try {
+    (void)load_detector_config(path);
+    ADD_FAILURE() << "accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.key(), "detector.corners.size_tol");
+  }
+}
+
+}  // namespace
+}  // namespace lidartag::daemon

@@ -1,0 +1,558 @@
+// lidartagd as a program: replay of the demo into an LCM log, multicast end to end inside its own
+// network namespace (with lcm-logger), live UDP on 127.0.0.1, raw-packet LCM replay, sd_notify,
+// signals, --record, and configuration errors.
+#include <arpa/inet.h>
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <sys/un.h>
+
+#include <atomic>
+#include <cmath>
+#include <filesystem>
+#include <lcm/lcm-cpp.hpp>
+#include <map>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <thread>
+
+#include "daemon/process.hpp"
+#include "lidartag/driver/io/pcap_source.hpp"
+#include "lidartag/raw_packet_t.hpp"
+#include "lidartag/status_t.hpp"
+#include "lidartag/tag_detections_t.hpp"
+
+namespace lidartag::daemon {
+namespace {
+
+using namespace std::chrono_literals;
+using test::lines_of;
+using test::Process;
+
+const std::string kDaemon = LIDARTAGD_PATH;
+const std::string kDemoConfig = LIDARTAG_SOURCE_DIR "/config/demo.yaml";
+const std::string kDemo = LIDARTAG_SOURCE_DIR "/pcaps/demo.pcap";
+const std::string kTruth = LIDARTAG_SOURCE_DIR "/pcaps/demo.truth.json";
+
+// The demo capture comes from the simulator (pcaps/demo.yaml); without it there is nothing to run.
+#define REQUIRE_DEMO()                                                                    \
+  if (!std::filesystem::exists(kDemo) || !std::filesystem::exists(kTruth)) {              \
+    GTEST_SKIP() << "no " << kDemo << ": make it with lidartag sim pcaps/demo.yaml (see " \
+                 << "pcaps/demo.yaml)";                                                   \
+  }
+
+std::string temp(const std::string& name) {
+  const std::string dir = ::testing::TempDir() + "/lidartagd_e2e." + std::to_string(getpid());
+  std::filesystem::create_directories(dir);
+  return dir + "/" + name;
+}
+
+// The demo's tags (the sensor does not move: the first rotation's truth holds for all).
+struct Truth {
+  std::map<std::pair<std::string, int>, std::array<double, 3>> tags;
+  size_t rotations = 0;
+};
+
+Truth load_truth() {
+  std::ifstream in(kTruth);
+  const auto j = nlohmann::json::parse(in);
+  Truth t;
+  t.rotations = j.at("rotations").size();
+  for (const auto& tag : j.at("rotations").at(0).at("tags")) {
+    t.tags[{tag.at("family").get<std::string>(), tag.at("id").get<int>()}] =
+        tag.at("position").get<std::array<double, 3>>();
+  }
+  return t;
+}
+
+// Every rotation in order, none missing; each detection one of the scene's tags, where it stands;
+// every tag of the scene detected at least once.
+void expect_truthful(const std::vector<lidartag::tag_detections_t>& rotations, uint64_t assembled) {
+  const Truth truth = load_truth();
+  ASSERT_GE(rotations.size(), truth.rotations);
+  EXPECT_EQ(rotations.size(), assembled);
+  std::set<std::pair<std::string, int>> seen;
+  for (size_t i = 0; i < rotations.size(); ++i) {
+    const auto& r = rotations[i];
+    EXPECT_EQ(r.sequence, static_cast<int64_t>(i));
+    EXPECT_EQ(r.ndetections, static_cast<int32_t>(r.detections.size()));
+    for (const auto& d : r.detections) {
+      const auto key = std::make_pair(d.family, d.id);
+      const auto it = truth.tags.find(key);
+      ASSERT_NE(it, truth.tags.end()) << "rotation " << i << ": " << d.family << ":" << d.id;
+      const double dist = std::hypot(d.position[0] - it->second[0], d.position[1] - it->second[1],
+                                     d.position[2] - it->second[2]);
+      EXPECT_LT(dist, 0.15) << "rotation " << i << " tag " << d.id;
+      seen.insert(key);
+    }
+  }
+  std::set<std::pair<std::string, int>> expected;
+  for (const auto& [key, position] : truth.tags) expected.insert(key);
+  EXPECT_EQ(seen, expected);
+}
+
+template <class T>
+bool decode(const void* data, size_t size, T& out) {
+  try {
+    return out.decode(data, 0, static_cast<int>(size)) == static_cast<int>(size);
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
+struct Decoded {
+  std::vector<lidartag::tag_detections_t> detections;
+  std::vector<lidartag::status_t> status;
+  std::vector<lidartag::raw_packet_t> raw;
+};
+
+Decoded read_log(const std::string& path, const std::string& prefix = "") {
+  Decoded d;
+  lcm::LogFile log(path, "r");
+  EXPECT_TRUE(log.good()) << path;
+  if (!log.good()) return d;
+  while (const lcm::LogEvent* e = log.readNextEvent()) {
+    const auto size = static_cast<size_t>(e->datalen);
+    if (e->channel == prefix + "LIDARTAG_DETECTIONS") {
+      EXPECT_TRUE(decode(e->data, size, d.detections.emplace_back()));
+    } else if (e->channel == prefix + "LIDARTAG_STATUS") {
+      EXPECT_TRUE(decode(e->data, size, d.status.emplace_back()));
+    } else if (e->channel == prefix + "LIDARTAG_RAW") {
+      EXPECT_TRUE(decode(e->data, size, d.raw.emplace_back()));
+    }
+  }
+  return d;
+}
+
+std::vector<std::string> replay_lines(const std::vector<std::string>& extra = {}) {
+  std::vector<std::string> args = {kDaemon,     "--config", kDemoConfig,
+                                   "--replay",  kDemo,      "--max-speed",
+                                   "--lcm-url", "memq://",  "--print-detections"};
+  args.insert(args.end(), extra.begin(), extra.end());
+  Process p(args, {}, temp("replay_lines"));
+  EXPECT_EQ(p.wait(120s), 0) << p.err();
+  return lines_of(p.out());
+}
+
+// ---------------------------------------------------------------------------------------------
+
+TEST(Replay, DemoIntoAnLcmLogEveryRotationInOrderWithTheTruthTags) {
+  REQUIRE_DEMO();
+  const std::string log = temp("replay.lcmlog");
+  Process p({kDaemon, "--config", kDemoConfig, "--replay", kDemo, "--max-speed", "--lcm-url",
+             "file://" + log + "?mode=w", "--print-detections"},
+            {}, temp("replay"));
+  ASSERT_EQ(p.wait(120s), 0) << p.err();
+  const Decoded d = read_log(log);
+  ASSERT_FALSE(d.status.empty());  // at least the final status
+  const auto& last = d.status.back();
+  expect_truthful(d.detections, static_cast<uint64_t>(last.rotations_assembled));
+  EXPECT_EQ(last.rotations_published, static_cast<int64_t>(d.detections.size()));
+  EXPECT_EQ(last.rotations_dropped, 0);  // lossless replay
+  EXPECT_EQ(last.model, "vlp32c");
+  EXPECT_EQ(last.return_mode, "strongest");
+  EXPECT_GT(last.packets_received, 0);
+  // One printed line per rotation, in order.
+  const auto lines = lines_of(p.out());
+  ASSERT_EQ(lines.size(), d.detections.size());
+  for (size_t i = 0; i < lines.size(); ++i) {
+    EXPECT_EQ(lines[i].rfind("demo #" + std::to_string(i) + " ", 0), 0u) << lines[i];
+  }
+}
+
+TEST(Replay, FallingBehindDropsTheOldestRotationsAndCountsThem) {
+  REQUIRE_DEMO();
+  // One worker, one waiting rotation, no waiting for the detector: decoding at full speed outruns
+  // detection, so rotations must be dropped (and nothing queue).
+  const std::string log = temp("drop.lcmlog");
+  Process p({kDaemon, "--config", kDemoConfig, "--replay", kDemo, "--max-speed", "--workers", "1",
+             "--set", "pipeline.queue_depth=1", "--set", "pipeline.publish_queue=1", "--set",
+             "pipeline.lossless_replay=false", "--lcm-url", "file://" + log + "?mode=w"},
+            {}, temp("drop"));
+  ASSERT_EQ(p.wait(120s), 0) << p.err();
+  const Decoded d = read_log(log);
+  ASSERT_FALSE(d.status.empty());
+  const auto& last = d.status.back();
+  EXPECT_GT(last.rotations_dropped, 0);
+  EXPECT_EQ(last.rotations_published + last.rotations_dropped, last.rotations_assembled);
+  EXPECT_EQ(last.rotations_published, static_cast<int64_t>(d.detections.size()));
+  int64_t previous = -1;
+  for (const auto& r : d.detections) {
+    EXPECT_GT(r.sequence, previous);  // in order, gaps where rotations were dropped
+    // Everything skipped so far was counted before this rotation was published.
+    EXPECT_GE(r.dropped_rotations, r.sequence - static_cast<int64_t>(&r - d.detections.data()));
+    previous = r.sequence;
+  }
+}
+
+TEST(Replay, RecordWritesTheReceivedPacketsToAPcap) {
+  REQUIRE_DEMO();
+  const std::string out = temp("record.pcap");
+  Process p({kDaemon, "--config", kDemoConfig, "--replay", kDemo, "--max-speed", "--lcm-url",
+             "memq://", "--record", out},
+            {}, temp("record"));
+  ASSERT_EQ(p.wait(120s), 0) << p.err();
+  auto count = [](const std::string& path) {
+    velodyne::PcapSource source(path);
+    velodyne::RawPacket packet;
+    size_t n = 0;
+    while (source.next(packet, 10ms) == velodyne::ReadStatus::kPacket) ++n;
+    return n;
+  };
+  EXPECT_GT(count(kDemo), 0u);
+  EXPECT_EQ(count(out), count(kDemo));
+}
+
+TEST(Replay, RawPacketLcmLogReplaysToTheSameDetectionsAndSurvivesGarbage) {
+  REQUIRE_DEMO();
+  // 1: the demo with raw packets published, into an LCM log.
+  const std::string log = temp("raw.lcmlog");
+  Process first({kDaemon, "--config", kDemoConfig, "--replay", kDemo, "--max-speed", "--lcm-url",
+                 "file://" + log + "?mode=w", "--set", "lcm.publish_raw=true"},
+                {}, temp("raw1"));
+  ASSERT_EQ(first.wait(120s), 0) << first.err();
+  // 2: the raw channel alone, with malformed messages among the packets.
+  const std::string mixed = temp("raw_mixed.lcmlog");
+  int garbage = 0;
+  {
+    lcm::LogFile in(log, "r"), out(mixed, "w");
+    ASSERT_TRUE(in.good() && out.good());
+    int n = 0;
+    while (const lcm::LogEvent* e = in.readNextEvent()) {
+      if (e->channel != "LIDARTAG_RAW") continue;
+      ASSERT_EQ(out.writeEvent(const_cast<lcm::LogEvent*>(e)), 0);
+      if (++n % 500 == 0) {
+        std::vector<uint8_t> bytes(static_cast<const uint8_t*>(e->data),
+                                   static_cast<const uint8_t*>(e->data) + e->datalen);
+        bytes.resize(bytes.size() / 2);  // right type hash, cut short
+        lcm::LogEvent bad = *e;
+        bad.data = bytes.data();
+        bad.datalen = static_cast<int32_t>(bytes.size());
+        ASSERT_EQ(out.writeEvent(&bad), 0);
+        ++garbage;
+      }
+    }
+    ASSERT_GT(n, 1000);
+  }
+  const std::string result = temp("raw_result.lcmlog");
+  Process second({kDaemon, "--config", kDemoConfig, "--replay-lcm", mixed, "--max-speed",
+                  "--lcm-url", "file://" + result + "?mode=w", "--print-detections"},
+                 {}, temp("raw2"));
+  ASSERT_EQ(second.wait(120s), 0) << second.err();
+  EXPECT_EQ(lines_of(second.out()), replay_lines());
+  const Decoded d = read_log(result);
+  ASSERT_FALSE(d.status.empty());
+  EXPECT_EQ(d.status.back().packets_malformed, garbage);
+}
+
+// ---------------------------------------------------------------------------------------------
+
+// Receives the daemon's channels on the default (multicast) URL.
+class Subscriber {
+ public:
+  Subscriber() : lcm_("") {
+    EXPECT_TRUE(lcm_.good());
+    lcm_.subscribe("LIDARTAG_DETECTIONS", &Subscriber::on_detections, this);
+    lcm_.subscribe("LIDARTAG_STATUS", &Subscriber::on_status, this);
+    thread_ = std::thread([this] {
+      while (!stop_) lcm_.handleTimeout(50);
+    });
+  }
+  ~Subscriber() {
+    stop_ = true;
+    thread_.join();
+  }
+  Decoded take() {
+    std::lock_guard lock(mutex_);
+    return decoded_;
+  }
+
+ private:
+  void on_detections(const lcm::ReceiveBuffer* b, const std::string&) {
+    std::lock_guard lock(mutex_);
+    EXPECT_TRUE(decode(b->data, b->data_size, decoded_.detections.emplace_back()));
+  }
+  void on_status(const lcm::ReceiveBuffer* b, const std::string&) {
+    std::lock_guard lock(mutex_);
+    EXPECT_TRUE(decode(b->data, b->data_size, decoded_.status.emplace_back()));
+  }
+  lcm::LCM lcm_;
+  std::mutex mutex_;
+  Decoded decoded_;
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
+
+// Runs this test binary again, filtered to `test`, inside a new network namespace with lo up and
+// a multicast route, so that nothing reaches the machine's real interfaces.
+void run_in_network_namespace(const std::string& test) {
+  Process probe({"/usr/bin/unshare", "-n", "true"}, {}, temp("unshare_probe"));
+  if (probe.wait(10s) != 0) {
+    GTEST_SKIP() << "unshare -n is not permitted here (" << probe.err()
+                 << "): the multicast end-to-end test needs its own network namespace";
+  }
+  Process inner({"/usr/bin/unshare", "-n", "sh", "-c",
+                 "ip link set lo up && ip route add 224.0.0.0/4 dev lo && exec \"$0\" "
+                 "--gtest_filter=\"$1\"",
+                 std::filesystem::read_symlink("/proc/self/exe").string(), test},
+                {"LIDARTAG_IN_NETNS=1"}, temp("netns_" + test));
+  const int status = inner.wait(300s);
+  EXPECT_EQ(status, 0) << inner.out() << inner.err();
+  EXPECT_NE(inner.out().find("[  PASSED  ] 1 test"), std::string::npos) << inner.out();
+}
+
+TEST(Multicast, EndToEndInANetworkNamespaceWithLcmLogger) {
+  REQUIRE_DEMO();
+  if (std::getenv("LIDARTAG_IN_NETNS") == nullptr) {
+    run_in_network_namespace("Multicast.EndToEndInANetworkNamespaceWithLcmLogger");
+    return;
+  }
+  const std::string logged = temp("logger.lcmlog");
+  Process logger({"/usr/bin/lcm-logger", "-f", "--flush-interval=50", logged}, {}, temp("logger"));
+  Subscriber subscriber;
+  std::this_thread::sleep_for(300ms);  // lcm-logger subscribed
+  // Real pace (the demo lasts about a second), status five times a second.
+  Process daemon({kDaemon, "--config", kDemoConfig, "--replay", kDemo, "--rate", "1", "--lcm-url",
+                  "", "--set", "status.period_s=0.2"},
+                 {}, temp("multicast"));
+  ASSERT_EQ(daemon.wait(120s), 0) << daemon.err();
+  std::this_thread::sleep_for(300ms);
+  logger.signal(SIGINT);
+  EXPECT_EQ(logger.wait(10s), 0) << logger.err();
+
+  const Decoded got = subscriber.take();
+  ASSERT_GE(got.status.size(), 3u);  // heartbeats while running, and the final one
+  for (const auto& s : got.status) {
+    EXPECT_EQ(s.sensor, "demo");
+    EXPECT_EQ(s.nstages, static_cast<int32_t>(s.stage_names.size()));
+  }
+  expect_truthful(got.detections, static_cast<uint64_t>(got.status.back().rotations_assembled));
+
+  // lcm-logger recorded the same messages; the log decodes with the generated types.
+  const Decoded recorded = read_log(logged);
+  EXPECT_EQ(recorded.detections.size(), got.detections.size());
+  EXPECT_EQ(recorded.status.size(), got.status.size());
+  for (size_t i = 0; i < std::min(recorded.detections.size(), got.detections.size()); ++i) {
+    EXPECT_EQ(recorded.detections[i].sequence, got.detections[i].sequence);
+    EXPECT_EQ(recorded.detections[i].ndetections, got.detections[i].ndetections);
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+
+class FakeNotifySocket {
+ public:
+  FakeNotifySocket() : path_(temp("notify.sock")) {
+    unlink(path_.c_str());
+    fd_ = socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+    sockaddr_un addr{};
+    addr.sun_family = AF_UNIX;
+    path_.copy(addr.sun_path, sizeof(addr.sun_path) - 1);
+    EXPECT_EQ(bind(fd_, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)), 0);
+  }
+  ~FakeNotifySocket() { close(fd_); }
+  std::string env() const { return "NOTIFY_SOCKET=" + path_; }
+  // The next message, or "" after `timeout`.
+  std::string receive(std::chrono::milliseconds timeout) {
+    timeval tv{static_cast<time_t>(timeout.count() / 1000),
+               static_cast<suseconds_t>((timeout.count() % 1000) * 1000)};
+    setsockopt(fd_, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof(tv));
+    char buf[4096];
+    const ssize_t n = recv(fd_, buf, sizeof(buf), 0);
+    return n > 0 ? std::string(buf, static_cast<size_t>(n)) : std::string();
+  }
+
+ private:
+  std::string path_;
+  int fd_ = -1;
+};
+
+TEST(Notify, ReadyStatusWatchdogAtTheIntervalAndStopping) {
+  REQUIRE_DEMO();
+  FakeNotifySocket sock;
+  Process daemon({kDaemon, "--config", kDemoConfig, "--replay", kDemo, "--rate", "0.5", "--lcm-url",
+                  "memq://", "--set", "status.period_s=0.25"},
+                 {sock.env(), "WATCHDOG_USEC=200000"}, temp("notify"));
+  struct Message {
+    std::string text;
+    std::chrono::steady_clock::time_point when;
+  };
+  std::vector<Message> messages;
+  for (;;) {
+    std::string m = sock.receive(5s);
+    if (m.empty()) break;
+    messages.push_back({m, std::chrono::steady_clock::now()});
+    if (m.rfind("STOPPING=1", 0) == 0) break;
+  }
+  ASSERT_EQ(daemon.wait(60s), 0) << daemon.err();
+  ASSERT_GE(messages.size(), 3u);
+  EXPECT_EQ(messages.front().text.rfind("READY=1\nSTATUS=", 0), 0u) << messages.front().text;
+  EXPECT_EQ(messages.back().text.rfind("STOPPING=1", 0), 0u) << messages.back().text;
+  std::vector<double> intervals_ms;
+  std::chrono::steady_clock::time_point last{};
+  int status = 0;
+  for (const auto& m : messages) {
+    if (m.text == "WATCHDOG=1") {
+      if (last.time_since_epoch().count() != 0) {
+        intervals_ms.push_back(std::chrono::duration<double, std::milli>(m.when - last).count());
+      }
+      last = m.when;
+    }
+    if (m.text.rfind("STATUS=", 0) == 0) ++status;
+  }
+  EXPECT_GE(status, 3);  // about 2 s at 0.25 s
+  // Pings at half of WATCHDOG_USEC (100 ms) for the ~2 s replay.
+  ASSERT_GE(intervals_ms.size(), 10u);
+  std::sort(intervals_ms.begin(), intervals_ms.end());
+  const double median = intervals_ms[intervals_ms.size() / 2];
+  EXPECT_GT(median, 80.0);
+  EXPECT_LT(median, 130.0);
+}
+
+// ---------------------------------------------------------------------------------------------
+
+uint16_t free_udp_port() {
+  const int fd = socket(AF_INET, SOCK_DGRAM, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr));
+  socklen_t len = sizeof(addr);
+  getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len);
+  close(fd);
+  return ntohs(addr.sin_port);
+}
+
+TEST(LiveUdp, DemoSentToLoopbackAtTheSensorRateGivesTheReplayDetections) {
+  REQUIRE_DEMO();
+  const uint16_t data_port = free_udp_port();
+  const uint16_t position_port = free_udp_port();
+  FakeNotifySocket sock;
+  Process daemon(
+      {kDaemon, "--config", kDemoConfig, "--lcm-url", "memq://", "--print-detections", "--set",
+       "sensors[0].source.kind=udp", "--set", "sensors[0].source.bind_address=127.0.0.1", "--set",
+       "sensors[0].source.data_port=" + std::to_string(data_port), "--set",
+       "sensors[0].source.position_port=" + std::to_string(position_port)},
+      {sock.env()}, temp("live"));
+  ASSERT_EQ(sock.receive(30s).rfind("READY=1", 0), 0u) << daemon.err();
+
+  // Send the capture's packets to 127.0.0.1 at their recorded pace (bounded: one pass).
+  velodyne::PcapSourceOptions pacing;
+  pacing.pacing = velodyne::ReplayPacing::kCaptureTime;
+  velodyne::PcapSource source(kDemo, pacing);
+  const int fd = socket(AF_INET, SOCK_DGRAM, 0);
+  sockaddr_in to{};
+  to.sin_family = AF_INET;
+  to.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  velodyne::RawPacket packet;
+  size_t sent = 0;
+  const auto start = std::chrono::steady_clock::now();
+  for (;;) {
+    const auto status = source.next(packet, 100ms);
+    if (status == velodyne::ReadStatus::kTimeout) continue;
+    if (status != velodyne::ReadStatus::kPacket) break;
+    to.sin_port =
+        htons(packet.destination_port == velodyne::kDefaultDataPort ? data_port : position_port);
+    ASSERT_EQ(sendto(fd, packet.payload.data(), packet.payload.size(), 0,
+                     reinterpret_cast<sockaddr*>(&to), sizeof(to)),
+              static_cast<ssize_t>(packet.payload.size()));
+    ++sent;
+    ASSERT_LT(std::chrono::steady_clock::now() - start, 30s);
+  }
+  close(fd);
+  ASSERT_GT(sent, 1000u);
+  std::this_thread::sleep_for(1s);  // the last rotations through the detector
+  daemon.signal(SIGTERM);
+  ASSERT_EQ(daemon.wait(30s), 0) << daemon.err();
+  EXPECT_NE(daemon.err().find("final status"), std::string::npos) << daemon.err();
+  EXPECT_EQ(lines_of(daemon.out()), replay_lines());
+}
+
+// ---------------------------------------------------------------------------------------------
+
+TEST(Signals, SigintStopsCleanlyAndSighupReopensTheLog) {
+  const std::string log = temp("daemon.log");
+  std::filesystem::remove(log);
+  FakeNotifySocket sock;
+  Process daemon({kDaemon, "--lcm-url", "memq://", "--log-file", log, "--set",
+                  "sensors[0].source.bind_address=127.0.0.1", "--set",
+                  "sensors[0].source.data_port=" + std::to_string(free_udp_port()), "--set",
+                  "sensors[0].source.position_port=" + std::to_string(free_udp_port())},
+                 {sock.env()}, temp("signals"));
+  ASSERT_EQ(sock.receive(30s).rfind("READY=1", 0), 0u) << daemon.err();
+  std::filesystem::rename(log, log + ".1");  // what logrotate does
+  daemon.signal(SIGHUP);
+  for (int i = 0; i < 100 && !std::filesystem::exists(log); ++i) std::this_thread::sleep_for(20ms);
+  EXPECT_TRUE(std::filesystem::exists(log));
+  daemon.signal(SIGINT);
+  EXPECT_EQ(daemon.wait(30s), 0);
+  const std::string before = test::read_text(log + ".1"), after = test::read_text(log);
+  EXPECT_NE(before.find("running: 1 sensor(s)"), std::string::npos) << before;
+  EXPECT_NE(after.find("SIGINT: stopping"), std::string::npos) << after;
+  EXPECT_NE(after.find("final status: lidar"), std::string::npos) << after;
+}
+
+// ---------------------------------------------------------------------------------------------
+
+TEST(CommandLine, EachBadSettingIsOneLineAndExitStatusTwo) {
+  const std::string bad_file = temp("bad.yaml");
+  std::ofstream(bad_file) << "sensors:\n  - name: a\n    sauce: 1\n";
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{"--config", bad_file}, "sensors[0].sauce: '1': unknown key"},
+      {{"--config", "/nonexistent.yaml"}, "config: '/nonexistent.yaml': cannot read the file"},
+      {{"--set", "pipeline.queue_depth=0"}, "pipeline.queue_depth: '0': must be in [1, 1024]"},
+      {{"--set", "sensors[0].source.kind=serial"}, "sensors[0].source.kind: 'serial'"},
+      {{"--set", "detector.families=[tag1h1]"}, "detector.families[0]: 'tag1h1'"},
+      {{"--set", "lcm.channels.status="}, "lcm.channels.status: '': must not be empty"},
+      {{"--set", "nonsense"}, "--set: 'nonsense': expected KEY=VALUE"},
+      {{"--workers", "-3"}, "pipeline.worker_threads: '-3'"},
+      {{"--log-level", "loud"}, "logging.level: 'loud'"},
+      {{"--no-such-flag"}, ""},
+      {{"--rate", "2", "--max-speed"}, ""},
+  };
+  for (const auto& [args, message] : cases) {
+    std::vector<std::string> argv = {kDaemon};
+    argv.insert(argv.end(), args.begin(), args.end());
+    Process p(argv, {}, temp("bad_args"));
+    SCOPED_TRACE(argv.back());
+    EXPECT_EQ(p.wait(30s), 2);
+    const auto lines = lines_of(p.err());
+    if (message.empty()) {
+      EXPECT_FALSE(lines.empty());  // CLI11's usage error
+      continue;
+    }
+    ASSERT_EQ(lines.size(), 1u) << p.err();
+    EXPECT_EQ(lines[0].rfind("lidartagd: config error: " + message, 0), 0u) << lines[0];
+  }
+}
+
+TEST(CommandLine, PrintConfigShowsTheEffectiveSettings) {
+  REQUIRE_DEMO();
+  Process p({kDaemon, "--config", kDemoConfig, "--lcm-url", "memq://", "--replay", kDemo,
+             "--max-speed", "--print-config"},
+            {}, temp("print_config"));
+  ASSERT_EQ(p.wait(30s), 0) << p.err();
+  const std::string out = p.out();
+  EXPECT_NE(out.find("url: \"memq://\""), std::string::npos) << out;
+  EXPECT_NE(out.find("kind: pcap"), std::string::npos);
+  EXPECT_NE(out.find("rate: 0"), std::string::npos);
+  EXPECT_NE(out.find("tag_sizes_m: [0.8, 0.6]"), std::string::npos);
+  EXPECT_NE(out.find("model: vlp32c"), std::string::npos);
+}
+
+TEST(CommandLine, SetupErrorIsOneLineAndExitStatusOne) {
+  REQUIRE_DEMO();
+  Process p(
+      {kDaemon, "--lcm-url", "memq://", "--replay", kDemo, "--set",
+       "sensors[0].calibration=/nonexistent/calibration.yaml", "--set", "sensors[0].model=vlp32c"},
+      {}, temp("setup_error"));
+  EXPECT_EQ(p.wait(30s), 1);
+  const auto lines = lines_of(p.err());
+  ASSERT_EQ(lines.size(), 1u) << p.err();
+  EXPECT_EQ(lines[0].rfind("lidartagd: error: ", 0), 0u) << lines[0];
+  EXPECT_NE(lines[0].find("/nonexistent/calibration.yaml"), std::string::npos) << lines[0];
+}
+
+}  // namespace
+}  // namespace lidartag::daemon

@@ -1,0 +1,105 @@
+// Raw-packet replay from an LCM log: good messages become packets, malformed ones are counted and
+// skipped, never fatal.
+#include "lidartag/daemon/lcm_log_source.hpp"
+
+#include <gtest/gtest.h>
+
+#include <lcm/lcm-cpp.hpp>
+
+#include "lidartag/daemon/messages.hpp"
+
+namespace lidartag::daemon {
+namespace {
+
+using namespace std::chrono_literals;
+
+void write_event(lcm::LogFile& log, const std::string& channel, const std::vector<uint8_t>& bytes,
+                 int64_t t) {
+  lcm::LogEvent e{};
+  e.eventnum = 0;
+  e.timestamp = t;
+  e.channel = channel;
+  e.datalen = static_cast<int32_t>(bytes.size());
+  e.data = const_cast<uint8_t*>(bytes.data());
+  ASSERT_EQ(log.writeEvent(&e), 0);
+}
+
+std::vector<uint8_t> encoded(int64_t time_ns, uint16_t port, std::vector<uint8_t> payload) {
+  velodyne::RawPacket p;
+  p.payload = payload;
+  p.receive_time_ns = time_ns;
+  p.destination_port = port;
+  lidartag::raw_packet_t msg;
+  fill_raw_packet(p, "lidar", msg);
+  std::vector<uint8_t> bytes(static_cast<size_t>(msg.getEncodedSize()));
+  msg.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+  return bytes;
+}
+
+std::string make_log() {
+  const std::string path = ::testing::TempDir() + "/raw_replay.lcmlog";
+  lcm::LogFile log(path, "w");
+  EXPECT_TRUE(log.good());
+  write_event(log, "LIDARTAG_RAW", encoded(1'000'000'000, 2368, {1, 2, 3}), 1);
+  write_event(log, "LIDARTAG_RAW", {0xde, 0xad, 0xbe, 0xef, 1, 2}, 2);  // wrong hash
+  auto truncated = encoded(1'100'000'000, 2368, {4, 5, 6, 7});
+  truncated.resize(truncated.size() - 3);  // right hash, cut short
+  write_event(log, "LIDARTAG_RAW", truncated, 3);
+  auto bad_length = encoded(1'150'000'000, 2368, {4});
+  bad_length[bad_length.size() - 5] = 0x7f;  // nbytes claims ~2 GB
+  write_event(log, "LIDARTAG_RAW", bad_length, 4);
+  write_event(log, "OTHER", encoded(1'200'000'000, 2368, {9}), 5);
+  write_event(log, "LIDARTAG_RAW", encoded(1'300'000'000, 8308, {7, 7}), 6);
+  return path;
+}
+
+TEST(LcmLogSource, DeliversGoodPacketsAndCountsMalformedOnes) {
+  LcmLogSource source(make_log(), {});
+  velodyne::RawPacket p;
+  ASSERT_EQ(source.next(p, 10ms), velodyne::ReadStatus::kPacket);
+  EXPECT_EQ(p.receive_time_ns, 1'000'000'000);
+  EXPECT_EQ(p.destination_port, 2368);
+  EXPECT_EQ(std::vector<uint8_t>(p.payload.begin(), p.payload.end()),
+            (std::vector<uint8_t>{1, 2, 3}));
+  ASSERT_EQ(source.next(p, 10ms), velodyne::ReadStatus::kPacket);
+  EXPECT_EQ(p.destination_port, 8308);
+  EXPECT_EQ(p.payload.size(), 2u);
+  EXPECT_EQ(source.next(p, 10ms), velodyne::ReadStatus::kEnd);
+  EXPECT_EQ(source.stats().packets, 2u);
+  EXPECT_EQ(source.stats().malformed, 3u);
+  EXPECT_EQ(source.stats().ignored, 1u);
+}
+
+TEST(LcmLogSource, LoopKeepsTimeGrowing) {
+  LcmLogSourceOptions o;
+  o.loop = true;
+  LcmLogSource source(make_log(), o);
+  std::vector<int64_t> times;
+  velodyne::RawPacket p;
+  for (int i = 0; i < 6; ++i) {
+    ASSERT_EQ(source.next(p, 10ms), velodyne::ReadStatus::kPacket);
+    times.push_back(p.receive_time_ns);
+  }
+  EXPECT_TRUE(std::is_sorted(times.begin(), times.end()));
+  EXPECT_GT(times[2], times[1]);
+  EXPECT_EQ(times[2] - times[0], 600'000'000);  // duration 300 ms + last interval 300 ms
+}
+
+TEST(LcmLogSource, PacedReplayWaits) {
+  LcmLogSourceOptions o;
+  o.rate = 1.0;
+  LcmLogSource source(make_log(), o);
+  velodyne::RawPacket p;
+  ASSERT_EQ(source.next(p, 10ms), velodyne::ReadStatus::kPacket);
+  // The second packet is due 300 ms after the first: not within 10 ms.
+  EXPECT_EQ(source.next(p, 10ms), velodyne::ReadStatus::kTimeout);
+  ASSERT_EQ(source.next(p, 1000ms), velodyne::ReadStatus::kPacket);
+  EXPECT_EQ(p.destination_port, 8308);
+}
+
+TEST(LcmLogSource, MissingFileIsASetupError) {
+  EXPECT_THROW(LcmLogSource("/nonexistent/x.lcmlog", {}), velodyne::IoError);
+}
+
+}  // namespace
+}  // namespace lidartag::daemon

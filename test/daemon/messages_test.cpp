@@ -1,0 +1,185 @@
+// The LCM messages: every field filled from the pipeline's results, published on an in-process
+// bus (memq://) and decoded back with the generated types.
+#include "lidartag/daemon/messages.hpp"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+
+#include "lidartag/daemon/lcm_bus.hpp"
+
+namespace lidartag::daemon {
+namespace {
+
+// Receives every message of one channel on the bus as raw bytes.
+struct Capture {
+  std::vector<std::vector<uint8_t>> messages;
+  void handle(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+    const auto* p = static_cast<const uint8_t*>(rbuf->data);
+    messages.emplace_back(p, p + rbuf->data_size);
+  }
+};
+
+template <class T>
+T decode(const std::vector<uint8_t>& bytes) {
+  T msg;
+  EXPECT_EQ(msg.decode(bytes.data(), 0, static_cast<int>(bytes.size())),
+            static_cast<int>(bytes.size()));
+  return msg;
+}
+
+RotationResult sample_result() {
+  RotationResult r;
+  r.sequence = 17;
+  r.stamp_ns = 1700000000123456789;
+  r.end_stamp_ns = r.stamp_ns + 99'000'000;
+  r.complete = true;
+  r.columns = 1808;
+  r.points = 50000;
+  r.rpm = 600.5f;
+  r.detection.features = 300;
+  r.detection.clusters = 12;
+  r.detection.timing_ms[0] = 1.5;
+  detector::Detection d;
+  d.family_index = 1;
+  d.family = "tag25h9";
+  d.id = 7;
+  d.size_m = 0.8;
+  d.position = {4.0, 0.9, 0.1};
+  d.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()));
+  for (size_t c = 0; c < 4; ++c)
+    d.corners[c] = Eigen::Vector3d(4.0, 0.1 * double(c), -0.2 * double(c));
+  d.score = 0.93;
+  d.margin = 3.5;
+  d.points = 812;
+  d.fit_cost = 1.25;
+  r.detection.detections.push_back(d);
+  return r;
+}
+
+TEST(Messages, DetectionsCarryEveryFieldThroughMemq) {
+  LcmBus bus("memq://");
+  Capture capture;
+  bus.lcm().subscribe("FRONT_LIDARTAG_DETECTIONS", &Capture::handle, &capture);
+  const RotationResult r = sample_result();
+  lidartag::tag_detections_t msg;
+  fill_detections(r, "front", "velodyne_front", 1700000000200000, 12.5, 3, msg);
+  ASSERT_TRUE(bus.publish("FRONT_LIDARTAG_DETECTIONS", msg));
+  ASSERT_EQ(bus.lcm().handleTimeout(100), 1);
+  ASSERT_EQ(capture.messages.size(), 1u);
+  const auto got = decode<lidartag::tag_detections_t>(capture.messages[0]);
+  EXPECT_EQ(got.utime, 1700000000123456);
+  EXPECT_EQ(got.end_utime, 1700000000222456);
+  EXPECT_EQ(got.publish_utime, 1700000000200000);
+  EXPECT_EQ(got.sensor, "front");
+  EXPECT_EQ(got.frame_id, "velodyne_front");
+  EXPECT_EQ(got.sequence, 17);
+  EXPECT_EQ(got.latency_ms, 12.5);
+  EXPECT_EQ(got.detection_ms, 1.5);
+  EXPECT_EQ(got.dropped_rotations, 3);
+  EXPECT_TRUE(got.complete);
+  EXPECT_EQ(got.columns, 1808);
+  EXPECT_EQ(got.points, 50000);
+  EXPECT_FLOAT_EQ(got.rpm, 600.5f);
+  EXPECT_EQ(got.features, 300);
+  EXPECT_EQ(got.clusters, 12);
+  ASSERT_EQ(got.ndetections, 1);
+  const auto& t = got.detections[0];
+  const auto& d = r.detection.detections[0];
+  EXPECT_EQ(t.family, "tag25h9");
+  EXPECT_EQ(t.family_index, 1);
+  EXPECT_EQ(t.id, 7);
+  EXPECT_EQ(t.size_m, 0.8);
+  EXPECT_EQ(t.position[0], 4.0);
+  EXPECT_EQ(t.position[2], 0.1);
+  EXPECT_EQ(t.orientation[0], d.orientation.w());
+  EXPECT_EQ(t.orientation[3], d.orientation.z());
+  EXPECT_EQ(t.corners[3][1], d.corners[3].y());
+  EXPECT_EQ(t.corners[2][2], d.corners[2].z());
+  EXPECT_EQ(t.score, 0.93);
+  EXPECT_EQ(t.margin, 3.5);
+  EXPECT_EQ(t.points, 812);
+  EXPECT_EQ(t.fit_cost, 1.25);
+}
+
+TEST(Messages, EmptyRotationIsStillAMessage) {
+  RotationResult r = sample_result();
+  r.detection.detections.clear();
+  lidartag::tag_detections_t msg;
+  fill_detections(sample_result(), "a", "f", 0, 0, 0, msg);  // reused: shrinks to the new count
+  fill_detections(r, "a", "f", 0, 0, 0, msg);
+  EXPECT_EQ(msg.ndetections, 0);
+  EXPECT_TRUE(msg.detections.empty());
+  std::vector<uint8_t> buf(static_cast<size_t>(msg.getEncodedSize()));
+  EXPECT_EQ(msg.encode(buf.data(), 0, static_cast<int>(buf.size())), static_cast<int>(buf.size()));
+}
+
+TEST(Messages, StatusCarriesCountersAndStagePercentiles) {
+  SensorStatus s;
+  s.sensor = "front";
+  s.frame_id = "velodyne";
+  s.healthy = false;
+  s.model = "vlp32c";
+  s.return_mode = "strongest";
+  s.rpm = 599.0f;
+  s.time_source = 1;
+  s.pps = 2;
+  s.packets_received = 1000;
+  s.packets_dropped = 3;
+  s.packets_malformed = 2;
+  s.rotations_assembled = 10;
+  s.rotations_dropped = 1;
+  s.rotations_processed = 9;
+  s.rotations_published = 9;
+  s.buffer_occupancy = 1;
+  s.buffer_depth = 4;
+  s.stage_names = {"queue", "detect"};
+  s.stages = {Percentiles{1, 2, 3, 4, 10}, Percentiles{5, 6, 7, 8, 10}};
+  LcmBus bus("memq://");
+  Capture capture;
+  bus.lcm().subscribe("LIDARTAG_STATUS", &Capture::handle, &capture);
+  lidartag::status_t msg;
+  fill_status(s, 123, 4.5, msg);
+  ASSERT_TRUE(bus.publish("LIDARTAG_STATUS", msg));
+  ASSERT_EQ(bus.lcm().handleTimeout(100), 1);
+  const auto got = decode<lidartag::status_t>(capture.messages.at(0));
+  EXPECT_EQ(got.utime, 123);
+  EXPECT_EQ(got.uptime_s, 4.5);
+  EXPECT_FALSE(got.healthy);
+  EXPECT_EQ(got.model, "vlp32c");
+  EXPECT_EQ(got.return_mode, "strongest");
+  EXPECT_EQ(got.time_source, int8_t{lidartag::status_t::TIME_GPS});
+  EXPECT_EQ(got.pps, int8_t{lidartag::status_t::PPS_LOCKED});
+  EXPECT_EQ(got.packets_received, 1000);
+  EXPECT_EQ(got.packets_dropped, 3);
+  EXPECT_EQ(got.rotations_dropped, 1);
+  EXPECT_EQ(got.buffer_depth, 4);
+  ASSERT_EQ(got.nstages, 2);
+  EXPECT_EQ(got.stage_names[1], "detect");
+  EXPECT_EQ(got.p90_ms[1], 6);
+  EXPECT_EQ(got.max_ms[0], 4);
+}
+
+TEST(Messages, RawPacketKeepsBytesPortAndTime) {
+  const std::vector<uint8_t> payload = {1, 2, 3, 250};
+  velodyne::RawPacket p;
+  p.payload = payload;
+  p.receive_time_ns = 1700000000123456789;
+  p.source_ipv4 = 0xC0A801C9;
+  p.destination_port = 2368;
+  lidartag::raw_packet_t msg;
+  fill_raw_packet(p, "front", msg);
+  EXPECT_EQ(msg.utime, 1700000000123456);
+  EXPECT_EQ(msg.receive_time_ns, p.receive_time_ns);
+  EXPECT_EQ(static_cast<uint32_t>(msg.source_ipv4), 0xC0A801C9u);
+  EXPECT_EQ(msg.port, 2368);
+  EXPECT_EQ(msg.nbytes, 4);
+  EXPECT_EQ(msg.data, payload);
+}
+
+TEST(Messages, BadUrlIsASetupError) {
+  EXPECT_THROW(LcmBus("nosuchprovider://x"), LcmError);
+}
+
+}  // namespace
+}  // namespace lidartag::daemon

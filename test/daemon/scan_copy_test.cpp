@@ -1,0 +1,78 @@
+#include "lidartag/daemon/scan_copy.hpp"
+
+#include <gtest/gtest.h>
+
+namespace lidartag::daemon {
+namespace {
+
+Scan filled(int rings, int returns, int capacity, int columns) {
+  Scan s;
+  s.reserve(rings, returns, capacity);
+  s.columns = columns;
+  for (int r = 0; r < returns; ++r)
+    for (int ring = 0; ring < rings; ++ring)
+      for (int c = 0; c < columns; ++c) {
+        const size_t i = s.at(r, ring, c);
+        const float v = static_cast<float>(r * 10000 + ring * 100 + c);
+        s.x[i] = v;
+        s.y[i] = -v;
+        s.z[i] = v * 0.5f;
+        s.range[i] = v + 1;
+        s.azimuth_deg[i] = static_cast<float>(c);
+        s.time_s[i] = v * 1e-6f;
+        s.intensity[i] = static_cast<uint8_t>(c % 256);
+        s.return_type[i] = ReturnType::kStrongest;
+      }
+  for (int c = 0; c < columns; ++c) {
+    s.column_azimuth_deg[static_cast<size_t>(c)] = static_cast<float>(c) * 0.2f;
+    s.column_time_s[static_cast<size_t>(c)] = c * 5e-5;
+  }
+  s.sequence = 42;
+  s.stamp_ns = 1700000000000000000;
+  s.complete = true;
+  s.rpm = 600;
+  s.packets = 7;
+  return s;
+}
+
+TEST(ScanCopy, CopiesFilledColumnsIntoALargerScanCellByCell) {
+  const Scan src = filled(4, 2, 50, 30);
+  Scan dst;
+  dst.reserve(8, 2, 80);  // other capacity: the layout differs, the cells must not
+  const float* storage = dst.x.data();
+  ASSERT_TRUE(copy_scan(src, dst));
+  EXPECT_EQ(dst.x.data(), storage);  // no reallocation
+  EXPECT_EQ(dst.rings, 4);
+  EXPECT_EQ(dst.returns, 2);
+  EXPECT_EQ(dst.columns, 30);
+  EXPECT_EQ(dst.column_capacity, 80);
+  for (int r = 0; r < 2; ++r)
+    for (int ring = 0; ring < 4; ++ring)
+      for (int c = 0; c < 30; ++c) {
+        const size_t a = src.at(r, ring, c), b = dst.at(r, ring, c);
+        ASSERT_EQ(dst.x[b], src.x[a]);
+        ASSERT_EQ(dst.y[b], src.y[a]);
+        ASSERT_EQ(dst.range[b], src.range[a]);
+        ASSERT_EQ(dst.intensity[b], src.intensity[a]);
+      }
+  EXPECT_EQ(dst.point_count(), src.point_count());
+  EXPECT_EQ(dst.sequence, 42u);
+  EXPECT_EQ(dst.stamp_ns, src.stamp_ns);
+  EXPECT_TRUE(dst.complete);
+  EXPECT_EQ(dst.column_time_s[29], src.column_time_s[29]);
+  EXPECT_EQ(dst.packets, 7u);
+}
+
+TEST(ScanCopy, RefusesWhatDoesNotFit) {
+  Scan dst;
+  dst.reserve(4, 1, 20);
+  dst.sequence = 5;
+  EXPECT_FALSE(copy_scan(filled(4, 1, 50, 30), dst));  // too many columns
+  EXPECT_FALSE(copy_scan(filled(4, 2, 20, 10), dst));  // two returns in one-return storage
+  EXPECT_FALSE(copy_scan(filled(8, 1, 20, 10), dst));  // more rings
+  EXPECT_EQ(dst.sequence, 5u);
+  EXPECT_TRUE(copy_scan(filled(2, 2, 20, 20), dst));  // 2 x 2 rows fit in 4 x 1
+}
+
+}  // namespace
+}  // namespace lidartag::daemon

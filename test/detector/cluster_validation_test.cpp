@@ -1,0 +1,118 @@
+// Stage 3: fill-in, point-count bounds, payload boundary points eq. (GI).
+#include "lidartag/detector/cluster_validation.hpp"
+
+#include <gtest/gtest.h>
+
+#include <numbers>
+
+#include "lidartag/detector/edge_features.hpp"
+#include "synthetic_scene.hpp"
+
+namespace lidartag::detector {
+namespace {
+
+struct Filled {
+  Scan scan;
+  std::vector<ClusterPoint> points;
+  int tag_cells = 0;  // returns on the tag in the scan
+};
+
+Filled fill_tag(double distance, uint8_t white, uint8_t black) {
+  Filled out;
+  const auto& fam = tags::builtin_family("tag16h5");
+  test::SyntheticScene scene;
+  scene.white = white;
+  scene.black = black;
+  test::SyntheticTag tag;
+  tag.family = &fam;
+  tag.center = Eigen::Vector3d(distance, 2, 0);
+  tag.rotation = test::facing_sensor(tag.center, 45);
+  scene.tags.push_back(tag);
+  scene.wall_x = distance + 4;
+  test::render_scene(scene, test::vlp32c(), out.scan);
+  for (size_t i = 0; i < out.scan.range.size(); ++i) {
+    if (!out.scan.valid(i)) continue;
+    const Eigen::Vector3d p(out.scan.x[i], out.scan.y[i], out.scan.z[i]);
+    const Eigen::Vector3d q = tag.rotation.transpose() * (p - tag.center);
+    if (std::abs(q.x()) < 1e-3 && std::abs(q.y()) <= 0.6 && std::abs(q.z()) <= 0.6) ++out.tag_cells;
+  }
+  std::vector<Feature> f;
+  std::vector<float> g;
+  FeatureOptions fo;
+  fo.max_pair_chord_m = 1.9f;
+  detect_edge_features(out.scan, fo, f, g);
+  std::vector<int> members;
+  Cluster cl;
+  cl.min_x = cl.min_y = 1e9f;
+  cl.max_x = cl.max_y = -1e9f;
+  cl.min_ring = 1000;
+  cl.max_ring = -1;
+  for (size_t k = 0; k < f.size(); ++k) {
+    const Eigen::Vector3d p(f[k].x, f[k].y, f[k].z);
+    if ((p - tag.center).norm() > 1.0) continue;
+    members.push_back(static_cast<int>(k));
+    cl.min_x = std::min(cl.min_x, f[k].x);
+    cl.max_x = std::max(cl.max_x, f[k].x);
+    cl.min_y = std::min(cl.min_y, f[k].y);
+    cl.max_y = std::max(cl.max_y, f[k].y);
+    cl.min_ring = std::min(cl.min_ring, f[k].ring);
+    cl.max_ring = std::max(cl.max_ring, f[k].ring);
+  }
+  cl.features = static_cast<int>(members.size());
+  std::vector<int> work;
+  EXPECT_EQ(fill_cluster(out.scan, f, members, cl, ValidationOptions{}, 2.0f, out.points, work),
+            Rejection::kNone);
+  return out;
+}
+
+TEST(ClusterValidation, FillInTakesEveryTagReturnAndNothingBehind) {
+  const Filled f = fill_tag(6, 220, 20);
+  // All but a ring touching a vertex with a single return (no two features there).
+  EXPECT_LE(static_cast<int>(f.points.size()), f.tag_cells);
+  EXPECT_GE(static_cast<int>(f.points.size()), f.tag_cells - 2);
+  int edges = 0;
+  for (const auto& p : f.points) {
+    EXPECT_LT(std::abs(p.x - 6.0f), 0.9f);
+    edges += p.edge ? 1 : 0;
+  }
+  EXPECT_EQ(edges, 2 * rings_in(f.points));
+}
+
+TEST(ClusterValidation, TooSmallOrTooLargeClustersAreRejectedEarly) {
+  Scan s;
+  s.reserve(4, 1, 10);
+  s.columns = 10;
+  const std::vector<Feature> f(2);
+  const std::vector<int> members = {0, 1};
+  Cluster cl;
+  cl.max_ring = 3;
+  std::vector<ClusterPoint> pts;
+  std::vector<int> work;
+  EXPECT_EQ(fill_cluster(s, f, members, cl, ValidationOptions{}, 2.0f, pts, work),
+            Rejection::kFewFeatures);
+  const std::vector<Feature> f4(4);
+  const std::vector<int> m4 = {0, 1, 2, 3};
+  cl.max_x = 3.0f;
+  EXPECT_EQ(fill_cluster(s, f4, m4, cl, ValidationOptions{}, 2.0f, pts, work),
+            Rejection::kTooLarge);
+}
+
+TEST(ClusterValidation, UpperBoundHoldsForAFaceOnTag) {
+  for (double d : {4.0, 8.0, 14.0}) {
+    const Filled f = fill_tag(d, 220, 20);
+    const double bound = max_tag_points(f.points, 1.2, 0.2 * std::numbers::pi / 180);
+    EXPECT_GE(bound, static_cast<double>(f.points.size())) << d;
+    EXPECT_LT(bound, 3.0 * static_cast<double>(f.points.size())) << d;
+  }
+}
+
+TEST(ClusterValidation, PayloadBoundaryPointsNeedContrast) {
+  const Filled tag = fill_tag(6, 220, 20);
+  const int psi = 2 * (4 + 2);  // eq. (psi) for tag16h5
+  EXPECT_GE(count_boundary_points(tag.points, ValidationOptions{}), psi);
+  const Filled flat = fill_tag(6, 120, 118);  // the same tag printed with no contrast
+  EXPECT_EQ(count_boundary_points(flat.points, ValidationOptions{}), 0);
+}
+
+}  // namespace
+}  // namespace lidartag::detector

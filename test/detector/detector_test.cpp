@@ -1,0 +1,182 @@
+// End to end on synthetic scans: the whole pipeline, its outputs and its accounting.
+#include "lidartag/detector/detector.hpp"
+
+#include <gtest/gtest.h>
+
+#include <numbers>
+
+#include "synthetic_scene.hpp"
+
+namespace lidartag::detector {
+namespace {
+
+using test::angle_deg;
+using test::facing_sensor;
+
+struct Case {
+  double distance;
+  double roll_deg;  // 45: diamond, 0: square
+  double yaw_deg;
+  int id;
+};
+
+class DetectorScenes : public ::testing::TestWithParam<Case> {};
+
+TEST_P(DetectorScenes, FindsTheTagWithItsIdPoseAndCorners) {
+  const Case c = GetParam();
+  const auto& fam = tags::builtin_family("tag16h5");
+  test::SyntheticScene scene;
+  test::SyntheticTag tag;
+  tag.family = &fam;
+  tag.id = c.id;
+  tag.center = Eigen::Vector3d(c.distance * std::cos(0.3), c.distance * std::sin(0.3), 0.1);
+  tag.rotation = facing_sensor(tag.center, c.roll_deg, c.yaw_deg);
+  scene.tags.push_back(tag);
+  scene.wall_x = c.distance + 4.0;
+  scene.range_noise_m = 0.005;
+  Scan scan;
+  test::render_scene(scene, test::vlp32c(), scan);
+
+  Detector det(DetectorOptions{});
+  ScanResult res;
+  det.detect(scan, res);
+  ASSERT_EQ(res.detections.size(), 1u)
+      << "features " << res.features << " clusters " << res.clusters;
+  const Detection& d = res.detections[0];
+  EXPECT_EQ(d.id, c.id);
+  EXPECT_EQ(d.family, "tag16h5");
+  EXPECT_DOUBLE_EQ(d.size_m, 1.2);
+  EXPECT_LT((d.position - tag.center).norm(), 0.03);
+  EXPECT_LT(angle_deg(d.orientation.toRotationMatrix(), tag.rotation), 1.5);
+  const double h = 0.75 * 1.2 / 2;
+  const std::array<Eigen::Vector2d, 4> yz = {Eigen::Vector2d(-h, -h), Eigen::Vector2d(h, -h),
+                                             Eigen::Vector2d(h, h), Eigen::Vector2d(-h, h)};
+  for (size_t k = 0; k < 4; ++k) {
+    const Eigen::Vector3d truth =
+        tag.center + tag.rotation * Eigen::Vector3d(0, yz[k].x(), yz[k].y());
+    EXPECT_LT((d.corners[k] - truth).norm(), 0.04) << "corner " << k;
+  }
+  EXPECT_GT(d.score, 0.5);
+  EXPECT_GE(d.margin, 1.0);
+  EXPECT_GT(d.points, 100);
+  EXPECT_GE(d.orientation.w(), 0.0);
+}
+
+INSTANTIATE_TEST_SUITE_P(Placements, DetectorScenes,
+                         ::testing::Values(Case{4, 45, 0, 0}, Case{8, 45, 0, 7},
+                                           Case{8, 45, 45, 12}, Case{12, 45, 0, 29},
+                                           Case{6, 0, 0, 3}, Case{6, 30, 20, 5},
+                                           Case{5, 135, 0, 9}));
+
+TEST(Detector, TwoSizesAndTwoFamiliesInOneScan) {
+  const auto& f16 = tags::builtin_family("tag16h5");
+  const auto& f25 = tags::builtin_family("tag25h9");
+  test::SyntheticScene scene;
+  test::SyntheticTag a;
+  a.family = &f16;
+  a.id = 4;
+  a.size = 1.2;
+  a.center = Eigen::Vector3d(6, 2.5, 0);
+  a.rotation = facing_sensor(a.center, 45);
+  test::SyntheticTag b;
+  b.family = &f25;
+  b.id = 17;
+  b.size = 0.8;
+  b.center = Eigen::Vector3d(4, -2.5, -0.2);
+  b.rotation = facing_sensor(b.center, 45);
+  scene.tags = {a, b};
+  Scan scan;
+  test::render_scene(scene, test::vlp32c(), scan);
+  DetectorOptions opt;
+  opt.tag_sizes_m = {0.8, 1.2};
+  opt.families = {"tag16h5", "tag25h9"};
+  Detector det(opt);
+  ScanResult res;
+  det.detect(scan, res);
+  ASSERT_EQ(res.detections.size(), 2u);
+  for (const auto& d : res.detections) {
+    if (d.family == "tag16h5") {
+      EXPECT_EQ(d.id, 4);
+      EXPECT_DOUBLE_EQ(d.size_m, 1.2);
+      EXPECT_LT((d.position - a.center).norm(), 0.03);
+    } else {
+      EXPECT_EQ(d.family, "tag25h9");
+      EXPECT_EQ(d.id, 17);
+      EXPECT_DOUBLE_EQ(d.size_m, 0.8);
+      EXPECT_LT((d.position - b.center).norm(), 0.03);
+    }
+  }
+}
+
+TEST(Detector, NothingInATaglessClutteredScene) {
+  test::SyntheticScene scene;
+  scene.boxes = {{Eigen::Vector3d(3, -1, -1.5), Eigen::Vector3d(3.8, -0.2, 0.3)},
+                 {Eigen::Vector3d(5, 1, -1.5), Eigen::Vector3d(6.2, 2.2, 0.0)},
+                 {Eigen::Vector3d(-4, -3, -1.5), Eigen::Vector3d(-3, -2, 1.0)},
+                 {Eigen::Vector3d(7, -4, -1.5), Eigen::Vector3d(7.5, -2.8, -0.3)}};
+  scene.range_noise_m = 0.01;
+  Scan scan;
+  test::render_scene(scene, test::vlp32c(), scan);
+  Detector det(DetectorOptions{});
+  ScanResult res;
+  det.detect(scan, res);
+  EXPECT_TRUE(res.detections.empty());
+  EXPECT_GT(res.clusters, 0);
+}
+
+TEST(Detector, EveryClusterIsAccountedForAndTimed) {
+  const auto& fam = tags::builtin_family("tag16h5");
+  test::SyntheticScene scene;
+  test::SyntheticTag tag;
+  tag.family = &fam;
+  tag.center = Eigen::Vector3d(5, 0, 0);
+  tag.rotation = facing_sensor(tag.center, 45);
+  scene.tags.push_back(tag);
+  scene.boxes = {{Eigen::Vector3d(3, 3, -1.5), Eigen::Vector3d(4, 4, 0.5)}};
+  Scan scan;
+  test::render_scene(scene, test::vlp32c(), scan);
+  Detector det(DetectorOptions{});
+  ScanResult res;
+  det.detect(scan, res);
+  uint32_t rejected = 0;
+  for (auto n : res.rejected) rejected += n;
+  EXPECT_EQ(rejected + res.detections.size(), static_cast<size_t>(res.clusters));
+  EXPECT_EQ(res.diagnostics.size(), static_cast<size_t>(res.clusters));
+  uint32_t by_stage = 0;
+  for (int s = 0; s < kStageCount; ++s) by_stage += res.rejected_at(static_cast<Stage>(s));
+  EXPECT_EQ(by_stage, rejected);
+  EXPECT_GT(res.timing_ms[static_cast<size_t>(Stage::kFeatures)], 0.0);
+  EXPECT_GT(res.timing_ms[static_cast<size_t>(Stage::kDecode)], 0.0);
+  // A second rotation through the same detector gives the same answer (buffers are reused).
+  ScanResult again;
+  det.detect(scan, again);
+  ASSERT_EQ(again.detections.size(), res.detections.size());
+  EXPECT_EQ(again.detections[0].position, res.detections[0].position);
+}
+
+TEST(Detector, BadOptionsThrowATypedError) {
+  DetectorOptions o;
+  o.tag_sizes_m.clear();
+  EXPECT_THROW(Detector{o}, OptionsError);
+  o = DetectorOptions{};
+  o.families = {"tag99h1"};
+  EXPECT_THROW(Detector{o}, OptionsError);
+  o = DetectorOptions{};
+  o.plane.max_outlier_ratio = 1.5f;
+  EXPECT_THROW(Detector{o}, OptionsError);
+  o = DetectorOptions{};
+  o.features.ell = 0;
+  EXPECT_THROW(Detector{o}, OptionsError);
+}
+
+TEST(Detector, EmptyScanGivesNothing) {
+  Scan scan;
+  Detector det(DetectorOptions{});
+  ScanResult res;
+  det.detect(scan, res);
+  EXPECT_TRUE(res.detections.empty());
+  EXPECT_EQ(res.clusters, 0);
+}
+
+}  // namespace
+}  // namespace lidartag::detector

@@ -1,0 +1,124 @@
+// Stage 1: distance-gradient features, eq. (GD), and the one-edge-among-n+1 rule.
+#include "lidartag/detector/edge_features.hpp"
+
+#include <gtest/gtest.h>
+
+#include "synthetic_scene.hpp"
+
+namespace lidartag::detector {
+namespace {
+
+// One ring, a partial rotation, ranges along +x direction spread in azimuth.
+Scan ring_of(const std::vector<float>& ranges) {
+  Scan s;
+  const int n = static_cast<int>(ranges.size());
+  s.reserve(1, 1, n);
+  s.columns = n;
+  for (int c = 0; c < n; ++c) {
+    s.column_azimuth_deg[static_cast<size_t>(c)] = 0.2f * static_cast<float>(c);  // partial
+    const size_t i = s.at(0, 0, c);
+    const float r = ranges[static_cast<size_t>(c)];
+    const double a = 0.2 * c * 3.14159265358979 / 180.0;
+    s.range[i] = r;
+    s.x[i] = r * static_cast<float>(std::cos(a));
+    s.y[i] = -r * static_cast<float>(std::sin(a));
+    s.z[i] = 0.0f;
+  }
+  return s;
+}
+
+TEST(EdgeFeatures, MarksTheNearSideOfEachJump) {
+  std::vector<float> r(40, 10.0f);
+  for (int c = 15; c < 25; ++c) r[static_cast<size_t>(c)] = 6.0f;  // an object 4 m in front
+  const Scan s = ring_of(r);
+  std::vector<Feature> f;
+  std::vector<float> g;
+  detect_edge_features(s, FeatureOptions{}, f, g);
+  ASSERT_EQ(f.size(), 2u);
+  EXPECT_EQ(f[0].col, 15);
+  EXPECT_EQ(f[0].side, -1);
+  EXPECT_EQ(f[1].col, 24);
+  EXPECT_EQ(f[1].side, 1);
+  EXPECT_FLOAT_EQ(f[0].range, 6.0f);
+}
+
+TEST(EdgeFeatures, StepsBelowZetaAreNotEdges) {
+  std::vector<float> r(40, 10.0f);
+  for (int c = 15; c < 25; ++c) r[static_cast<size_t>(c)] = 9.7f;
+  const Scan s = ring_of(r);
+  std::vector<Feature> f;
+  std::vector<float> g;
+  detect_edge_features(s, FeatureOptions{}, f, g);
+  EXPECT_TRUE(f.empty());
+  FeatureOptions o;
+  o.zeta_m = 0.2f;
+  detect_edge_features(s, o, f, g);
+  EXPECT_EQ(f.size(), 2u);
+}
+
+TEST(EdgeFeatures, RunsOfEdgesAreNotFeatures) {
+  // Vegetation: alternating near and far returns make edges in consecutive points.
+  // Two near returns, one far, repeated: every near return is an edge point.
+  std::vector<float> r(40, 10.0f);
+  for (int c : {10, 11, 13, 14, 16, 17}) r[static_cast<size_t>(c)] = 5.0f;
+  const Scan s = ring_of(r);
+  std::vector<Feature> f;
+  std::vector<float> g;
+  detect_edge_features(s, FeatureOptions{}, f, g);
+  ASSERT_EQ(f.size(), 2u);  // only the outer ends have a window of n+1 = 3 with one edge
+  EXPECT_EQ(f[0].col, 10);
+  EXPECT_EQ(f[1].col, 17);
+  FeatureOptions keep;
+  keep.n = 0;  // every edge point is a feature
+  detect_edge_features(s, keep, f, g);
+  EXPECT_EQ(f.size(), 6u);
+}
+
+TEST(EdgeFeatures, MissingNeighboursCountAsFarAndShortRunsArePaired) {
+  std::vector<float> r(40, 0.0f);  // sky
+  for (int c = 10; c < 30; ++c) r[static_cast<size_t>(c)] = 5.0f;
+  const Scan s = ring_of(r);
+  std::vector<Feature> f;
+  std::vector<float> g;
+  FeatureOptions o;
+  o.max_pair_chord_m = 2.0f;  // the run is 19 * 0.2 deg * 5 m = 0.33 m long
+  detect_edge_features(s, o, f, g);
+  ASSERT_EQ(f.size(), 2u);
+  EXPECT_EQ(f[1].partner, 0);
+  o.max_pair_chord_m = 0.1f;
+  detect_edge_features(s, o, f, g);
+  ASSERT_EQ(f.size(), 2u);
+  EXPECT_EQ(f[1].partner, -1);
+}
+
+TEST(EdgeFeatures, ATagInAFullRotationHasTwoFeaturesPerRingAcrossTheCut) {
+  const auto& fam = tags::builtin_family("tag16h5");
+  test::SyntheticScene scene;
+  test::SyntheticTag tag;
+  tag.family = &fam;
+  tag.center = Eigen::Vector3d(6, 0, 0);  // straddles azimuth 0, the first column
+  tag.rotation = test::facing_sensor(tag.center, 0);
+  scene.tags.push_back(tag);
+  scene.floor = false;
+  Scan s;
+  test::render_scene(scene, test::vlp32c(), s);
+  ASSERT_TRUE(rotation_wraps(s));
+  std::vector<Feature> f;
+  std::vector<float> g;
+  FeatureOptions o;
+  o.max_pair_chord_m = 2.0f;
+  detect_edge_features(s, o, f, g);
+  int on_tag = 0, paired = 0;
+  for (const auto& x : f)
+    if (std::abs(x.x - 6.0f) < 0.05f) {
+      ++on_tag;
+      EXPECT_LT(std::abs(x.y), 0.62f);
+      paired += x.partner >= 0 ? 1 : 0;
+    }
+  // Rings between -5.7 and 5.7 degrees cross the 1.2 m tag at 6 m: two features each.
+  EXPECT_GE(on_tag, 2 * 20);
+  EXPECT_EQ(paired * 2, on_tag);
+}
+
+}  // namespace
+}  // namespace lidartag::detector

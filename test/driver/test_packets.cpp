@@ -1,0 +1,182 @@
+// Bad input, position packets, time joining and model autodetection.
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "lidartag/driver/decoder.hpp"
+#include "lidartag/driver/sensor_clock.hpp"
+#include "synthetic_stream.hpp"
+
+namespace lidartag::velodyne {
+namespace {
+
+constexpr int64_t kHour = 3'600'000'000'000LL;
+
+std::vector<uint8_t> one_packet(Model m, ReturnMode mode = ReturnMode::kStrongest) {
+  return testing::make_stream(model_spec(m), mode, 1)[0].bytes;
+}
+
+TEST(DecodeErrors, WrongSizeIsRejected) {
+  Decoder d(Calibration::builtin(Model::kVLP16));
+  SensorClock clock;
+  DecodedPacket out;
+  auto p = one_packet(Model::kVLP16);
+  EXPECT_EQ(d.decode(std::span(p).first(1205), clock, 0, out), DecodeStatus::kWrongSize);
+  p.push_back(0);
+  EXPECT_EQ(d.decode(p, clock, 0, out), DecodeStatus::kWrongSize);
+  EXPECT_EQ(d.decode({}, clock, 0, out), DecodeStatus::kWrongSize);
+}
+
+TEST(DecodeErrors, CorruptFlagAzimuthAndModeAreRejected) {
+  Decoder d(Calibration::builtin(Model::kVLP32C));
+  SensorClock clock;
+  DecodedPacket out;
+  auto good = one_packet(Model::kVLP32C);
+  ASSERT_EQ(d.decode(good, clock, 0, out), DecodeStatus::kOk);
+  auto p = good;
+  p[5 * kBlockSize] = 0x00;  // flag of block 5
+  EXPECT_EQ(d.decode(p, clock, 0, out), DecodeStatus::kBadBlockFlag);
+  p = good;
+  write_u16(p.data() + 3 * kBlockSize + 2, 36000);
+  EXPECT_EQ(d.decode(p, clock, 0, out), DecodeStatus::kBadAzimuth);
+  p = good;
+  p[kReturnModeOffset] = 0x40;
+  EXPECT_EQ(d.decode(p, clock, 0, out), DecodeStatus::kBadReturnMode);
+  p = good;
+  p[kReturnModeOffset] = 0x00;  // old firmware: no return-mode byte, strongest
+  EXPECT_EQ(d.decode(p, clock, 0, out), DecodeStatus::kOk);
+  EXPECT_EQ(out.mode, ReturnMode::kStrongest);
+}
+
+TEST(DecodeErrors, VlsBankFlagsAreChecked) {
+  Decoder d(Calibration::builtin(Model::kVLS128));
+  SensorClock clock;
+  DecodedPacket out;
+  auto p = one_packet(Model::kVLS128);
+  ASSERT_EQ(d.decode(p, clock, 0, out), DecodeStatus::kOk);
+  write_u16(p.data() + 1 * kBlockSize, kBankFlags[0]);  // bank 0 twice in one firing
+  EXPECT_EQ(d.decode(p, clock, 0, out), DecodeStatus::kBadBlockFlag);
+  // A VLP-32C packet (all EE flags) is not a VLS-128 packet.
+  EXPECT_EQ(d.decode(one_packet(Model::kVLP32C), clock, 0, out), DecodeStatus::kBadBlockFlag);
+}
+
+TEST(DecodeErrors, RandomBytesNeverCrashAndNeverYieldNaN) {
+  std::mt19937 rng(7);
+  for (Model m : all_models()) {
+    Decoder d(Calibration::builtin(m));
+    SensorClock clock;
+    DecodedPacket out;
+    auto base = one_packet(m);
+    int ok = 0;
+    for (int trial = 0; trial < 2000; ++trial) {
+      auto p = base;
+      const int flips = 1 + static_cast<int>(rng() % 40);
+      for (int f = 0; f < flips; ++f) p[rng() % p.size()] = static_cast<uint8_t>(rng());
+      if (d.decode(p, clock, 0, out) != DecodeStatus::kOk) continue;
+      ++ok;
+      for (int r = 0; r < out.returns; ++r)
+        for (int c = 0; c < out.columns; ++c)
+          for (int ring = 0; ring < out.rings; ++ring) {
+            const auto i = static_cast<size_t>(out.at(r, c, ring));
+            ASSERT_TRUE(std::isfinite(out.x[i]) && std::isfinite(out.y[i]) &&
+                        std::isfinite(out.z[i]));
+            ASSERT_GE(out.azimuth_deg[i], 0.0f);
+            ASSERT_LT(out.azimuth_deg[i], 360.0f);
+          }
+    }
+    EXPECT_GT(ok, 0) << "some corruptions only touch distances and must still decode";
+  }
+}
+
+TEST(PositionPacket, ParsesCounterPpsAndGprmc) {
+  std::array<uint8_t, kPositionPacketSize> buf{};
+  const std::string nmea = "$GPRMC,101530.25,A,4916.45,N,12311.12,W,000.5,054.7,191194,020.3,E*68";
+  encode_position_packet(930'250'000u, PpsStatus::kLocked, nmea, buf);
+  PositionPacket pos;
+  ASSERT_EQ(parse_position_packet(buf, pos), PositionStatus::kOk);
+  EXPECT_EQ(pos.usec_since_hour, 930'250'000u);
+  EXPECT_EQ(pos.pps, PpsStatus::kLocked);
+  EXPECT_EQ(pos.sentence(), nmea);
+  EXPECT_TRUE(pos.has_gprmc);
+  // 1994-11-19 10:15:30.25 UTC
+  EXPECT_EQ(pos.gps_fix_ns, 785240130'250'000'000LL);
+}
+
+TEST(PositionPacket, BadInputIsReportedNotTrusted) {
+  std::array<uint8_t, kPositionPacketSize> buf{};
+  PositionPacket pos;
+  EXPECT_EQ(parse_position_packet(std::span(buf).first(511), pos), PositionStatus::kWrongSize);
+  encode_position_packet(1, static_cast<PpsStatus>(9), "$GPRMC,xx", buf);
+  EXPECT_EQ(parse_position_packet(buf, pos), PositionStatus::kBadPps);
+  EXPECT_FALSE(pos.has_gprmc);
+  // A void fix ('V') is not used as time; control bytes are neutralised.
+  encode_position_packet(1, PpsStatus::kLocked,
+                         "$GPRMC,101530,V,4916.45,N,12311.12,W,000.5,054.7,191194,,*68", buf);
+  ASSERT_EQ(parse_position_packet(buf, pos), PositionStatus::kOk);
+  EXPECT_FALSE(pos.has_gprmc);
+  buf[kNmeaOffset + 3] = 0x07;
+  ASSERT_EQ(parse_position_packet(buf, pos), PositionStatus::kOk);
+  EXPECT_EQ(pos.sentence().substr(0, 4), "$GP?");
+  // No terminator in 128 bytes: the sentence is cut, never read past.
+  std::fill(buf.begin() + kNmeaOffset, buf.end(), uint8_t{'A'});
+  ASSERT_EQ(parse_position_packet(buf, pos), PositionStatus::kOk);
+  EXPECT_EQ(pos.sentence().size(), kNmeaMaxLength);
+}
+
+TEST(SensorClock, JoinsTheHourCounterWithTheReference) {
+  const int64_t hour = 490'000 * kHour;  // some top of the hour
+  // Same hour.
+  EXPECT_EQ(join_hour(1'000'000, hour + 2'000'000'000LL), hour + 1'000'000'000LL);
+  // Counter just before the hour, reference just after it: previous hour.
+  EXPECT_EQ(join_hour(3'599'900'000u, hour + 50'000'000LL), hour - 100'000'000LL);
+  // Counter just after the hour, reference just before it: next hour.
+  EXPECT_EQ(join_hour(100'000, hour - 50'000'000LL), hour + 100'000'000LL);
+}
+
+TEST(SensorClock, UsesGpsTimeWhenPpsIsLocked) {
+  SensorClock clock;
+  std::array<uint8_t, kPositionPacketSize> buf{};
+  encode_position_packet(930'250'000u, PpsStatus::kLocked,
+                         "$GPRMC,101530,A,4916.45,N,12311.12,W,000.5,054.7,191194,020.3,E*68", buf);
+  PositionPacket pos;
+  ASSERT_EQ(parse_position_packet(buf, pos), PositionStatus::kOk);
+  clock.update(pos);
+  EXPECT_EQ(clock.source(), TimeSource::kGps);
+  const int64_t hour_1994 = 785'240'130'000'000'000LL - (15 * 60 + 30) * 1'000'000'000LL;
+  // The host clock is ignored (it is years off).
+  EXPECT_EQ(clock.join(5'000'000, 1'700'000'000'000'000'000LL), hour_1994 + 5'000'000'000LL);
+  // Without lock, the host clock stays in charge.
+  SensorClock host;
+  pos.pps = PpsStatus::kSynchronizing;
+  host.update(pos);
+  EXPECT_EQ(host.source(), TimeSource::kHost);
+}
+
+TEST(ModelCheck, DetectsTheModelFromTheProductByteAndTiming) {
+  for (Model m : all_models()) {
+    for (ReturnMode mode : {ReturnMode::kStrongest, ReturnMode::kDual}) {
+      ModelCheck check;
+      for (const auto& p : testing::make_stream(model_spec(m), mode, 40)) check.add(p.bytes);
+      EXPECT_EQ(check.product_model(), m);
+      EXPECT_EQ(check.timing_model(), m) << model_spec(m).name;
+      EXPECT_EQ(check.return_mode(), mode);
+      EXPECT_EQ(check.mismatch(), "");
+    }
+  }
+}
+
+TEST(ModelCheck, ReportsAProductByteThatContradictsTheTiming) {
+  // VLP-16 layout and timing with the HDL-32E product byte, as in real captures.
+  ModelCheck check;
+  for (auto p : testing::make_stream(model_spec(Model::kVLP16), ReturnMode::kStrongest, 40)) {
+    p.bytes[kProductIdOffset] = 0x21;
+    check.add(p.bytes);
+  }
+  EXPECT_EQ(check.product_model(), Model::kHDL32E);
+  EXPECT_EQ(check.timing_model(), Model::kVLP16);
+  EXPECT_NE(check.mismatch().find("fit vlp16"), std::string::npos) << check.mismatch();
+  EXPECT_NEAR(check.median_packet_period_us(), 1327, 1);
+}
+
+}  // namespace
+}  // namespace lidartag::velodyne

@@ -1,0 +1,275 @@
+// Whole rotations: cut at the point, loss, duplicates, reordering, FOV gaps, restarts, timeouts.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <deque>
+#include <memory>
+
+#include "lidartag/driver/scan_batcher.hpp"
+#include "synthetic_stream.hpp"
+
+namespace lidartag::velodyne {
+namespace {
+
+// Collects every rotation; can be told to have no free scan.
+class CollectingSink : public ScanSink {
+ public:
+  CollectingSink(int rings, int returns, int capacity)
+      : rings_(rings), returns_(returns), capacity_(capacity) {}
+  Scan* acquire() override {
+    if (refuse) return nullptr;
+    pool_.push_back(std::make_unique<Scan>());
+    pool_.back()->reserve(rings_, returns_, capacity_);
+    return pool_.back().get();
+  }
+  void publish(Scan* s) override { scans.push_back(s); }
+  std::vector<Scan*> scans;
+  bool refuse = false;
+
+ private:
+  int rings_, returns_, capacity_;
+  std::deque<std::unique_ptr<Scan>> pool_;
+};
+
+struct Rig {
+  const ModelSpec& spec;
+  ReturnMode mode;
+  Decoder decoder;
+  SensorClock clock;
+  CollectingSink sink;
+  ScanBatcher batcher;
+  DecodedPacket pk;
+  Rig(Model m, ReturnMode md, BatcherOptions o = {}, int capacity = 0)
+      : spec(model_spec(m)),
+        mode(md),
+        decoder(Calibration::builtin(m)),
+        sink(spec.lasers, md == ReturnMode::kDual ? 2 : 1,
+             capacity > 0 ? capacity : ScanBatcher::column_capacity(spec)),
+        batcher(spec, md, o, sink) {}
+  void feed(const testing::StreamPacket& p) {
+    ASSERT_EQ(decoder.decode(p.bytes, clock, p.time_ns, pk), DecodeStatus::kOk);
+    batcher.add(pk);
+  }
+  void feed_all(const std::vector<testing::StreamPacket>& v) {
+    for (const auto& p : v) feed(p);
+  }
+};
+
+double ahead_of_cut(double az, double cut) {
+  return std::fmod(az - cut + 720.0, 360.0);
+}
+
+TEST(ScanBatcher, CutsWholeRotationsAtTheAzimuthInsideAPacket) {
+  for (Model m : all_models()) {
+    BatcherOptions o;
+    o.cut_azimuth_deg = 123.45;  // not on a packet boundary
+    Rig rig(m, ReturnMode::kStrongest, o);
+    const int per_rotation_packets =
+        static_cast<int>(std::ceil(rig.spec.packet_rate_hz(ReturnMode::kStrongest) / 10.0));
+    const auto stream =
+        testing::make_stream(rig.spec, ReturnMode::kStrongest, per_rotation_packets * 3 + 5);
+    rig.feed_all(stream);
+    rig.batcher.flush();
+    const auto& scans = rig.sink.scans;
+    ASSERT_EQ(scans.size(), 4u) << rig.spec.name;  // partial, 2 whole, partial
+    EXPECT_FALSE(scans[0]->complete);
+    EXPECT_FALSE(scans[0]->starts_at_cut);
+    EXPECT_FALSE(scans[3]->complete);
+    const double step = 600.0 * 360.0 / 60e6 * rig.spec.firing_period_us;
+    const int expected_columns = static_cast<int>(std::lround(360.0 / step));
+    for (int i = 1; i <= 2; ++i) {
+      const Scan& s = *scans[static_cast<size_t>(i)];
+      EXPECT_TRUE(s.complete) << rig.spec.name;
+      EXPECT_NEAR(s.columns, expected_columns, 1) << rig.spec.name;
+      EXPECT_NEAR(s.rpm, 600.0, 1.0);
+      // First column at most one step past the cut, last column at most one step before it.
+      EXPECT_LT(ahead_of_cut(s.column_azimuth_deg[0], o.cut_azimuth_deg), step + 0.011);
+      EXPECT_GT(
+          ahead_of_cut(s.column_azimuth_deg[static_cast<size_t>(s.columns - 1)], o.cut_azimuth_deg),
+          360.0 - step - 0.011);
+      EXPECT_EQ(s.column_time_s[0], 0.0);
+      for (int c = 1; c < s.columns; ++c)
+        EXPECT_NEAR(
+            s.column_time_s[static_cast<size_t>(c)] - s.column_time_s[static_cast<size_t>(c - 1)],
+            rig.spec.firing_period_us * 1e-6, 1.01e-6);  // packet stamps are whole us
+      // The first column is not the first of its packet: that packet fed both rotations.
+      const int64_t since_start = s.stamp_ns - stream[0].time_ns;
+      const double packet_ns = rig.spec.packet_period_us(ReturnMode::kStrongest) * 1e3;
+      if (rig.spec.columns_per_packet(ReturnMode::kStrongest) > 1) {
+        EXPECT_GT(std::fmod(static_cast<double>(since_start), packet_ns), 1.0) << rig.spec.name;
+      }
+      // Consecutive rotations join without a missing or repeated column.
+      const Scan& prev = *scans[static_cast<size_t>(i - 1)];
+      const double prev_last_t = static_cast<double>(prev.stamp_ns) * 1e-9 +
+                                 prev.column_time_s[static_cast<size_t>(prev.columns - 1)];
+      EXPECT_NEAR(static_cast<double>(s.stamp_ns) * 1e-9 - prev_last_t,
+                  rig.spec.firing_period_us * 1e-6, 1.01e-6);
+    }
+    EXPECT_EQ(rig.batcher.stats().complete, 2u);
+    EXPECT_EQ(rig.batcher.stats().missing_packets, 0u);
+  }
+}
+
+TEST(ScanBatcher, PerPointTimeAndAzimuthAreMonotonicPerRing) {
+  Rig rig(Model::kVLP32C, ReturnMode::kStrongest);
+  rig.feed_all(testing::make_stream(rig.spec, ReturnMode::kStrongest, 400));
+  ASSERT_GE(rig.sink.scans.size(), 2u);
+  const Scan& s = *rig.sink.scans[1];
+  ASSERT_TRUE(s.complete);
+  for (int ring = 0; ring < s.rings; ++ring) {
+    double prev_t = -1, prev_az = -1, ref = -1;
+    for (int c = 0; c < s.columns; ++c) {
+      const size_t i = s.at(0, ring, c);
+      if (!s.valid(i)) continue;
+      EXPECT_GT(s.time_s[i], prev_t);
+      // Each laser has its own azimuth offset: unwrap from just before its column 0.
+      if (ref < 0) ref = s.azimuth_deg[i] - 0.001 - 0.19907 * c;
+      const double az = ahead_of_cut(s.azimuth_deg[i], ref);
+      EXPECT_GT(az, prev_az);
+      prev_t = s.time_s[i];
+      prev_az = az;
+    }
+  }
+}
+
+TEST(ScanBatcher, LostPacketsAreCountedAndMarkTheRotationIncomplete) {
+  Rig rig(Model::kVLP16, ReturnMode::kStrongest);
+  auto stream = testing::make_stream(rig.spec, ReturnMode::kStrongest, 260);
+  // Rotation 1 spans packets 36..111 (start azimuth 10, cut 180, 75.4 packets a turn).
+  stream.erase(stream.begin() + 100, stream.begin() + 103);
+  rig.feed_all(stream);
+  rig.batcher.flush();
+  ASSERT_GE(rig.sink.scans.size(), 3u);
+  EXPECT_EQ(rig.sink.scans[1]->missing_packets, 3u);
+  EXPECT_FALSE(rig.sink.scans[1]->complete);
+  EXPECT_TRUE(rig.sink.scans[2]->complete);
+  EXPECT_EQ(rig.batcher.stats().missing_packets, 3u);
+}
+
+TEST(ScanBatcher, DuplicatesAndLatePacketsAreDroppedAndCounted) {
+  Rig rig(Model::kHDL32E, ReturnMode::kStrongest);
+  auto stream = testing::make_stream(rig.spec, ReturnMode::kStrongest, 500);
+  stream.insert(stream.begin() + 200, stream[199]);  // duplicate
+  std::swap(stream[300], stream[301]);               // reordered pair
+  rig.feed_all(stream);
+  rig.batcher.flush();
+  EXPECT_EQ(rig.batcher.stats().late_packets, 2u);  // the duplicate and the overtaken packet
+  EXPECT_EQ(rig.batcher.stats().missing_packets, 1u);
+  size_t complete = 0;
+  for (const Scan* s : rig.sink.scans) complete += s->complete ? 1u : 0u;
+  // 500 packets of 552.96 us = 2.76 rotations; the duplicate costs nothing, the reorder one.
+  EXPECT_EQ(rig.batcher.stats().rotations, 4u);
+  EXPECT_EQ(complete, 1u);
+}
+
+TEST(ScanBatcher, RestrictedFieldOfViewGivesCompleteRotations) {
+  // The sensor reports only 270..91 deg: it jumps over the blanked sector inside a packet without
+  // a time gap, then pauses between packets with continuous azimuths (as the real VLP-32C capture).
+  for (double cut : {180.0, 0.0}) {
+    BatcherOptions o;
+    o.cut_azimuth_deg = cut;
+    Rig rig(Model::kVLP32C, ReturnMode::kStrongest, o);
+    const auto full = testing::make_stream(rig.spec, ReturnMode::kStrongest, 680);
+    std::vector<testing::StreamPacket> fov;
+    int64_t shift = 0;
+    for (const auto& p : full) {
+      const double az = read_u16(p.bytes.data() + 2) * 0.01;
+      if (az > 91.0 && az < 270.0) {
+        shift -= static_cast<int64_t>(rig.spec.packet_period_us(ReturnMode::kStrongest) * 1e3);
+        continue;
+      }
+      auto q = p;
+      q.time_ns += shift;
+      // Re-stamp the hour counter consistently with the capture time.
+      write_u32(q.bytes.data() + kTimestampOffset,
+                static_cast<uint32_t>((q.time_ns / 1000) % 3'600'000'000LL));
+      fov.push_back(q);
+    }
+    rig.feed_all(fov);
+    rig.batcher.flush();
+    EXPECT_EQ(rig.batcher.stats().missing_packets, 0u) << "cut " << cut;
+    EXPECT_GE(rig.batcher.stats().fov_gaps, 3u);
+    EXPECT_GE(rig.batcher.stats().complete, 3u) << "cut " << cut;
+  }
+}
+
+TEST(ScanBatcher, SensorRestartEndsTheRotationIncomplete) {
+  Rig rig(Model::kVLP16, ReturnMode::kStrongest);
+  auto a = testing::make_stream(rig.spec, ReturnMode::kStrongest, 120);
+  testing::StreamOptions later;
+  later.start_ns = a.front().time_ns - 10'000'000'000LL;  // clock jumps back 10 s
+  later.start_azimuth_deg = 300.0;
+  auto b = testing::make_stream(rig.spec, ReturnMode::kStrongest, 120, later);
+  rig.feed_all(a);
+  rig.feed_all(b);
+  rig.batcher.flush();
+  EXPECT_EQ(rig.batcher.stats().azimuth_jumps, 1u);
+  for (const Scan* s : rig.sink.scans) EXPECT_FALSE(s->complete && s->azimuth_jumps > 0);
+}
+
+TEST(ScanBatcher, StreamThatStopsIsFlushedAfterTheTimeout) {
+  BatcherOptions o;
+  o.flush_timeout_s = 0.2;
+  Rig rig(Model::kVLP16, ReturnMode::kStrongest, o);
+  const auto stream = testing::make_stream(rig.spec, ReturnMode::kStrongest, 30);
+  rig.feed_all(stream);
+  rig.batcher.poll(stream.back().time_ns + 100'000'000);
+  EXPECT_TRUE(rig.sink.scans.empty());
+  rig.batcher.poll(stream.back().time_ns + 300'000'000);
+  ASSERT_EQ(rig.sink.scans.size(), 1u);
+  EXPECT_FALSE(rig.sink.scans[0]->ends_at_cut);
+}
+
+TEST(ScanBatcher, RpmChangeChangesColumnsPerRotation) {
+  Rig rig(Model::kVLP32C, ReturnMode::kStrongest);
+  testing::StreamOptions slow;
+  slow.rpm = 300;
+  auto a = testing::make_stream(rig.spec, ReturnMode::kStrongest, 1507 * 5 / 10, slow);
+  testing::StreamOptions fast;
+  fast.rpm = 1200;
+  fast.start_ns = a.back().time_ns + static_cast<int64_t>(663.552e3);
+  const double last_az = read_u16(a.back().bytes.data() + 11 * kBlockSize + 2) * 0.01;
+  fast.start_azimuth_deg = last_az + 300 * 360.0 / 60e6 * 55.296;
+  auto b = testing::make_stream(rig.spec, ReturnMode::kStrongest, 1507 / 2, fast);
+  rig.feed_all(a);
+  rig.feed_all(b);
+  std::vector<const Scan*> complete;
+  for (const Scan* s : rig.sink.scans)
+    if (s->complete) complete.push_back(s);
+  ASSERT_GE(complete.size(), 3u);
+  EXPECT_NEAR(complete.front()->rpm, 300, 2);
+  EXPECT_NEAR(complete.front()->columns, 3617, 2);
+  EXPECT_NEAR(complete.back()->rpm, 1200, 5);
+  EXPECT_NEAR(complete.back()->columns, 904, 2);
+}
+
+TEST(ScanBatcher, DualReturnScansCarryBothEchoes) {
+  Rig rig(Model::kVLP16, ReturnMode::kDual);
+  rig.feed_all(testing::make_stream(rig.spec, ReturnMode::kDual, 400));
+  ASSERT_GE(rig.sink.scans.size(), 2u);
+  const Scan& s = *rig.sink.scans[1];
+  EXPECT_TRUE(s.complete);
+  EXPECT_EQ(s.returns, 2);
+  size_t second = 0;
+  for (int ring = 0; ring < s.rings; ++ring)
+    for (int c = 0; c < s.columns; ++c) second += s.valid(s.at(1, ring, c)) ? 1u : 0u;
+  EXPECT_GT(second, static_cast<size_t>(s.columns) * 8);
+}
+
+TEST(ScanBatcher, ScanThatFillsUpIsCutAndCounted) {
+  Rig rig(Model::kVLP16, ReturnMode::kStrongest, {}, 500);
+  rig.feed_all(testing::make_stream(rig.spec, ReturnMode::kStrongest, 100));
+  EXPECT_GE(rig.batcher.stats().overflows, 1u);
+  for (const Scan* s : rig.sink.scans) EXPECT_LE(s->columns, 500);
+}
+
+TEST(ScanBatcher, NoFreeScanDropsTheRotationWithoutBlocking) {
+  Rig rig(Model::kVLP16, ReturnMode::kStrongest);
+  rig.sink.refuse = true;
+  rig.feed_all(testing::make_stream(rig.spec, ReturnMode::kStrongest, 200));
+  EXPECT_TRUE(rig.sink.scans.empty());
+  EXPECT_EQ(rig.batcher.stats().dropped_no_buffer, 4u);  // partial, two whole, partial
+}
+
+}  // namespace
+}  // namespace lidartag::velodyne

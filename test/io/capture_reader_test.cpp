@@ -1,0 +1,146 @@
+#include "lidartag/driver/io/capture_reader.hpp"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <vector>
+
+#include "lidartag/driver/io/calibration_file.hpp"
+#include "lidartag/driver/io/pcap_writer.hpp"
+
+namespace lidartag::velodyne {
+namespace {
+
+using namespace std::chrono_literals;
+
+const std::string kCaptures = LIDARTAG_SHARED_DIR "/captures/";
+
+struct Summary {
+  size_t rotations = 0, complete = 0, points = 0;
+  uint32_t packets = 0;
+};
+
+Summary read_all(CaptureReader& reader) {
+  Summary s;
+  while (const Scan* scan = reader.next()) {
+    ++s.rotations;
+    s.complete += scan->complete ? 1 : 0;
+    s.points += scan->point_count();
+    s.packets += scan->packets;
+  }
+  return s;
+}
+
+// Copies a capture, rewriting the product byte of every data packet.
+std::string with_product_byte(const std::string& from, uint8_t product, const std::string& name) {
+  const std::string to = (std::filesystem::temp_directory_path() /
+                          ("lidartag_capture_reader_" + std::to_string(::getpid()) + name))
+                             .string();
+  PcapSource source(from);
+  PcapWriter writer(to);
+  RawPacket p;
+  std::vector<uint8_t> payload;
+  while (source.next(p, 0ms) == ReadStatus::kPacket) {
+    payload.assign(p.payload.begin(), p.payload.end());
+    if (payload.size() == kDataPacketSize) payload[kProductIdOffset] = product;
+    writer.write_udp(payload, p.receive_time_ns, p.destination_port);
+  }
+  writer.close();
+  return to;
+}
+
+TEST(CaptureReader, DecodesEveryPacketOfARealCaptureIntoRotations) {
+  const std::string path = kCaptures + "vlp16_mrpt_gps.pcap";
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << "capture not available: " << path;
+  CaptureReader reader(path, {});
+  const Summary s = read_all(reader);
+  ASSERT_TRUE(reader.model());
+  EXPECT_EQ(*reader.model(), Model::kVLP16);
+  EXPECT_EQ(reader.return_mode(), ReturnMode::kStrongest);
+  EXPECT_TRUE(reader.model_mismatch().empty()) << reader.model_mismatch();
+  const CaptureCounts& c = reader.counts();
+  EXPECT_EQ(c.data_packets, 293u);
+  EXPECT_EQ(c.decoded, 293u);  // the probed packets were decoded too
+  EXPECT_EQ(c.position_packets, 57u);
+  EXPECT_EQ(c.gprmc_valid, 57u);
+  EXPECT_EQ(c.pps, PpsStatus::kLocked);
+  EXPECT_EQ(c.last_nmea.rfind("$GPRMC", 0), 0u) << c.last_nmea;
+  EXPECT_EQ(reader.clock().source(), TimeSource::kGps);
+  EXPECT_GE(s.complete, 2u);
+  EXPECT_EQ(s.rotations, reader.batcher_stats().rotations);
+  EXPECT_EQ(s.packets, 293u + s.rotations - 1)  // a packet split by a cut counts in both
+      << "rotations " << s.rotations;
+  EXPECT_GT(s.points, 50000u);
+}
+
+TEST(CaptureReader, WrongProductByteIsReportedAndModelOptionDecodesIt) {
+  const std::string original = kCaptures + "vlp16_mrpt_gps.pcap";
+  if (!std::filesystem::exists(original)) GTEST_SKIP() << "capture not available: " << original;
+  const std::string path = with_product_byte(original, 0x21, "hdl.pcap");  // says HDL-32E
+  {
+    CaptureReader reader(path, {});
+    read_all(reader);
+    ASSERT_TRUE(reader.model());
+    EXPECT_EQ(*reader.model(), Model::kHDL32E);  // the product byte wins without --model
+    EXPECT_EQ(reader.model_check().timing_model(), Model::kVLP16);
+    EXPECT_NE(reader.model_mismatch().find("vlp16"), std::string::npos) << reader.model_mismatch();
+  }
+  CaptureReaderOptions options;
+  options.model = Model::kVLP16;
+  CaptureReader reader(path, options);
+  CaptureReader original_reader(original, {});
+  const Summary forced = read_all(reader), reference = read_all(original_reader);
+  EXPECT_EQ(forced.points, reference.points);
+  EXPECT_EQ(forced.complete, reference.complete);
+  std::filesystem::remove(path);
+}
+
+TEST(CaptureReader, UnknownProductByteFallsBackToTiming) {
+  const std::string original = kCaptures + "vlp16_rlu.pcap";
+  if (!std::filesystem::exists(original)) GTEST_SKIP() << "capture not available: " << original;
+  const std::string path = with_product_byte(original, 0x00, "none.pcap");
+  CaptureReader reader(path, {});
+  const Summary s = read_all(reader);
+  ASSERT_TRUE(reader.model());
+  EXPECT_EQ(*reader.model(), Model::kVLP16);
+  EXPECT_EQ(reader.counts().decoded, 84u);
+  EXPECT_GT(s.points, 0u);
+  std::filesystem::remove(path);
+}
+
+TEST(CaptureReader, CutAngleMovesTheRotationBoundary) {
+  const std::string path = kCaptures + "vlp16_dual_nebula.pcap";
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << "capture not available: " << path;
+  for (double cut : {0.0, 90.0, 180.0, 270.0}) {
+    SCOPED_TRACE(cut);
+    CaptureReaderOptions options;
+    options.batcher.cut_azimuth_deg = cut;
+    CaptureReader reader(path, options);
+    size_t complete = 0;
+    while (const Scan* scan = reader.next()) {
+      if (!scan->complete) continue;
+      ++complete;
+      EXPECT_EQ(scan->returns, 2);
+      // A complete rotation starts just after the cut.
+      const double from_cut = std::fmod(scan->column_azimuth_deg[0] - cut + 360.0, 360.0);
+      EXPECT_LT(from_cut, 1.0) << scan->column_azimuth_deg[0];
+    }
+    EXPECT_GE(complete, 3u);
+    EXPECT_EQ(reader.return_mode(), ReturnMode::kDual);
+  }
+}
+
+TEST(CaptureReader, CalibrationFileErrorsSurfaceAtSetup) {
+  const std::string path = kCaptures + "vlp16_rlu.pcap";
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << "capture not available: " << path;
+  CaptureReaderOptions options;
+  options.model = Model::kVLP16;
+  options.calibration_file = "/nonexistent-lidartag/VLP16.yaml";
+  EXPECT_THROW(CaptureReader reader(path, options), CalibrationError);
+  EXPECT_THROW(CaptureReader reader("/nonexistent-lidartag/x.pcap", {}), IoError);
+}
+
+}  // namespace
+}  // namespace lidartag::velodyne
