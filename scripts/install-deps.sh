@@ -8,8 +8,10 @@ packages=(
   libspdlog-dev libfmt-dev libyaml-cpp-dev libcli11-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   iproute2 util-linux
+  # bench_accuracy: the plot docs/accuracy.png
+  gnuplot-nox
   # lidartagd: LCM type jar and lcm-spy (Java 17), the lcm-spy screenshot under Xvfb, systemd-analyze
-  liblcm-java libjchart2d-java openjdk-17-jdk-headless xvfb xauth imagemagick x11-utils systemd
+  liblcm-java libjchart2d-java openjdk-17-jdk-headless xvfb xauth imagemagick systemd
 )
 missing=()
 for p in "${packages[@]}"; do

@@ -461,10 +461,12 @@ void visit_detector(V& v, detector::DetectorOptions& o) {
     s.field("ell", o.features.ell, at_least(1));
     s.field("zeta_m", o.features.zeta_m, above(0.0f));
     s.field("n", o.features.n, at_least(0));
+    s.field("max_gap", o.features.max_gap, at_least(0));
     s.field("min_range_m", o.features.min_range_m, at_least(0.0f));
     s.field("max_range_m", o.features.max_range_m, above(0.0f));
   });
   v.section("cluster", [&](V& s) {
+    // max_extent_m is not a setting either: the detector derives it from the largest tag size.
     s.field("linkage_scale", o.cluster.linkage_scale, above(0.0f));
     s.field("ring_gap", o.cluster.ring_gap, at_least(1));
   });
@@ -478,6 +480,7 @@ void visit_detector(V& v, detector::DetectorOptions& o) {
     s.field("boundary_ratio", o.validation.boundary_ratio, at_least(0.0f));
     s.field("min_intensity_step", o.validation.min_intensity_step, at_least(0.0f));
     s.field("boundary_scale", o.validation.boundary_scale, at_least(0.0f));
+    s.field("min_ring_width", o.validation.min_ring_width, half_open(0.0f, 1.0f));
   });
   v.section("plane", [&](V& s) {
     s.field("inlier_m", o.plane.inlier_m, above(0.0f));

@@ -1,7 +1,7 @@
 #include "lidartag/daemon/lcm_log_source.hpp"
 
-#include <lcm/lcm-cpp.hpp>
 #include <algorithm>
+#include <lcm/lcm-cpp.hpp>
 #include <stdexcept>
 #include <thread>
 

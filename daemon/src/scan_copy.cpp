@@ -43,6 +43,7 @@ bool copy_scan(const Scan& src, Scan& dst) {
       copy_row(src.return_type, a, dst.return_type, b, n);
     }
   }
+  copy_row(src.laser_id, 0, dst.laser_id, 0, src.laser_id.size());
   copy_row(src.column_azimuth_deg, 0, dst.column_azimuth_deg, 0, n);
   copy_row(src.column_time_s, 0, dst.column_time_s, 0, n);
   dst.sequence = src.sequence;

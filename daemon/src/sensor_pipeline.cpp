@@ -222,8 +222,10 @@ void SensorPipeline::receive() {
             static_cast<size_t>(options_.pipeline.queue_depth), static_cast<size_t>(workers_),
             scan->rings, 2, scan->column_capacity);
         // Find the buffer's scans once, for the assembly-time table.
-        while (Scan* s = buffer_->acquire()) stamp_keys_.push_back(s);
-        for (const Scan* s : stamp_keys_) buffer_->release(const_cast<Scan*>(s));
+        std::vector<Scan*> all;
+        while (Scan* s = buffer_->acquire()) all.push_back(s);
+        for (Scan* s : all) buffer_->release(s);
+        stamp_keys_.assign(all.begin(), all.end());
         stamp_times_ = std::make_unique<std::atomic<int64_t>[]>(stamp_keys_.size());
         buffer_ptr_.store(buffer_.get(), std::memory_order_release);
       }
@@ -308,7 +310,7 @@ void SensorPipeline::process(OrderedResults::Slot* slot) {
   // up another rotation, which would delay this one (and the publication order) behind it.
   tbb::this_task_arena::isolate([&] { detector.detect(scan, r.detection); });
   r.detected_ns = steady_ns();
-  buffer_ptr_.load(std::memory_order_relaxed)->release(const_cast<Scan*>(&scan));
+  buffer_ptr_.load(std::memory_order_relaxed)->release(slot->scan);
   processed_.fetch_add(1, std::memory_order_relaxed);
   ordered_.complete(slot);
 }

@@ -65,6 +65,36 @@ Rejection fill_cluster(const Scan& scan, std::span<const Feature> features,
   return Rejection::kNone;
 }
 
+size_t trim_narrow_rings(std::vector<ClusterPoint>& points, float min_width_m) {
+  if (points.empty() || min_width_m <= 0.0f) return 0;
+  auto narrow = [&](size_t first, size_t last) {
+    const float dx = points[last].x - points[first].x, dy = points[last].y - points[first].y,
+                dz = points[last].z - points[first].z;
+    return dx * dx + dy * dy + dz * dz < min_width_m * min_width_m;
+  };
+  // From the bottom: [0, lo) are narrow rings.
+  size_t lo = 0;
+  while (lo < points.size()) {
+    size_t end = lo;
+    while (end < points.size() && points[end].ring == points[lo].ring) ++end;
+    if (!narrow(lo, end - 1)) break;
+    lo = end;
+  }
+  // From the top: [hi, size) are narrow rings.
+  size_t hi = points.size();
+  while (hi > lo) {
+    size_t begin = hi - 1;
+    while (begin > lo && points[begin - 1].ring == points[hi - 1].ring) --begin;
+    if (!narrow(begin, hi - 1)) break;
+    hi = begin;
+  }
+  const size_t dropped = lo + (points.size() - hi);
+  if (dropped == 0) return 0;
+  points.erase(points.begin() + static_cast<std::ptrdiff_t>(hi), points.end());
+  points.erase(points.begin(), points.begin() + static_cast<std::ptrdiff_t>(lo));
+  return dropped;
+}
+
 double max_tag_points(std::span<const ClusterPoint> points, double t_max,
                       double horizontal_resolution_rad) {
   if (points.empty() || horizontal_resolution_rad <= 0.0) return 0.0;

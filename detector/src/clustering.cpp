@@ -1,6 +1,7 @@
 #include "lidartag/detector/clustering.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 namespace lidartag::detector {
 namespace {
@@ -27,12 +28,84 @@ void absorb(Cluster& into, const Cluster& from) {
 
 }  // namespace
 
+namespace {
+
+// Splits cluster `c` (too large) into the single-linkage components of its features: two features
+// link when both x and y differ by at most tau and their rings by at most ring_gap, or when they
+// are partners (the two ends of one ring run). New clusters are appended; `c` is retired.
+void split_cluster(std::span<const Feature> features, float tau, int ring_gap, int c,
+                   std::vector<Cluster>& clusters, std::vector<int>& labels) {
+  thread_local std::vector<int> members, parent, where, root_cluster;
+  members.clear();
+  for (size_t k = 0; k < labels.size(); ++k)
+    if (labels[k] == c) members.push_back(static_cast<int>(k));
+  const size_t m = members.size();
+  parent.resize(m);
+  for (size_t i = 0; i < m; ++i) parent[i] = static_cast<int>(i);
+  auto root = [&](int i) {
+    while (parent[static_cast<size_t>(i)] != i) {
+      parent[static_cast<size_t>(i)] = parent[static_cast<size_t>(parent[static_cast<size_t>(i)])];
+      i = parent[static_cast<size_t>(i)];
+    }
+    return i;
+  };
+  auto unite = [&](int a, int b) {
+    a = root(a);
+    b = root(b);
+    if (a != b) parent[static_cast<size_t>(std::max(a, b))] = std::min(a, b);
+  };
+  // Position of each feature in `members` (features come in ring order, so do members).
+  where.assign(features.size(), -1);
+  for (size_t i = 0; i < m; ++i) where[static_cast<size_t>(members[i])] = static_cast<int>(i);
+  for (size_t i = 0; i < m; ++i) {
+    const Feature& f = features[static_cast<size_t>(members[i])];
+    for (size_t j = i; j-- > 0;) {
+      const Feature& g = features[static_cast<size_t>(members[j])];
+      if (g.ring < f.ring - ring_gap) break;
+      if (std::abs(g.x - f.x) <= tau && std::abs(g.y - f.y) <= tau)
+        unite(static_cast<int>(i), static_cast<int>(j));
+    }
+    if (f.partner >= 0 && where[static_cast<size_t>(f.partner)] >= 0)
+      unite(static_cast<int>(i), where[static_cast<size_t>(f.partner)]);
+  }
+  root_cluster.assign(m, -1);
+  for (size_t i = 0; i < m; ++i) {
+    const int r = root(static_cast<int>(i));
+    const Feature& f = features[static_cast<size_t>(members[i])];
+    int& cl = root_cluster[static_cast<size_t>(r)];
+    if (cl < 0) {
+      Cluster n;
+      n.min_x = n.max_x = f.x;
+      n.min_y = n.max_y = f.y;
+      n.min_ring = n.max_ring = f.ring;
+      clusters.push_back(n);
+      cl = static_cast<int>(clusters.size()) - 1;
+    }
+    Cluster& n = clusters[static_cast<size_t>(cl)];
+    n.min_x = std::min(n.min_x, f.x);
+    n.max_x = std::max(n.max_x, f.x);
+    n.min_y = std::min(n.min_y, f.y);
+    n.max_y = std::max(n.max_y, f.y);
+    n.min_ring = std::min(n.min_ring, f.ring);
+    n.max_ring = std::max(n.max_ring, f.ring);
+    n.features += 1;
+    labels[static_cast<size_t>(members[i])] = cl;
+  }
+  clusters[static_cast<size_t>(c)].parent = root_cluster[0];  // retired
+}
+
+}  // namespace
+
 void cluster_features(std::span<const Feature> features, float tau, const ClusterOptions& opt,
                       std::vector<Cluster>& clusters, std::vector<int>& labels) {
   clusters.clear();
   labels.assign(features.size(), -1);
   for (size_t k = 0; k < features.size(); ++k) {
     const Feature& f = features[k];
+    Cluster one;
+    one.min_x = one.max_x = f.x;
+    one.min_y = one.max_y = f.y;
+    one.min_ring = one.max_ring = f.ring;
     int target = -1;
     auto link = [&](int c) {
       c = find_root(clusters, c);
@@ -54,24 +127,25 @@ void cluster_features(std::span<const Feature> features, float tau, const Cluste
     }
     if (f.partner >= 0) link(labels[static_cast<size_t>(f.partner)]);
     if (target < 0) {
-      Cluster n;
-      n.min_x = n.max_x = f.x;
-      n.min_y = n.max_y = f.y;
-      n.min_ring = n.max_ring = f.ring;
-      clusters.push_back(n);
+      clusters.push_back(one);
       target = static_cast<int>(clusters.size()) - 1;
     } else {
-      Cluster one;
-      one.min_x = one.max_x = f.x;
-      one.min_y = one.max_y = f.y;
-      one.min_ring = one.max_ring = f.ring;
-      one.features = 0;
       absorb(clusters[static_cast<size_t>(target)], one);
     }
     clusters[static_cast<size_t>(target)].features += 1;
     labels[k] = target;
   }
   for (auto& l : labels) l = find_root(clusters, l);
+  if (opt.max_extent_m <= 0.0f) return;
+  // The box rule snowballs (see ClusterOptions::max_extent_m): oversized clusters are split into
+  // their features' single-linkage components.
+  const size_t live = clusters.size();
+  for (size_t c = 0; c < live; ++c) {
+    const Cluster& cl = clusters[c];
+    if (cl.parent < 0 &&
+        (cl.max_x - cl.min_x > opt.max_extent_m || cl.max_y - cl.min_y > opt.max_extent_m))
+      split_cluster(features, tau, opt.ring_gap, static_cast<int>(c), clusters, labels);
+  }
 }
 
 }  // namespace lidartag::detector

@@ -114,6 +114,7 @@ void validate_options(const DetectorOptions& o) {
   need(!o.families.empty(), "families needs at least one family");
   need(o.features.ell >= 1, "features.ell must be >= 1");
   need(o.features.n >= 0, "features.n must be >= 0");
+  need(o.features.max_gap >= 0, "features.max_gap must be >= 0");
   need(o.features.zeta_m > 0.0f, "features.zeta_m must be > 0");
   need(o.features.max_range_m > o.features.min_range_m, "features: max_range_m <= min_range_m");
   need(o.cluster.linkage_scale > 0.0f, "cluster.linkage_scale must be > 0");
@@ -121,6 +122,8 @@ void validate_options(const DetectorOptions& o) {
   need(o.validation.min_returns_per_cell >= 0.0f, "validation.min_returns_per_cell must be >= 0");
   need(o.validation.max_points_scale > 0.0f, "validation.max_points_scale must be > 0");
   need(o.validation.gi_ell >= 1, "validation.gi_ell must be >= 1");
+  need(o.validation.min_ring_width >= 0.0f && o.validation.min_ring_width < 1.0f,
+       "validation.min_ring_width must be in [0, 1)");
   need(o.plane.inlier_m > 0.0f, "plane.inlier_m must be > 0");
   need(o.plane.max_outlier_ratio >= 0.0f && o.plane.max_outlier_ratio < 1.0f,
        "plane.max_outlier_ratio must be in [0, 1)");
@@ -131,6 +134,9 @@ void validate_options(const DetectorOptions& o) {
   need(o.pose.translation_bound_m > 0 && o.pose.rotation_bound_rad > 0, "pose bounds must be > 0");
   need(o.pose.max_evaluations >= 1, "pose.max_evaluations must be >= 1");
   need(o.pose.min_coverage >= 0 && o.pose.min_coverage <= 1, "pose.min_coverage in [0, 1]");
+  need(o.pose.max_points >= 8, "pose.max_points must be >= 8");
+  need(o.decode.max_points >= 16, "decode.max_points must be >= 16");
+  need(o.plane.score_points >= 0, "plane.score_points must be >= 0");
   need(o.decode.samples_per_cell >= 1 && o.decode.samples_per_cell <= 8,
        "decode.samples_per_cell must be 1..8");
   need(o.decode.length_scale_cells > 0 && o.decode.intensity_length_scale > 0,
@@ -143,7 +149,7 @@ struct Detector::Buffers {
   std::vector<float> gradient;
   std::vector<Cluster> clusters;
   std::vector<int> labels, offsets, order, ring_cols;
-  std::vector<ClusterPoint> points, pulled;
+  std::vector<ClusterPoint> points, subset, pulled;
   CornerWorkspace corners;
   std::vector<Eigen::Vector2d> hull_in, hull;
   DecodeWorkspace decode;
@@ -173,8 +179,12 @@ Detector::Detector(DetectorOptions options) : opt_(std::move(options)) {
                  static_cast<int>(std::ceil(opt_.validation.boundary_scale *
                                             static_cast<float>(2 * (fam.payload_width() + 2)))));
   }
+  min_ring_width_m_ =
+      opt_.validation.min_ring_width *
+      static_cast<float>(*std::min_element(opt_.tag_sizes_m.begin(), opt_.tag_sizes_m.end()));
   buf_ = std::make_unique<Buffers>(opt_.pose.algorithm);
   opt_.features.max_pair_chord_m = static_cast<float>(t_max_ * std::numbers::sqrt2 * 1.1);
+  opt_.cluster.max_extent_m = static_cast<float>(t_max_ * std::numbers::sqrt2 * 1.25);
 }
 
 Detector::~Detector() = default;
@@ -275,14 +285,15 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
       static_cast<size_t>(b.offsets[static_cast<size_t>(ci)]),
       static_cast<size_t>(b.offsets[static_cast<size_t>(ci) + 1] -
                           b.offsets[static_cast<size_t>(ci)]));
-  const auto max_extent = static_cast<float>(t_max_ * std::numbers::sqrt2 * 1.25);
+  const auto max_extent = opt_.cluster.max_extent_m;
   Rejection r = fill_cluster(scan, b.features, members, cl, opt_.validation, max_extent, b.points,
                              b.ring_cols);
-  diag.points = static_cast<int>(b.points.size());
   if (r != Rejection::kNone) {
+    diag.points = static_cast<int>(b.points.size());
     lap(Stage::kClustering);
     return finish(r);
   }
+  diag.points = static_cast<int>(b.points.size());
   if (diag.points < min_points_) {
     lap(Stage::kValidation);
     return finish(Rejection::kTooFewPoints);
@@ -301,27 +312,53 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
   const bool planar =
       fit_plane(b.points, opt_.plane, 0x9e3779b9u ^ static_cast<uint32_t>(ci), plane);
   lap(Stage::kPlane);
+  diag.outlier_ratio = plane.outlier_ratio;
   if (!planar) return finish(Rejection::kPlaneOutliers);
+  // Posts and poles above or below the tag are in its plane but not part of it; so are the few
+  // ground points where the plane meets the ground.
+  trim_narrow_rings(b.points, min_ring_width_m_);
 
   // Corners: edge lines and their intersections; the side length picks the tag size.
   TagOutline outline;
   r = find_corners(b.points, plane, opt_.tag_sizes_m, opt_.corners, b.corners, outline);
   lap(Stage::kCorners);
+  diag.side_m = outline.side_m;
   if (r != Rejection::kNone) return finish(r);
 
   // eq. (procrustes) initial guess, then eq. (Pose) minimising eq. (JKHcost).
   const double t = outline.size_m;
   const RigidPose init = procrustes_initial_guess(outline.corners, t);
   const double eps = std::max(opt_.pose.min_depth_epsilon_m, plane.depth_sigma);
-  const PoseFitResult fit = b.solver.fit(b.points, t, eps, init, opt_.pose);
-  const double mean_cost = fit.cost / static_cast<double>(b.points.size());
+  // The template of the fit is the outline actually seen when it is larger than the marker: a
+  // board with a bare margin around the print. With the marker's size, the margin's points would
+  // all cost, and the fit would slide toward the side with more rings (a bias of centimetres).
+  const double t_fit = std::max(t, outline.side_m);
+  // The outline (each ring's end points) and evenly spaced interior points, at most max_points.
+  b.subset.clear();
+  size_t edges = 0;
+  for (const auto& p : b.points) edges += p.edge ? 1 : 0;
+  const size_t cap = static_cast<size_t>(std::max(opt_.pose.max_points, 8));
+  const size_t interior = b.points.size() - edges;
+  const size_t keep = cap > edges ? cap - edges : 0;
+  const size_t stride = keep > 0 ? std::max<size_t>(1, (interior + keep - 1) / keep) : 0;
+  size_t k = 0;
+  for (const auto& p : b.points) {
+    if (p.edge)
+      b.subset.push_back(p);
+    else if (stride > 0 && k++ % stride == 0)
+      b.subset.push_back(p);
+  }
+  const PoseFitResult fit = b.solver.fit(b.subset, t_fit, eps, init, opt_.pose);
+  const double mean_cost = fit.cost / static_cast<double>(b.subset.size());
+  diag.mean_cost_m = mean_cost;
   if (mean_cost > opt_.pose.max_mean_cost_m) {
     lap(Stage::kPose);
     return finish(Rejection::kFitCost);
   }
   // Coverage: convex hull of the pull-back, surveyor's formula, >= 75 % of t^2.
-  const double cover = coverage_ratio(b.points, fit.pose, t, b.hull_in, b.hull);
+  const double cover = coverage_ratio(b.subset, fit.pose, t, b.hull_in, b.hull);
   lap(Stage::kPose);
+  diag.coverage = cover;
   if (cover < opt_.pose.min_coverage) return finish(Rejection::kCoverage);
 
   // Decoding: the points pulled back into the template frame, against every dictionary. When a
@@ -329,26 +366,31 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
   // points stay inside it: try shifts of 1/8 cell and keep the one that decodes best.
   const Eigen::Vector3d axis = fit.pose.R * outline.unseen_axis;  // in the tag frame
   double lo = 0.0, hi = 0.0;
-  b.pulled.resize(b.points.size());
-  for (size_t i = 0; i < b.points.size(); ++i) {
+  const size_t dstride = std::max<size_t>(
+      1, (b.points.size() + static_cast<size_t>(std::max(opt_.decode.max_points, 16)) - 1) /
+             static_cast<size_t>(std::max(opt_.decode.max_points, 16)));
+  b.pulled.clear();
+  for (size_t i = 0; i < b.points.size(); i += dstride) {
     const auto& p = b.points[i];
     const Eigen::Vector3d q = fit.pose.apply(Eigen::Vector3d(p.x, p.y, p.z));
-    b.pulled[i] = p;
-    b.pulled[i].x = static_cast<float>(q.x());
-    b.pulled[i].y = static_cast<float>(q.y());
-    b.pulled[i].z = static_cast<float>(q.z());
+    ClusterPoint c = p;
+    c.x = static_cast<float>(q.x());
+    c.y = static_cast<float>(q.y());
+    c.z = static_cast<float>(q.z());
+    b.pulled.push_back(c);
     const double a = q.dot(axis);
     lo = i == 0 ? a : std::min(lo, a);
     hi = i == 0 ? a : std::max(hi, a);
   }
-  const double step = t / dicts_.front().width() / 8;
+  // Along an unseen axis, shifts of half a cell first, then halved twice around the best one.
+  const double cell = t / dicts_.front().width();
   const bool search = !outline.unseen_axis.isZero();
   const double s0 = search ? std::min(0.0, hi - t / 2) : 0.0;
   const double s1 = search ? std::max(0.0, lo + t / 2) : 0.0;
   DecodeResult best;
   int best_family = -1;
   double best_shift = 0.0, applied = 0.0;
-  for (double shift = s0; shift <= s1 + 1e-9; shift += step) {
+  auto try_shift = [&](double shift) {
     for (auto& q : b.pulled) {  // move the points by -(shift - applied) along the axis
       q.x -= static_cast<float>((shift - applied) * axis.x());
       q.y -= static_cast<float>((shift - applied) * axis.y());
@@ -364,9 +406,20 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
         best_shift = shift;
       }
     }
-    if (!search) break;
+  };
+  if (!search) {
+    try_shift(0.0);
+  } else {
+    for (double shift = s0; shift <= s1 + 1e-9; shift += cell / 2) try_shift(shift);
+    for (double step = cell / 4; step > cell / 10; step /= 2) {
+      const double centre = best_shift;
+      try_shift(std::max(s0, centre - step));
+      try_shift(std::min(s1, centre + step));
+    }
   }
   lap(Stage::kDecode);
+  diag.score = best.score;
+  diag.margin = best.margin_bits;
   if (best.rejection != Rejection::kNone) return finish(best.rejection);
 
   // The pose: H_L^T is the inverse of the pull-back; the decoded quarter turns fix the rotation

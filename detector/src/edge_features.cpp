@@ -1,6 +1,8 @@
 #include "lidartag/detector/edge_features.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <limits>
 
 namespace lidartag::detector {
@@ -26,6 +28,9 @@ void detect_edge_features(const Scan& scan, const FeatureOptions& opt, std::vect
   };
   // A full rotation is a circle: the neighbours of the last column are the first ones.
   const bool wraps = rotation_wraps(scan);
+  // Upper bound of the angle between the beams of l columns apart, radians (twice the mean step).
+  const float lateral = 4.0f * static_cast<float>(std::numbers::pi) * static_cast<float>(opt.ell) /
+                        static_cast<float>(cols);
   auto wrap = [&](int c) { return c < 0 ? c + cols : (c >= cols ? c - cols : c); };
   for (int ring = 0; ring < scan.rings; ++ring) {
     const size_t base = scan.at(0, ring, 0);
@@ -35,18 +40,42 @@ void detect_edge_features(const Scan& scan, const FeatureOptions& opt, std::vect
       const size_t i = base + static_cast<size_t>(c);
       grad[static_cast<size_t>(c)] = 0.0f;
       if (!usable(i)) continue;
-      int cl = c - opt.ell, cr = c + opt.ell;
-      if (wraps) {
-        cl = wrap(cl);
-        cr = wrap(cr);
-      } else if (cl < 0 || cr >= cols) {
+      if (!wraps && (c - opt.ell < 0 || c + opt.ell >= cols))
         continue;  // the ends of a partial rotation have one side only
+      // Fast path: when both neighbours return and their ranges are close, neither distance of
+      // eq. (GD) can exceed zeta (|p_j - p_i| <= |r_j - r_i| + r * angle between the beams).
+      {
+        const size_t jl = base + static_cast<size_t>(wrap(c - opt.ell));
+        const size_t jr = base + static_cast<size_t>(wrap(c + opt.ell));
+        const float ri = scan.range[i], rl = scan.range[jl], rr = scan.range[jr];
+        if (rl > 0.0f && rr > 0.0f &&
+            std::fabs(rl - ri) + lateral * std::max(rl, ri) <= opt.zeta_m &&
+            std::fabs(rr - ri) + lateral * std::max(rr, ri) <= opt.zeta_m)
+          continue;
       }
-      const size_t il = base + static_cast<size_t>(cl), ir = base + static_cast<size_t>(cr);
-      const bool has_l = scan.valid(il), has_r = scan.valid(ir);
+      // The neighbour l columns away, or the next return behind a short dropout. Across a dropout
+      // the distance is the range difference: the lateral spacing grows with the gap, the depth
+      // step of a real edge does not.
+      auto neighbour = [&](int step, size_t& at, float& d) {
+        for (int k = 0; k <= opt.max_gap; ++k) {
+          int cc = c + step * (opt.ell + k);
+          if (wraps) {
+            cc = wrap(cc);
+          } else if (cc < 0 || cc >= cols) {
+            return false;
+          }
+          at = base + static_cast<size_t>(cc);
+          if (scan.valid(at)) {
+            d = k == 0 ? dist(scan, at, i) : std::fabs(scan.range[at] - scan.range[i]);
+            return true;
+          }
+        }
+        return false;
+      };
+      size_t il = 0, ir = 0;
+      float dl = kInf, dr = kInf;
+      const bool has_l = neighbour(-1, il, dl), has_r = neighbour(1, ir, dr);
       if (!has_l && !has_r) continue;  // an isolated return: noise, not an edge
-      const float dr = has_r ? dist(scan, ir, i) : kInf;
-      const float dl = has_l ? dist(scan, il, i) : kInf;
       // eq. (GD): grad D = |p_{i+l} - p_i| - |p_{i-l} - p_i|.
       const float g = std::isinf(dr) ? kInf : std::isinf(dl) ? -kInf : dr - dl;
       if (std::fabs(g) <= opt.zeta_m) continue;

@@ -1,6 +1,7 @@
 #include "lidartag/detector/plane_fit.hpp"
 
 #include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <cmath>
 
 namespace lidartag::detector {
@@ -28,6 +29,8 @@ bool fit_plane(std::vector<ClusterPoint>& points, const PlaneOptions& opt, uint3
   Eigen::Vector3d best_n = Eigen::Vector3d::UnitX();
   double best_d = 0.0;
   int best_count = -1;
+  const size_t stride =
+      opt.score_points > 0 ? std::max<size_t>(1, n / static_cast<size_t>(opt.score_points)) : 1;
   for (int it = 0; it < opt.iterations; ++it) {
     const Eigen::Vector3d a = pos(points[xorshift(s) % n]);
     const Eigen::Vector3d b = pos(points[xorshift(s) % n]);
@@ -38,7 +41,8 @@ bool fit_plane(std::vector<ClusterPoint>& points, const PlaneOptions& opt, uint3
     nn /= len;
     const double d = -nn.dot(a);
     int count = 0;
-    for (const auto& p : points) count += std::fabs(nn.dot(pos(p)) + d) <= opt.inlier_m ? 1 : 0;
+    for (size_t k = 0; k < n; k += stride)
+      count += std::fabs(nn.dot(pos(points[k])) + d) <= opt.inlier_m ? 1 : 0;
     if (count > best_count) {
       best_count = count;
       best_n = nn;

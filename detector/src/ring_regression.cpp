@@ -42,6 +42,48 @@ std::vector<double> estimate_elevations(std::span<const CloudPoint> cloud, int r
   return out;
 }
 
+namespace {
+
+// Sizes `out` for `rings` x 360 / resolution columns and empties it.
+void prepare(int rings, double res_deg, Scan& out) {
+  const int cols = static_cast<int>(std::ceil(360.0 / res_deg));
+  if (out.rings != rings || out.returns != 1 || out.column_capacity != cols)
+    out.reserve(rings, 1, cols);
+  out.clear();
+  std::fill(out.range.begin(), out.range.end(), 0.0f);
+  std::fill(out.return_type.begin(), out.return_type.end(), ReturnType::kNone);
+  out.columns = cols;
+  for (int c = 0; c < cols; ++c) {
+    out.column_azimuth_deg[static_cast<size_t>(c)] = static_cast<float>(c * res_deg);
+    out.column_time_s[static_cast<size_t>(c)] = 0.0;
+  }
+}
+
+// Puts `p` into its cell of `ring`; a cell hit twice keeps the nearer point.
+void place(const CloudPoint& p, double range, int ring, double res_deg, Scan& out) {
+  double az = std::atan2(-double{p.y}, double{p.x}) * 180.0 / std::numbers::pi;
+  if (az < 0) az += 360.0;
+  // Column c is centred on azimuth c * resolution (as a sensor's firing azimuths are).
+  int col = static_cast<int>(std::lround(az / res_deg));
+  if (col >= out.columns) col -= out.columns;
+  const size_t i = out.at(0, ring, col);
+  if (out.range[i] > 0.0f && out.range[i] <= range) return;
+  out.x[i] = p.x;
+  out.y[i] = p.y;
+  out.z[i] = p.z;
+  out.range[i] = static_cast<float>(range);
+  out.azimuth_deg[i] = static_cast<float>(az);
+  out.time_s[i] = 0.0f;
+  out.intensity[i] = static_cast<uint8_t>(std::clamp(p.intensity, 0.0f, 255.0f));
+  out.return_type[i] = ReturnType::kStrongest;
+}
+
+double range_of(const CloudPoint& p) {
+  return std::sqrt(double{p.x} * p.x + double{p.y} * p.y + double{p.z} * p.z);
+}
+
+}  // namespace
+
 bool regress_rings(std::span<const CloudPoint> cloud, const RingRegressionOptions& opt, Scan& out) {
   std::vector<double> elev = opt.elevations_deg;
   if (elev.empty()) elev = estimate_elevations(cloud, opt.rings);
@@ -51,20 +93,9 @@ bool regress_rings(std::span<const CloudPoint> cloud, const RingRegressionOption
   }
   std::sort(elev.begin(), elev.end());
   const int rings = static_cast<int>(elev.size());
-  const int cols = static_cast<int>(std::ceil(360.0 / opt.horizontal_resolution_deg));
-  if (out.rings != rings || out.returns != 1 || out.column_capacity != cols)
-    out.reserve(rings, 1, cols);
-  out.clear();
-  std::fill(out.range.begin(), out.range.end(), 0.0f);
-  std::fill(out.return_type.begin(), out.return_type.end(), ReturnType::kNone);
-  out.columns = cols;
-  for (int c = 0; c < cols; ++c) {
-    out.column_azimuth_deg[static_cast<size_t>(c)] =
-        static_cast<float>(c * opt.horizontal_resolution_deg);
-    out.column_time_s[static_cast<size_t>(c)] = 0.0;
-  }
+  prepare(rings, opt.horizontal_resolution_deg, out);
   for (const auto& p : cloud) {
-    const double range = std::sqrt(double{p.x} * p.x + double{p.y} * p.y + double{p.z} * p.z);
+    const double range = range_of(p);
     if (!(range > 0.0) || !std::isfinite(range)) continue;
     const double e = elevation_deg(p);
     // Nearest beam elevation.
@@ -73,21 +104,22 @@ bool regress_rings(std::span<const CloudPoint> cloud, const RingRegressionOption
     if (ring == rings ||
         (ring > 0 && e - elev[static_cast<size_t>(ring - 1)] < elev[static_cast<size_t>(ring)] - e))
       --ring;
-    double az = std::atan2(-double{p.y}, double{p.x}) * 180.0 / std::numbers::pi;
-    if (az < 0) az += 360.0;
-    // Column c is centred on azimuth c * resolution (as a sensor's firing azimuths are).
-    int col = static_cast<int>(std::lround(az / opt.horizontal_resolution_deg));
-    if (col >= cols) col -= cols;
-    const size_t i = out.at(0, ring, col);
-    if (out.range[i] > 0.0f && out.range[i] <= range) continue;
-    out.x[i] = p.x;
-    out.y[i] = p.y;
-    out.z[i] = p.z;
-    out.range[i] = static_cast<float>(range);
-    out.azimuth_deg[i] = static_cast<float>(az);
-    out.time_s[i] = 0.0f;
-    out.intensity[i] = static_cast<uint8_t>(std::clamp(p.intensity, 0.0f, 255.0f));
-    out.return_type[i] = ReturnType::kStrongest;
+    place(p, range, ring, opt.horizontal_resolution_deg, out);
+  }
+  return true;
+}
+
+bool organise_rings(std::span<const CloudPoint> cloud, int rings, double horizontal_resolution_deg,
+                    Scan& out) {
+  if (rings <= 0 || horizontal_resolution_deg <= 0.0) {
+    out.clear();
+    return false;
+  }
+  prepare(rings, horizontal_resolution_deg, out);
+  for (const auto& p : cloud) {
+    const double range = range_of(p);
+    if (!(range > 0.0) || !std::isfinite(range) || p.ring < 0 || p.ring >= rings) continue;
+    place(p, range, p.ring, horizontal_resolution_deg, out);
   }
   return true;
 }

@@ -96,6 +96,7 @@ Decoder::Decoder(Calibration calibration, DecoderOptions options)
     cos_el_[ul] = std::cos(el);
     laser_time_us_[ul] = spec_->laser_time_us(l);
     ring_[ul] = calibration_.ring_of_laser[ul];
+    laser_of_ring_[static_cast<size_t>(ring_[ul])] = static_cast<uint8_t>(l);
     az_offset_[ul] = calibration_.lasers[ul].azimuth_offset_deg;
     vert_offset_[ul] = calibration_.lasers[ul].vertical_offset_m;
     horiz_offset_[ul] = calibration_.lasers[ul].horizontal_offset_m;
@@ -187,6 +188,7 @@ DecodeStatus Decoder::decode(std::span<const uint8_t> payload, const SensorClock
   out.columns = groups * fpb;
   out.rings = spec.lasers;
   out.returns = dual ? 2 : 1;
+  out.laser_of_ring = laser_of_ring_.data();
   out.mode = mode;
   out.usec_since_hour = usec;
   out.stamp_ns = clock.join(usec, receive_time_ns);

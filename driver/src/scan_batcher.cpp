@@ -176,7 +176,11 @@ void ScanBatcher::copy_column(const DecodedPacket& pk, int c, int64_t stamp) {
   const double col_us = pk.column_time_us[static_cast<size_t>(c)];
   s.column_azimuth_deg[ucol] = pk.column_azimuth_deg[static_cast<size_t>(c)];
   s.column_time_s[ucol] = t0;
-  if (col == 0) ++s.packets;
+  if (col == 0) {
+    ++s.packets;
+    if (pk.laser_of_ring != nullptr)
+      std::copy_n(pk.laser_of_ring, std::min(s.rings, pk.rings), s.laser_id.begin());
+  }
   if (c == 0 && col > 0) ++s.packets;
   const int rings = std::min(s.rings, pk.rings);
   const auto cap = static_cast<size_t>(s.column_capacity);

@@ -57,9 +57,9 @@ constexpr size_t field_count() {
 // (visit_detector) and config/lidartagd.yaml, then its count here.
 TEST(Config, EveryDetectorOptionIsMapped) {
   EXPECT_EQ(field_count<detector::DetectorOptions>(), 10u);
-  EXPECT_EQ(field_count<detector::FeatureOptions>(), 6u);  // max_pair_chord_m is derived
-  EXPECT_EQ(field_count<detector::ClusterOptions>(), 2u);
-  EXPECT_EQ(field_count<detector::ValidationOptions>(), 9u);
+  EXPECT_EQ(field_count<detector::FeatureOptions>(), 7u);  // max_pair_chord_m is derived
+  EXPECT_EQ(field_count<detector::ClusterOptions>(), 3u);  // max_extent_m is derived
+  EXPECT_EQ(field_count<detector::ValidationOptions>(), 10u);
   EXPECT_EQ(field_count<detector::PlaneOptions>(), 3u);
   EXPECT_EQ(field_count<detector::CornerOptions>(), 6u);
   EXPECT_EQ(field_count<detector::PoseOptions>(), 8u);
@@ -68,7 +68,7 @@ TEST(Config, EveryDetectorOptionIsMapped) {
   leaf_keys(YAML::Load(print_config(DaemonOptions{})), "", keys);
   size_t detector_keys = 0;
   for (const auto& k : keys) detector_keys += k.rfind("detector.", 0) == 0 ? 1u : 0u;
-  EXPECT_EQ(detector_keys, 3u + 5u + 2u + 9u + 3u + 6u + 8u + 8u);
+  EXPECT_EQ(detector_keys, 3u + 6u + 2u + 10u + 3u + 6u + 8u + 8u);
 }
 
 TEST(Config, PrintedConfigParsesBackToTheSameOptions) {

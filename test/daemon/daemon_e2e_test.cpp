@@ -67,14 +67,17 @@ Truth load_truth() {
 }
 
 // Every rotation in order, none missing; each detection one of the scene's tags, where it stands;
-// every tag of the scene detected at least once.
+// every complete rotation (not the partial first and last) holds every tag of the scene.
 void expect_truthful(const std::vector<lidartag::tag_detections_t>& rotations, uint64_t assembled) {
   const Truth truth = load_truth();
   ASSERT_GE(rotations.size(), truth.rotations);
   EXPECT_EQ(rotations.size(), assembled);
-  std::set<std::pair<std::string, int>> seen;
+  std::set<std::pair<std::string, int>> expected;
+  for (const auto& [key, position] : truth.tags) expected.insert(key);
+  size_t complete = 0;
   for (size_t i = 0; i < rotations.size(); ++i) {
     const auto& r = rotations[i];
+    std::set<std::pair<std::string, int>> seen;
     EXPECT_EQ(r.sequence, static_cast<int64_t>(i));
     EXPECT_EQ(r.ndetections, static_cast<int32_t>(r.detections.size()));
     for (const auto& d : r.detections) {
@@ -86,10 +89,12 @@ void expect_truthful(const std::vector<lidartag::tag_detections_t>& rotations, u
       EXPECT_LT(dist, 0.15) << "rotation " << i << " tag " << d.id;
       seen.insert(key);
     }
+    if (r.complete) {
+      ++complete;
+      EXPECT_EQ(seen, expected) << "rotation " << i;
+    }
   }
-  std::set<std::pair<std::string, int>> expected;
-  for (const auto& [key, position] : truth.tags) expected.insert(key);
-  EXPECT_EQ(seen, expected);
+  EXPECT_GE(complete, truth.rotations - 1);
 }
 
 template <class T>
@@ -184,6 +189,28 @@ TEST(Replay, FallingBehindDropsTheOldestRotationsAndCountsThem) {
     EXPECT_GE(r.dropped_rotations, r.sequence - static_cast<int64_t>(&r - d.detections.data()));
     previous = r.sequence;
   }
+}
+
+TEST(Replay, TwoSensorsPublishOnTheirOwnPrefixedChannels) {
+  REQUIRE_DEMO();
+  const std::string log = temp("two.lcmlog");
+  Process p({kDaemon, "--config", kDemoConfig, "--replay", kDemo, "--max-speed", "--lcm-url",
+             "file://" + log + "?mode=w", "--set", "sensors[0].channel_prefix=FRONT_", "--set",
+             "sensors[1].name=rear", "--set", "sensors[1].frame_id=velodyne_rear", "--set",
+             "sensors[1].channel_prefix=REAR_", "--set", "sensors[1].model=vlp32c"},
+            {}, temp("two"));
+  ASSERT_EQ(p.wait(120s), 0) << p.err();
+  const Decoded front = read_log(log, "FRONT_"), rear = read_log(log, "REAR_");
+  ASSERT_FALSE(front.status.empty());
+  ASSERT_FALSE(rear.status.empty());
+  expect_truthful(front.detections, static_cast<uint64_t>(front.status.back().rotations_assembled));
+  expect_truthful(rear.detections, static_cast<uint64_t>(rear.status.back().rotations_assembled));
+  for (const auto& r : front.detections) EXPECT_EQ(r.sensor, "demo");
+  for (const auto& r : rear.detections) {
+    EXPECT_EQ(r.sensor, "rear");
+    EXPECT_EQ(r.frame_id, "velodyne_rear");
+  }
+  EXPECT_TRUE(read_log(log).detections.empty());  // nothing on the unprefixed channel
 }
 
 TEST(Replay, RecordWritesTheReceivedPacketsToAPcap) {
@@ -424,20 +451,9 @@ uint16_t free_udp_port() {
   return ntohs(addr.sin_port);
 }
 
-TEST(LiveUdp, DemoSentToLoopbackAtTheSensorRateGivesTheReplayDetections) {
-  REQUIRE_DEMO();
-  const uint16_t data_port = free_udp_port();
-  const uint16_t position_port = free_udp_port();
-  FakeNotifySocket sock;
-  Process daemon(
-      {kDaemon, "--config", kDemoConfig, "--lcm-url", "memq://", "--print-detections", "--set",
-       "sensors[0].source.kind=udp", "--set", "sensors[0].source.bind_address=127.0.0.1", "--set",
-       "sensors[0].source.data_port=" + std::to_string(data_port), "--set",
-       "sensors[0].source.position_port=" + std::to_string(position_port)},
-      {sock.env()}, temp("live"));
-  ASSERT_EQ(sock.receive(30s).rfind("READY=1", 0), 0u) << daemon.err();
-
-  // Send the capture's packets to 127.0.0.1 at their recorded pace (bounded: one pass).
+// Sends the demo's packets to 127.0.0.1 at their recorded pace (one pass: bounded in count and
+// time). Returns the number sent.
+size_t send_demo(uint16_t data_port, uint16_t position_port) {
   velodyne::PcapSourceOptions pacing;
   pacing.pacing = velodyne::ReplayPacing::kCaptureTime;
   velodyne::PcapSource source(kDemo, pacing);
@@ -448,25 +464,66 @@ TEST(LiveUdp, DemoSentToLoopbackAtTheSensorRateGivesTheReplayDetections) {
   velodyne::RawPacket packet;
   size_t sent = 0;
   const auto start = std::chrono::steady_clock::now();
-  for (;;) {
+  while (std::chrono::steady_clock::now() - start < 30s) {
     const auto status = source.next(packet, 100ms);
     if (status == velodyne::ReadStatus::kTimeout) continue;
     if (status != velodyne::ReadStatus::kPacket) break;
     to.sin_port =
         htons(packet.destination_port == velodyne::kDefaultDataPort ? data_port : position_port);
-    ASSERT_EQ(sendto(fd, packet.payload.data(), packet.payload.size(), 0,
-                     reinterpret_cast<sockaddr*>(&to), sizeof(to)),
-              static_cast<ssize_t>(packet.payload.size()));
-    ++sent;
-    ASSERT_LT(std::chrono::steady_clock::now() - start, 30s);
+    if (sendto(fd, packet.payload.data(), packet.payload.size(), 0,
+               reinterpret_cast<sockaddr*>(&to),
+               sizeof(to)) == static_cast<ssize_t>(packet.payload.size())) {
+      ++sent;
+    }
   }
   close(fd);
-  ASSERT_GT(sent, 1000u);
+  return sent;
+}
+
+// Runs the daemon on a live source (`source_settings`), sends the demo, stops it with SIGTERM and
+// expects the replay's detections, line for line.
+void expect_live_equals_replay(const std::vector<std::string>& source_settings, uint16_t data_port,
+                               uint16_t position_port) {
+  FakeNotifySocket sock;
+  std::vector<std::string> args = {kDaemon,     "--config", kDemoConfig,
+                                   "--lcm-url", "memq://",  "--print-detections"};
+  for (const auto& s : source_settings) {
+    args.push_back("--set");
+    args.push_back(s);
+  }
+  Process daemon(args, {sock.env()}, temp("live"));
+  ASSERT_EQ(sock.receive(30s).rfind("READY=1", 0), 0u) << daemon.err();
+  EXPECT_GT(send_demo(data_port, position_port), 1000u);
   std::this_thread::sleep_for(1s);  // the last rotations through the detector
   daemon.signal(SIGTERM);
   ASSERT_EQ(daemon.wait(30s), 0) << daemon.err();
   EXPECT_NE(daemon.err().find("final status"), std::string::npos) << daemon.err();
   EXPECT_EQ(lines_of(daemon.out()), replay_lines());
+}
+
+TEST(LiveUdp, DemoSentToLoopbackAtTheSensorRateGivesTheReplayDetections) {
+  REQUIRE_DEMO();
+  const uint16_t data_port = free_udp_port(), position_port = free_udp_port();
+  expect_live_equals_replay(
+      {"sensors[0].source.kind=udp", "sensors[0].source.bind_address=127.0.0.1",
+       "sensors[0].source.data_port=" + std::to_string(data_port),
+       "sensors[0].source.position_port=" + std::to_string(position_port)},
+      data_port, position_port);
+}
+
+// libpcap capture of lo, in a network namespace of its own (capturing needs CAP_NET_RAW, which
+// the namespace's root has; nothing of the machine's traffic is seen).
+TEST(LiveInterface, DemoCapturedOnLoopbackGivesTheReplayDetections) {
+  REQUIRE_DEMO();
+  if (std::getenv("LIDARTAG_IN_NETNS") == nullptr) {
+    run_in_network_namespace("LiveInterface.DemoCapturedOnLoopbackGivesTheReplayDetections");
+    return;
+  }
+  // Nobody binds these ports: the datagrams are captured on lo, then refused.
+  expect_live_equals_replay(
+      {"sensors[0].source.kind=interface", "sensors[0].source.interface=lo",
+       "sensors[0].source.data_port=23068", "sensors[0].source.position_port=28308"},
+      23068, 28308);
 }
 
 // ---------------------------------------------------------------------------------------------

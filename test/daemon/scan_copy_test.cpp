@@ -23,6 +23,9 @@ Scan filled(int rings, int returns, int capacity, int columns) {
         s.intensity[i] = static_cast<uint8_t>(c % 256);
         s.return_type[i] = ReturnType::kStrongest;
       }
+  for (int ring = 0; ring < rings; ++ring) {
+    s.laser_id[static_cast<size_t>(ring)] = static_cast<uint8_t>(rings - 1 - ring);
+  }
   for (int c = 0; c < columns; ++c) {
     s.column_azimuth_deg[static_cast<size_t>(c)] = static_cast<float>(c) * 0.2f;
     s.column_time_s[static_cast<size_t>(c)] = c * 5e-5;
@@ -56,6 +59,7 @@ TEST(ScanCopy, CopiesFilledColumnsIntoALargerScanCellByCell) {
         ASSERT_EQ(dst.intensity[b], src.intensity[a]);
       }
   EXPECT_EQ(dst.point_count(), src.point_count());
+  for (size_t ring = 0; ring < 4; ++ring) EXPECT_EQ(dst.laser_id[ring], src.laser_id[ring]);
   EXPECT_EQ(dst.sequence, 42u);
   EXPECT_EQ(dst.stamp_ns, src.stamp_ns);
   EXPECT_TRUE(dst.complete);

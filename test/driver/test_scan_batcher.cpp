@@ -81,6 +81,8 @@ TEST(ScanBatcher, CutsWholeRotationsAtTheAzimuthInsideAPacket) {
       const Scan& s = *scans[static_cast<size_t>(i)];
       EXPECT_TRUE(s.complete) << rig.spec.name;
       EXPECT_NEAR(s.columns, expected_columns, 1) << rig.spec.name;
+      for (int ring = 0; ring < s.rings; ++ring)
+        EXPECT_EQ(s.laser_id[static_cast<size_t>(ring)], rig.spec.laser_of_ring(ring));
       EXPECT_NEAR(s.rpm, 600.0, 1.0);
       // First column at most one step past the cut, last column at most one step before it.
       EXPECT_LT(ahead_of_cut(s.column_azimuth_deg[0], o.cut_azimuth_deg), step + 0.011);

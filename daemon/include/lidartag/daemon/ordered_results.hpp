@@ -35,8 +35,8 @@ class OrderedResults {
  public:
   struct Slot {
     RotationResult result;
-    const Scan* scan = nullptr;  // the rotation being detected (until complete())
-    int detector = -1;           // index of the detector the worker uses
+    Scan* scan = nullptr;  // the rotation being detected (until complete())
+    int detector = -1;     // index of the detector the worker uses
     bool done = false;
   };
 
@@ -78,7 +78,7 @@ template <class Pop>
 OrderedResults::Slot* OrderedResults::take(Pop&& pop, int64_t now_ns) {
   std::lock_guard lock(mutex_);
   if (free_slots_.empty() || free_detectors_.empty()) return nullptr;
-  const Scan* scan = pop();
+  Scan* scan = pop();
   if (scan == nullptr) return nullptr;
   Slot* slot = free_slots_.back();
   free_slots_.pop_back();

@@ -34,6 +34,12 @@ struct ValidationOptions {
   // psi >= boundary_scale * 2 (d + 2) payload boundary points (d payload cells across).
   // Default 1 (the paper's bound).
   float boundary_scale = 1.0f;
+  // Rings at the top and bottom of a cluster whose run is narrower than this fraction of the
+  // smallest tag size are dropped before the point counts: the post of an easel or a pole under
+  // the tag (in the tag's plane, so the plane fit keeps it) would otherwise bend the outline and
+  // pull the pose down. Default 0.25: a diamond loses its two tips (3 % of its area), posts up to a
+  // quarter of the tag's width are removed. 0 keeps every ring.
+  float min_ring_width = 0.25f;
 };
 
 // Fill-in: the points of return 0 on each ring of `cluster` between that ring's first and last
@@ -44,6 +50,11 @@ Rejection fill_cluster(const Scan& scan, std::span<const Feature> features,
                        std::span<const int> members, const Cluster& cluster,
                        const ValidationOptions& opt, float max_extent_m,
                        std::vector<ClusterPoint>& out, std::vector<int>& ring_cols);
+
+// Drops the rings at the bottom and at the top of `points` (ring by ring, as fill_cluster emits
+// them) whose run, the chord from the ring's first to its last point, is shorter than
+// `min_width_m`; stops at the first wider ring from each end. Returns the points dropped.
+size_t trim_narrow_rings(std::vector<ClusterPoint>& points, float min_width_m);
 
 // The paper's upper bound on the returns of a tag of size t_max at the cluster's distance.
 double max_tag_points(std::span<const ClusterPoint> points, double t_max,

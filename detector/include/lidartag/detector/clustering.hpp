@@ -15,6 +15,12 @@ struct ClusterOptions {
   // A feature joins a cluster whose rings span [r_min - ring_gap, r_max + ring_gap]. Default 1 (the
   // paper's); 2 tolerates one ring without returns on the tag.
   int ring_gap = 1;
+  // Clusters whose x-y box is larger than this (metres) are split into the single-linkage
+  // components of their features (x and y within tau, rings within ring_gap, or ring-run
+  // partners). The paper's box rule snowballs: two merged clusters span the space between them, so
+  // every feature there joins, and a tag near a chain of clutter ends up in one room-sized cluster
+  // rejected as too large. Set by the detector to 1.25 x the largest tag's diagonal; 0: no split.
+  float max_extent_m = 0.0f;
 };
 
 // A cluster: the x-y box and ring span of its features (the paper's b_1..b_4, r_min, r_max).

@@ -87,6 +87,13 @@ struct ClusterDiagnostic {
   Rejection rejection = Rejection::kNone;
   float min_x = 0, max_x = 0, min_y = 0, max_y = 0;
   int min_ring = 0, max_ring = 0;
+  // What the later stages measured, -1 when the cluster did not get that far.
+  double outlier_ratio = -1;  // plane fit
+  double side_m = -1;         // corners: measured side length
+  double mean_cost_m = -1;    // pose: eq. (JKHcost) per point after the fit
+  double coverage = -1;       // pose: convex hull / t^2
+  double score = -1;          // decode: best normalised score
+  double margin = -1;         // decode: best minus second best, payload cells
 };
 
 struct ScanResult {
@@ -128,6 +135,7 @@ class Detector {
   double t_max_ = 0.0;
   int min_points_ = 0;
   int min_boundary_ = 0;
+  float min_ring_width_m_ = 0.0f;
   std::unique_ptr<Buffers> buf_;
 };
 

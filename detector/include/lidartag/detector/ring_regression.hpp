@@ -12,6 +12,7 @@ namespace lidartag::detector {
 struct CloudPoint {
   float x = 0, y = 0, z = 0;  // metres, sensor frame
   float intensity = 0;        // 0..255
+  int ring = -1;              // the point's ring when the file has one (0 = lowest), else -1
 };
 
 struct RingRegressionOptions {
@@ -35,5 +36,11 @@ std::vector<double> estimate_elevations(std::span<const CloudPoint> cloud, int r
 // when its dimensions differ. Returns false (and leaves `out` empty) when no elevations are given
 // or can be estimated.
 bool regress_rings(std::span<const CloudPoint> cloud, const RingRegressionOptions& opt, Scan& out);
+
+// A cloud whose points carry their ring (CloudPoint::ring, e.g. a PCD with a `ring` field) as a
+// `rings` x columns scan, columns as in regress_rings. Points whose ring is outside [0, rings) are
+// dropped. Returns false (and leaves `out` empty) when rings <= 0 or the resolution is not > 0.
+bool organise_rings(std::span<const CloudPoint> cloud, int rings, double horizontal_resolution_deg,
+                    Scan& out);
 
 }  // namespace lidartag::detector

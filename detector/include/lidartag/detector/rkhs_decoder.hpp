@@ -34,6 +34,9 @@ struct DecodeOptions {
   double min_margin_bits = 1.0;
   // Score the dictionary with TBB when it holds at least this many functions. Default 4096.
   int parallel_min_functions = 4096;
+  // Most points decoded (evenly spaced over the cluster): about 8 per cell of a 16-bit family.
+  // Default 512.
+  int max_points = 512;
 };
 
 // The function dictionary of one family: for code k and quarter turn q (clockwise, seen from the

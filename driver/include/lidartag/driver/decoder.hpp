@@ -36,6 +36,7 @@ struct DecodedPacket {
   ReturnMode mode = ReturnMode::kStrongest;
   uint32_t usec_since_hour = 0;  // packet timestamp field
   int64_t stamp_ns = 0;          // absolute time of the packet's first firing (SensorClock)
+  const uint8_t* laser_of_ring = nullptr;               // rings entries, owned by the Decoder
   std::array<float, kMaxColumns> column_azimuth_deg{};  // firing azimuth, [0, 360)
   std::array<double, kMaxColumns> column_time_us{};     // from the packet's first firing
 
@@ -79,6 +80,7 @@ class Decoder {
   std::array<double, 128> sin_el_{}, cos_el_{}, laser_time_us_{};
   std::array<double, 128> az_offset_{}, vert_offset_{}, horiz_offset_{}, dist_offset_{};
   std::array<int, 128> ring_{};
+  std::array<uint8_t, 128> laser_of_ring_{};
   double rate_deg_per_us_;
   const float* sin_table_;  // sin of azimuth in 0.01 deg steps, 36001 entries
   const float* cos_table_;

@@ -35,6 +35,9 @@ struct Scan {
   std::vector<uint8_t> intensity;       // calibrated reflectivity, 0..255
   std::vector<ReturnType> return_type;  // see ReturnType
 
+  // Per ring: the sensor's laser (channel) id of each ring, from the calibration in use.
+  std::vector<uint8_t> laser_id;
+
   // Per column.
   std::vector<float> column_azimuth_deg;  // azimuth of the column's first firing, [0, 360)
   std::vector<double> column_time_s;      // seconds from the rotation start
@@ -61,6 +64,7 @@ struct Scan {
     for (auto* v : {&x, &y, &z, &range, &azimuth_deg, &time_s}) v->assign(n, 0.0f);
     intensity.assign(n, 0);
     return_type.assign(n, ReturnType::kNone);
+    laser_id.assign(static_cast<size_t>(n_rings), 0);
     column_azimuth_deg.assign(static_cast<size_t>(n_columns), 0.0f);
     column_time_s.assign(static_cast<size_t>(n_columns), 0.0);
     clear();

@@ -1,0 +1,137 @@
+// Simulated rotations in memory, and detections scored against the simulator's truth: what
+// bench_accuracy and the detector's end-to-end tests share. The simulator's packets go straight
+// through the project's own Decoder and ScanBatcher (no pcap file), one rotation at a time.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <functional>
+#include <memory>
+#include <numbers>
+#include <span>
+#include <vector>
+
+#include "lidartag/detector/detector.hpp"
+#include "lidartag/driver/calibration.hpp"
+#include "lidartag/driver/decoder.hpp"
+#include "lidartag/driver/packet.hpp"
+#include "lidartag/driver/scan_batcher.hpp"
+#include "lidartag/driver/sensor_clock.hpp"
+#include "lidartag/sim/simulator.hpp"
+
+namespace lidartag::eval {
+
+// Runs a simulator and hands every complete rotation to a callback while the simulation runs
+// (memory stays at a few scans whatever the number of rotations).
+class SimScans final : public velodyne::ScanSink {
+ public:
+  using OnScan = std::function<void(const Scan& scan, size_t index)>;
+
+  explicit SimScans(const sim::Simulator& simulator) : sim_(simulator) {
+    const auto& sensor = sim_.scene().sensor;
+    const auto& spec = velodyne::model_spec(sensor.model);
+    const int returns = sensor.return_mode == velodyne::ReturnMode::kDual ? 2 : 1;
+    for (auto& s : pool_) {
+      s = std::make_unique<Scan>();
+      s->reserve(spec.lasers, returns, velodyne::ScanBatcher::column_capacity(spec));
+    }
+    calibration_ = velodyne::Calibration::builtin(sensor.model);
+  }
+
+  // Simulates `rotations` rotations with noise seed `seed`; `on_scan` gets the k-th complete
+  // rotation as index k (the truth's rotation k once run() returns it).
+  sim::Truth run(int rotations, uint64_t seed, const OnScan& on_scan) {
+    const auto& sensor = sim_.scene().sensor;
+    const auto& spec = velodyne::model_spec(sensor.model);
+    velodyne::Decoder decoder(calibration_);
+    velodyne::SensorClock clock;
+    velodyne::BatcherOptions bo;
+    bo.cut_azimuth_deg = sensor.cut_azimuth_deg;
+    velodyne::ScanBatcher batcher(spec, sensor.return_mode, bo, *this);
+    on_scan_ = &on_scan;
+    index_ = 0;
+    sim::Truth truth =
+        sim_.run(rotations, seed, [&](std::span<const uint8_t> payload, int64_t t, uint16_t port) {
+          if (port != velodyne::kDefaultDataPort) return;
+          if (decoder.decode(payload, clock, t, packet_) == velodyne::DecodeStatus::kOk)
+            batcher.add(packet_);
+        });
+    batcher.flush();
+    on_scan_ = nullptr;
+    return truth;
+  }
+
+  Scan* acquire() override {
+    next_ = (next_ + 1) % pool_.size();
+    pool_[next_]->clear();
+    return pool_[next_].get();
+  }
+  void publish(Scan* scan) override {
+    if (scan->complete && on_scan_ != nullptr) (*on_scan_)(*scan, index_++);
+  }
+
+ private:
+  const sim::Simulator& sim_;
+  velodyne::Calibration calibration_;
+  velodyne::DecodedPacket packet_;
+  std::array<std::unique_ptr<Scan>, 3> pool_;
+  size_t next_ = 0;
+  const OnScan* on_scan_ = nullptr;
+  size_t index_ = 0;
+};
+
+// Geodesic distance between two rotations, eq. (so3err), degrees.
+inline double rotation_error_deg(const Eigen::Quaterniond& estimate,
+                                 const Eigen::Vector4d& truth_wxyz) {
+  const Eigen::Quaterniond t(truth_wxyz[0], truth_wxyz[1], truth_wxyz[2], truth_wxyz[3]);
+  const double d = std::min(1.0, std::abs(estimate.normalized().dot(t.normalized())));
+  return 2.0 * std::acos(d) * 180.0 / std::numbers::pi;
+}
+
+// One truth tag of one rotation against the detections of that rotation.
+struct TagScore {
+  bool detected = false;  // a detection of the right family and id at the tag
+  bool wrong_id = false;  // a detection at the tag with another family or id
+  double translation_m = 0.0;
+  double rotation_deg = 0.0;
+  double corner_m = 0.0;  // largest corner distance
+};
+
+// A detection belongs to a tag when its centre is within half the tag's size of the truth.
+inline bool at_tag(const detector::Detection& d, const sim::TagTruth& tag) {
+  return (d.position - tag.position).norm() < tag.size / 2;
+}
+
+inline TagScore score_tag(std::span<const detector::Detection> detections,
+                          const sim::TagTruth& tag) {
+  TagScore s;
+  for (const auto& d : detections) {
+    if (!at_tag(d, tag)) continue;
+    if (d.family != tag.family || d.id != tag.id) {
+      s.wrong_id = true;
+      continue;
+    }
+    s.detected = true;
+    s.translation_m = (d.position - tag.position).norm();
+    s.rotation_deg = rotation_error_deg(d.orientation, tag.orientation);
+    for (size_t k = 0; k < 4; ++k)
+      s.corner_m = std::max(s.corner_m, (d.corners[k] - tag.corners[k]).norm());
+  }
+  return s;
+}
+
+// Detections that belong to no tag of the rotation.
+inline int false_positives(std::span<const detector::Detection> detections,
+                           const sim::RotationTruth& truth) {
+  int n = 0;
+  for (const auto& d : detections)
+    n += std::none_of(truth.tags.begin(), truth.tags.end(),
+                      [&](const sim::TagTruth& t) { return at_tag(d, t); })
+             ? 1
+             : 0;
+  return n;
+}
+
+}  // namespace lidartag::eval

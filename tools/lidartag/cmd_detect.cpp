@@ -1,0 +1,353 @@
+// `lidartag detect CAPTURE [--config FILE] [--json] [--tag-size M ...] [--family NAME ...]`: runs
+// the LiDARTag detector on every rotation of a pcap, or on one PCD file, and prints what it found:
+// a table by default, one JSON object per rotation with --json.
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "lidartag/commands.hpp"
+#include "lidartag/common.hpp"
+#include "lidartag/detector/detector.hpp"
+#include "lidartag/detector/ring_regression.hpp"
+#include "lidartag/driver/io/capture_reader.hpp"
+#include "lidartag/driver/io/errors.hpp"
+#include "lidartag/driver/io/pcd.hpp"
+#ifdef LIDARTAG_HAVE_CONFIG
+#include "lidartag/daemon/config.hpp"
+#endif
+
+namespace lidartag::cli {
+namespace {
+
+namespace det = lidartag::detector;
+
+struct DetectArgs {
+  CaptureArgs capture;
+  std::string config;
+  bool json = false;
+  bool partial = false;
+  bool clusters = false;  // explain every cluster with enough features to be a tag
+  std::vector<double> tag_sizes;
+  std::vector<std::string> families;
+  int rings = 0;                // PCD without a ring field and no --model: beams to estimate
+  double resolution_deg = 0.2;  // PCD: width of a column
+};
+
+det::DetectorOptions detector_options(const DetectArgs& args) {
+  det::DetectorOptions options;
+  if (!args.config.empty()) {
+#ifdef LIDARTAG_HAVE_CONFIG
+    options = daemon::load_detector_config(args.config);
+#else
+    throw std::runtime_error("--config needs the lidartag_config library (daemon/), not built");
+#endif
+  }
+  options.cluster_diagnostics = args.clusters;
+  if (!args.tag_sizes.empty()) options.tag_sizes_m = args.tag_sizes;
+  if (!args.families.empty()) options.families = args.families;
+  return options;
+}
+
+bool is_pcd(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) {
+    return static_cast<char>(std::tolower(c));
+  });
+  return ext == ".pcd";
+}
+
+// A PCD file as one scan: its own rings when it has a `ring` field, else rings regressed from
+// the elevations (the --model's beam table, or --rings beams estimated from the cloud).
+void load_pcd_scan(const DetectArgs& args, Scan& scan) {
+  const velodyne::PcdCloud pcd = velodyne::read_pcd(args.capture.capture);
+  const auto& x = pcd.field("x");
+  const auto& y = pcd.field("y");
+  const auto& z = pcd.field("z");
+  const std::vector<double>* intensity = pcd.has("intensity") ? &pcd.field("intensity") : nullptr;
+  const std::vector<double>* ring = pcd.has("ring") ? &pcd.field("ring") : nullptr;
+  std::vector<det::CloudPoint> cloud;
+  cloud.reserve(pcd.size());
+  int max_ring = -1;
+  for (size_t i = 0; i < pcd.size(); ++i) {
+    det::CloudPoint p;
+    p.x = static_cast<float>(x[i]);
+    p.y = static_cast<float>(y[i]);
+    p.z = static_cast<float>(z[i]);
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) continue;
+    p.intensity = intensity ? static_cast<float>((*intensity)[i]) : 0.0f;
+    if (ring) {
+      p.ring = static_cast<int>((*ring)[i]);
+      max_ring = std::max(max_ring, p.ring);
+    }
+    cloud.push_back(p);
+  }
+  const auto model = args.capture.model.empty()
+                         ? std::nullopt
+                         : velodyne::model_from_name(args.capture.model);
+  if (ring) {
+    const int rings = model ? velodyne::model_spec(*model).lasers : max_ring + 1;
+    if (!det::organise_rings(cloud, rings, args.resolution_deg, scan))
+      throw velodyne::IoError(args.capture.capture + ": no points with a ring number");
+    return;
+  }
+  det::RingRegressionOptions ro;
+  ro.horizontal_resolution_deg = args.resolution_deg;
+  if (model) {
+    for (const auto& laser : velodyne::model_spec(*model).laser_table)
+      ro.elevations_deg.push_back(laser.elevation_deg);
+  } else if (args.rings > 0) {
+    ro.rings = args.rings;
+  } else {
+    throw velodyne::IoError(args.capture.capture +
+                            ": no ring field; give --model (its beam elevations) or --rings N");
+  }
+  if (!det::regress_rings(cloud, ro, scan))
+    throw velodyne::IoError(args.capture.capture + ": cannot regress rings (fewer than " +
+                            std::to_string(ro.rings) + " distinct elevations)");
+}
+
+// "[#####.....]  45%" on stderr, redrawn in place; only when stderr is a terminal.
+class Progress {
+ public:
+  explicit Progress(uintmax_t total_bytes) : total_(total_bytes), on_(::isatty(STDERR_FILENO)) {}
+  void update(uintmax_t done, size_t rotations) {
+    if (!on_ || total_ == 0) return;
+    const int pct = static_cast<int>(std::min<uintmax_t>(100, done * 100 / total_));
+    if (pct == last_) return;
+    last_ = pct;
+    const int filled = pct * 30 / 100;
+    std::fprintf(stderr, "\r[%s%s] %3d%%  %zu rotations", std::string(size_t(filled), '#').c_str(),
+                 std::string(size_t(30 - filled), '.').c_str(), pct, rotations);
+    std::fflush(stderr);
+  }
+  void done() {
+    if (on_ && last_ >= 0) std::fprintf(stderr, "\r%60s\r", "");
+  }
+
+ private:
+  uintmax_t total_;
+  bool on_;
+  int last_ = -1;
+};
+
+nlohmann::json vec(const Eigen::Vector3d& v) {
+  return nlohmann::json::array({v.x(), v.y(), v.z()});
+}
+
+// Clusters with enough features to be a tag (the many tiny ones are left out).
+bool explained(const det::ClusterDiagnostic& c) {
+  return c.rejection != det::Rejection::kFewFeatures;
+}
+
+nlohmann::json cluster_json(const det::ClusterDiagnostic& c) {
+  nlohmann::json o;
+  o["result"] = std::string(det::rejection_name(c.rejection));
+  o["stage"] = std::string(det::rejection_stage(c.rejection));
+  o["box"] = nlohmann::json::array({c.min_x, c.max_x, c.min_y, c.max_y});
+  o["rings"] = nlohmann::json::array({c.min_ring, c.max_ring});
+  o["features"] = c.features;
+  o["points"] = c.points;
+  o["boundary_points"] = c.boundary_points;
+  const std::pair<const char*, double> measured[] = {
+      {"outlier_ratio", c.outlier_ratio}, {"side", c.side_m},   {"mean_cost", c.mean_cost_m},
+      {"coverage", c.coverage},           {"score", c.score}, {"margin", c.margin}};
+  for (const auto& [key, value] : measured)
+    if (value >= 0) o[key] = value;
+  return o;
+}
+
+nlohmann::json rotation_json(size_t n, const Scan& scan, const det::ScanResult& r) {
+  nlohmann::json j;
+  j["scan"] = n;
+  j["stamp"] = static_cast<double>(scan.stamp_ns) * 1e-9;
+  j["points"] = scan.point_count();
+  j["features"] = r.features;
+  j["clusters"] = r.clusters;
+  nlohmann::json dets = nlohmann::json::array();
+  for (const auto& d : r.detections) {
+    nlohmann::json o;
+    o["family"] = std::string(d.family);
+    o["id"] = d.id;
+    o["size"] = d.size_m;
+    o["position"] = vec(d.position);
+    const auto& q = d.orientation;
+    o["orientation"] = nlohmann::json::array({q.w(), q.x(), q.y(), q.z()});
+    nlohmann::json corners = nlohmann::json::array();
+    for (const auto& c : d.corners) corners.push_back(vec(c));
+    o["corners"] = corners;
+    o["score"] = d.score;
+    o["margin"] = d.margin;
+    o["points"] = d.points;
+    dets.push_back(o);
+  }
+  j["detections"] = dets;
+  nlohmann::json timing, rejected;
+  for (int s = 0; s < det::kStageCount; ++s) {
+    const auto stage = static_cast<det::Stage>(s);
+    timing[std::string(det::stage_name(stage))] = r.timing_ms[static_cast<size_t>(s)];
+    if (stage != det::Stage::kFeatures)
+      rejected[std::string(det::stage_name(stage))] = r.rejected_at(stage);
+  }
+  j["timing_ms"] = timing;
+  j["rejected"] = rejected;
+  if (!r.diagnostics.empty()) {
+    nlohmann::json clusters = nlohmann::json::array();
+    for (const auto& c : r.diagnostics)
+      if (explained(c)) clusters.push_back(cluster_json(c));
+    j["cluster_diagnostics"] = clusters;
+  }
+  return j;
+}
+
+void print_rotation(size_t n, const Scan& scan, const det::ScanResult& r) {
+  fmt::print("scan {:4d}  stamp {:.6f}  {:6d} points  {:5d} features  {:4d} clusters  {:7.2f} ms"
+             "  {} detection{}\n",
+             n, static_cast<double>(scan.stamp_ns) * 1e-9, scan.point_count(), r.features,
+             r.clusters, r.total_ms(), r.detections.size(), r.detections.size() == 1 ? "" : "s");
+  for (const auto& d : r.detections) {
+    const auto& q = d.orientation;
+    fmt::print("  {:<9} id {:3d}  size {:.3f} m  position [{:8.3f} {:8.3f} {:8.3f}] m  "
+               "orientation [{:.4f} {:.4f} {:.4f} {:.4f}]  score {:.2f}  margin {:.1f}  "
+               "{} points\n",
+               d.family, d.id, d.size_m, d.position.x(), d.position.y(), d.position.z(), q.w(),
+               q.x(), q.y(), q.z(), d.score, d.margin, d.points);
+  }
+  for (const auto& c : r.diagnostics) {
+    if (!explained(c)) continue;
+    fmt::print("  cluster x [{:.2f}, {:.2f}] y [{:.2f}, {:.2f}] rings {}-{}: {} features, {} points, "
+               "{} boundary",
+               c.min_x, c.max_x, c.min_y, c.max_y, c.min_ring, c.max_ring, c.features, c.points,
+               c.boundary_points);
+    if (c.outlier_ratio >= 0) fmt::print(", outliers {:.2f}", c.outlier_ratio);
+    if (c.side_m >= 0) fmt::print(", side {:.3f} m", c.side_m);
+    if (c.mean_cost_m >= 0) fmt::print(", cost {:.4f} m", c.mean_cost_m);
+    if (c.coverage >= 0) fmt::print(", coverage {:.2f}", c.coverage);
+    if (c.score >= 0) fmt::print(", score {:.2f} margin {:.2f}", c.score, c.margin);
+    fmt::print(" -> {}/{}\n", det::rejection_stage(c.rejection), det::rejection_name(c.rejection));
+  }
+}
+
+struct Totals {
+  size_t rotations = 0;
+  std::map<std::pair<std::string, int>, size_t> found;
+  std::array<double, det::kStageCount> ms{};
+  std::array<uint64_t, det::kRejectionCount> rejected{};
+  double worst_ms = 0.0;
+
+  void add(const det::ScanResult& r) {
+    ++rotations;
+    for (const auto& d : r.detections) ++found[{std::string(d.family), d.id}];
+    for (size_t s = 0; s < ms.size(); ++s) ms[s] += r.timing_ms[s];
+    for (size_t k = 0; k < rejected.size(); ++k) rejected[k] += r.rejected[k];
+    worst_ms = std::max(worst_ms, r.total_ms());
+  }
+
+  void print() const {
+    fmt::print("\n{} rotation{}", rotations, rotations == 1 ? "" : "s");
+    if (found.empty()) fmt::print(", no tags found\n");
+    for (auto it = found.begin(); it != found.end(); ++it)
+      fmt::print("{} {} id {} in {}", it == found.begin() ? ":" : ",", it->first.first,
+                 it->first.second, it->second);
+    if (!found.empty()) fmt::print(" rotations\n");
+    if (rotations == 0) return;
+    const auto n = static_cast<double>(rotations);
+    double total = 0.0;
+    fmt::print("{:<12}{:>10}\n", "stage", "mean ms");
+    for (int s = 0; s < det::kStageCount; ++s) {
+      fmt::print("{:<12}{:>10.3f}\n", det::stage_name(static_cast<det::Stage>(s)),
+                 ms[static_cast<size_t>(s)] / n);
+      total += ms[static_cast<size_t>(s)] / n;
+    }
+    fmt::print("{:<12}{:>10.3f}   (worst rotation {:.3f} ms)\n", "total", total, worst_ms);
+    fmt::print("clusters rejected (mean per rotation):");
+    for (int k = 1; k < det::kRejectionCount; ++k) {
+      const auto reason = static_cast<det::Rejection>(k);
+      if (rejected[static_cast<size_t>(k)] == 0) continue;
+      fmt::print(" {}/{} {:.2f}", det::rejection_stage(reason), det::rejection_name(reason),
+                 static_cast<double>(rejected[static_cast<size_t>(k)]) / n);
+    }
+    fmt::print("\n");
+  }
+};
+
+int run_detect(const DetectArgs& args) {
+  det::Detector detector(detector_options(args));
+  det::ScanResult result;
+  Totals totals;
+  auto report = [&](size_t n, const Scan& scan) {
+    detector.detect(scan, result);
+    totals.add(result);
+    if (args.json) {
+      fmt::print("{}\n", rotation_json(n, scan, result).dump());
+      std::fflush(stdout);
+    } else {
+      print_rotation(n, scan, result);
+    }
+  };
+
+  if (is_pcd(args.capture.capture)) {
+    Scan scan;
+    load_pcd_scan(args, scan);
+    report(0, scan);
+  } else {
+    velodyne::CaptureReader reader(args.capture.capture, reader_options(args.capture));
+    std::error_code ec;
+    Progress progress(std::filesystem::file_size(args.capture.capture, ec));
+    size_t n = 0;
+    while (const Scan* scan = reader.next()) {
+      if (scan->complete || args.partial) report(n++, *scan);
+      // Pcap records: 16 bytes of record header and 42 of Ethernet/IPv4/UDP per packet.
+      const auto s = reader.source_stats();
+      progress.update(s.bytes + 58 * (s.packets + s.ignored), n);
+    }
+    progress.done();
+    warn_model_mismatch(reader, args.capture);
+  }
+  if (!args.json) totals.print();
+  return 0;
+}
+
+const Registrar kDetect(
+    "detect", "Detect LiDARTags in a capture (pcap) or a point cloud (PCD)",
+    [](CLI::App& app) -> RunFunction {
+      auto args = std::make_shared<DetectArgs>();
+      add_capture_options(app, args->capture);
+      app.add_option("--config", args->config,
+                     "YAML file whose `detector:` section sets the detector's options "
+                     "(config/lidartagd.yaml)")
+          ->check(CLI::ExistingFile);
+      app.add_flag("--json", args->json, "One JSON object per rotation on stdout");
+      app.add_option("--tag-size", args->tag_sizes,
+                     "Tag size in metres (full printed marker, white ring included); repeat for "
+                     "several sizes (default 1.2, or the config's)")
+          ->check(CLI::PositiveNumber);
+      app.add_option("--family", args->families,
+                     "Tag family (tag16h5, tag25h9, tag36h10, tag36h11, tag16h6 or "
+                     "FILE.json[:NAME]); repeat for several (default tag16h5, or the config's)");
+      app.add_flag("--clusters", args->clusters,
+                   "Explain every cluster with enough features to be a tag: what each stage "
+                   "measured and why it was dropped");
+      app.add_flag("--partial", args->partial,
+                   "Also detect in incomplete rotations (first, last, lossy)");
+      app.add_option("--rings", args->rings,
+                     "PCD without a ring field and no --model: number of beams to regress")
+          ->check(CLI::Range(1, 256));
+      app.add_option("--resolution", args->resolution_deg,
+                     "PCD: horizontal resolution (column width), degrees")
+          ->capture_default_str()
+          ->check(CLI::Range(0.01, 5.0));
+      return [args] { return run_detect(*args); };
+    });
+
+}  // namespace
+}  // namespace lidartag::cli
