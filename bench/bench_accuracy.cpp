@@ -49,6 +49,7 @@ struct Cell {
   int angle = 0;
   int rotations = 0, detected = 0, wrong = 0, false_pos = 0;
   std::vector<double> trans_m, rot_deg;
+  double min_score = 1.0, min_margin = 1e9;  // of the correct detections
   std::map<std::string, int> misses;  // why the tag's cluster was dropped, when it was
 
   double rate() const { return rotations ? 100.0 * detected / rotations : 0.0; }
@@ -68,60 +69,6 @@ double median(std::vector<double> v) {
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
-sim::Scene accuracy_scene(velodyne::Model model, double distance, int angle_deg, int id) {
-  sim::Scene s;
-  s.sensor.model = model;
-  s.sensor.rpm = 600;
-  s.sensor.height = 1.0;
-  s.sensor.noise = sim::noise_defaults(model);
-  sim::TagOptions t;
-  t.family = "tag16h5";
-  t.id = id;
-  t.size = 1.2;
-  t.center = {distance, 0.0, 1.0};
-  // The printed face looks at the sensor, turned about the vertical by angle_deg.
-  const double a = angle_deg * std::numbers::pi / 180.0;
-  t.normal = {-std::cos(a), std::sin(a), 0.0};
-  t.rotation_deg = 45.0;
-  t.stand.enabled = true;
-  t.stand.width = 0.05;
-  s.tags.push_back(t);
-  return s;
-}
-
-// Tagless clutter from a moving sensor: trees, poles, people, cars, walls and blank boards of tag
-// sizes (planar squares are what a tag detector must not mistake for tags).
-sim::Scene clutter_scene(int k) {
-  sim::Scene s;
-  s.sensor.model = velodyne::Model::kVLP32C;
-  s.sensor.noise = sim::noise_defaults(s.sensor.model);
-  s.sensor.velocity = {0.5, 0.0, 0.0};
-  s.sensor.angular_velocity = {0.0, 0.0, 5.0};
-  const sim::ClutterKind kinds[] = {sim::ClutterKind::kOutdoor, sim::ClutterKind::kLab,
-                                    sim::ClutterKind::kParking};
-  s.world.clutter.enabled = true;
-  s.world.clutter.kind = kinds[k % 3];
-  s.world.clutter.seed = static_cast<uint64_t>(100 + k);
-  s.world.clutter.count = 40;
-  s.world.clutter.region = {-18.0, 18.0, -15.0, 15.0};
-  s.world.clutter.clearance = 1.0;
-  s.world.walls.push_back({{-20.0, 16.0}, {22.0, 16.0}, 4.0, 0.15, 45.0});
-  s.world.walls.push_back({{22.0, -16.0}, {22.0, 16.0}, 4.0, 0.15, 35.0});
-  const double sizes[] = {0.6, 0.8, 1.2};
-  for (int b = 0; b < 6; ++b) {
-    const double angle = (60.0 * b + 17.0 * k) * std::numbers::pi / 180.0;
-    const double r = 4.0 + 2.5 * b;
-    const double size = sizes[(b + k) % 3];
-    sim::BoxOptions box;
-    box.center = {r * std::cos(angle), r * std::sin(angle), 1.0};
-    box.size = {0.02, size, size};
-    box.yaw_deg = 30.0 * b + 11.0 * k;
-    box.reflectivity = 20.0 + 12.0 * ((b + k) % 6);
-    s.world.boxes.push_back(box);
-  }
-  return s;
-}
-
 detector::DetectorOptions all_families() {
   detector::DetectorOptions o;
   o.tag_sizes_m = {1.2, 0.8, 0.6};
@@ -131,7 +78,7 @@ detector::DetectorOptions all_families() {
 }
 
 void run_cell(Cell& c, int id) {
-  const sim::Simulator simulator(accuracy_scene(c.model, c.distance, c.angle, id));
+  const sim::Simulator simulator(eval::accuracy_scene(c.model, c.distance, c.angle, id));
   eval::SimScans scans(simulator);
   detector::DetectorOptions options;
   options.cluster_diagnostics = true;
@@ -160,6 +107,11 @@ void run_cell(Cell& c, int id) {
     if (!seen || truth.rotations.empty()) continue;
     const auto& tag = truth.rotations.front().tags.front();
     const eval::TagScore s = eval::score_tag(found, tag);
+    for (const auto& d : found)
+      if (eval::at_tag(d, tag) && d.id == tag.id) {
+        c.min_score = std::min(c.min_score, d.score);
+        c.min_margin = std::min(c.min_margin, d.margin);
+      }
     c.wrong += s.wrong_id ? 1 : 0;
     c.false_pos += eval::false_positives(found, truth.rotations.front());
     if (!s.detected) ++c.misses[why];
@@ -199,7 +151,7 @@ FalsePositives run_false_positives(const Args& args, int clutter_rotations) {
   }
   const int per_scene = 50;
   for (int k = 0; static_cast<int>(fp.sim_rotations) < clutter_rotations; ++k) {
-    const sim::Simulator simulator(clutter_scene(k));
+    const sim::Simulator simulator(eval::clutter_scene(k));
     eval::SimScans scans(simulator);
     const int n = std::min(per_scene, clutter_rotations - static_cast<int>(fp.sim_rotations));
     scans.run(n, static_cast<uint64_t>(7 + k), [&](const Scan& scan, size_t) {
@@ -336,9 +288,10 @@ int run(const Args& args) {
     run_cell(cells[i], static_cast<int>(i % 30));
     const auto& c = cells[i];
     std::printf("%-8s %4.0f m %2d deg: detected %5.1f %%, wrong %d, fp %d, translation median "
-                "%6.1f mm, rotation median %5.2f deg\n",
+                "%6.1f mm, rotation median %5.2f deg (lowest score %.2f, margin %.1f)\n",
                 std::string(velodyne::model_spec(c.model).name).c_str(), c.distance, c.angle,
-                c.rate(), c.wrong, c.false_pos, 1000 * median(c.trans_m), median(c.rot_deg));
+                c.rate(), c.wrong, c.false_pos, 1000 * median(c.trans_m), median(c.rot_deg),
+                c.min_score, c.min_margin);
     for (const auto& [why, count] : c.misses) std::printf("    missed %d: %s\n", count, why.c_str());
     std::fflush(stdout);
   }

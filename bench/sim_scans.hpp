@@ -134,4 +134,61 @@ inline int false_positives(std::span<const detector::Detection> detections,
   return n;
 }
 
+// The accuracy scene of the paper's Table I: a 1.2 m tag16h5 on an easel stand, centre at the
+// sensor's height (1 m), diamond mount, at `distance` metres straight ahead, turned `angle_deg`
+// about the vertical.
+inline sim::Scene accuracy_scene(velodyne::Model model, double distance, int angle_deg, int id) {
+  sim::Scene s;
+  s.sensor.model = model;
+  s.sensor.rpm = 600;
+  s.sensor.height = 1.0;
+  s.sensor.noise = sim::noise_defaults(model);
+  sim::TagOptions t;
+  t.family = "tag16h5";
+  t.id = id;
+  t.size = 1.2;
+  t.center = {distance, 0.0, 1.0};
+  // The printed face looks at the sensor, turned about the vertical by angle_deg.
+  const double a = angle_deg * std::numbers::pi / 180.0;
+  t.normal = {-std::cos(a), std::sin(a), 0.0};
+  t.rotation_deg = 45.0;
+  t.stand.enabled = true;
+  t.stand.width = 0.05;
+  s.tags.push_back(t);
+  return s;
+}
+
+// Tagless clutter from a moving sensor: trees, poles, people, cars, walls and blank boards of tag
+// sizes (planar squares are what a tag detector must not mistake for tags).
+inline sim::Scene clutter_scene(int k) {
+  sim::Scene s;
+  s.sensor.model = velodyne::Model::kVLP32C;
+  s.sensor.noise = sim::noise_defaults(s.sensor.model);
+  s.sensor.velocity = {0.5, 0.0, 0.0};
+  s.sensor.angular_velocity = {0.0, 0.0, 5.0};
+  const sim::ClutterKind kinds[] = {sim::ClutterKind::kOutdoor, sim::ClutterKind::kLab,
+                                    sim::ClutterKind::kParking};
+  s.world.clutter.enabled = true;
+  s.world.clutter.kind = kinds[k % 3];
+  s.world.clutter.seed = static_cast<uint64_t>(100 + k);
+  s.world.clutter.count = 40;
+  s.world.clutter.region = {-18.0, 18.0, -15.0, 15.0};
+  s.world.clutter.clearance = 1.0;
+  s.world.walls.push_back({{-20.0, 16.0}, {22.0, 16.0}, 4.0, 0.15, 45.0});
+  s.world.walls.push_back({{22.0, -16.0}, {22.0, 16.0}, 4.0, 0.15, 35.0});
+  const double sizes[] = {0.6, 0.8, 1.2};
+  for (int b = 0; b < 6; ++b) {
+    const double angle = (60.0 * b + 17.0 * k) * std::numbers::pi / 180.0;
+    const double r = 4.0 + 2.5 * b;
+    const double size = sizes[(b + k) % 3];
+    sim::BoxOptions box;
+    box.center = {r * std::cos(angle), r * std::sin(angle), 1.0};
+    box.size = {0.02, size, size};
+    box.yaw_deg = 30.0 * b + 11.0 * k;
+    box.reflectivity = 20.0 + 12.0 * ((b + k) % 6);
+    s.world.boxes.push_back(box);
+  }
+  return s;
+}
+
 }  // namespace lidartag::eval

@@ -20,7 +20,7 @@ bool fits(const Scan& src, const Scan& dst) {
   if (src.columns < 0 || src.columns > dst.column_capacity) return false;
   const size_t rows = static_cast<size_t>(src.rings) * static_cast<size_t>(src.returns);
   const size_t needed = rows * static_cast<size_t>(dst.column_capacity);
-  return dst.x.size() >= needed &&
+  return dst.x.size() >= needed && dst.laser_id.size() >= src.laser_id.size() &&
          dst.column_azimuth_deg.size() >= static_cast<size_t>(src.columns);
 }
 

@@ -76,27 +76,12 @@ ReadStatus LiveSource::next(RawPacket& out, std::chrono::milliseconds timeout) {
     const int rc = pcap_next_ex(as_pcap(pcap_), &header, &data);
     if (rc == 1) {
       UdpView udp;
-      switch (parse_udp_frame(static_cast<LinkType>(link_type_), {data, header->caplen}, udp)) {
-        case FrameStatus::kUdp:
-          break;
-        case FrameStatus::kIgnored:
-        case FrameStatus::kFragment:
-          ++stats_.ignored;
-          continue;
-        case FrameStatus::kTruncated:
-          ++stats_.truncated;
-          continue;
-        case FrameStatus::kMalformed:
-          ++stats_.malformed;
-          continue;
-      }
+      FrameStatus status;
       // The filter already selected these; checked again for frames it cannot see into.
-      if ((udp.destination_port != options_.data_port &&
-           udp.destination_port != options_.position_port) ||
-          (options_.sensor_ipv4 && udp.source_ipv4 != *options_.sensor_ipv4)) {
-        ++stats_.ignored;
+      if (!accept_udp_frame(static_cast<LinkType>(link_type_), {data, header->caplen},
+                            {options_.data_port, options_.position_port, options_.sensor_ipv4}, udp,
+                            stats_, status))
         continue;
-      }
       out.payload = udp.payload;
       out.receive_time_ns = static_cast<int64_t>(header->ts.tv_sec) * 1'000'000'000 +
                             static_cast<int64_t>(header->ts.tv_usec);  // ns precision

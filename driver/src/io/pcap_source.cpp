@@ -93,28 +93,11 @@ bool PcapSource::read_packet() {
     last_ns_ = stamp_ns;
 
     UdpView udp;
-    const std::span<const uint8_t> frame(data, header->caplen);
-    switch (parse_udp_frame(static_cast<LinkType>(link_type_), frame, udp)) {
-      case FrameStatus::kUdp:
-        break;
-      case FrameStatus::kIgnored:
-        ++stats_.ignored;
-        continue;
-      case FrameStatus::kFragment:
-        ++fragments_;
-        ++stats_.ignored;
-        continue;
-      case FrameStatus::kTruncated:
-        ++stats_.truncated;
-        continue;
-      case FrameStatus::kMalformed:
-        ++stats_.malformed;
-        continue;
-    }
-    if ((udp.destination_port != options_.data_port &&
-         udp.destination_port != options_.position_port) ||
-        (options_.sensor_ipv4 && udp.source_ipv4 != *options_.sensor_ipv4)) {
-      ++stats_.ignored;
+    FrameStatus status;
+    if (!accept_udp_frame(static_cast<LinkType>(link_type_), {data, header->caplen},
+                          {options_.data_port, options_.position_port, options_.sensor_ipv4}, udp,
+                          stats_, status)) {
+      if (status == FrameStatus::kFragment) ++fragments_;
       continue;
     }
     pending_packet_.payload = udp.payload;

@@ -144,4 +144,29 @@ FrameStatus parse_udp_frame(LinkType link, std::span<const uint8_t> frame, UdpVi
   return FrameStatus::kIgnored;
 }
 
+bool accept_udp_frame(LinkType link, std::span<const uint8_t> frame, const UdpFilter& filter,
+                      UdpView& udp, SourceStats& stats, FrameStatus& status) {
+  status = parse_udp_frame(link, frame, udp);
+  switch (status) {
+    case FrameStatus::kUdp:
+      break;
+    case FrameStatus::kIgnored:
+    case FrameStatus::kFragment:
+      ++stats.ignored;
+      return false;
+    case FrameStatus::kTruncated:
+      ++stats.truncated;
+      return false;
+    case FrameStatus::kMalformed:
+      ++stats.malformed;
+      return false;
+  }
+  if ((udp.destination_port != filter.data_port && udp.destination_port != filter.position_port) ||
+      (filter.sensor_ipv4 && udp.source_ipv4 != *filter.sensor_ipv4)) {
+    ++stats.ignored;
+    return false;
+  }
+  return true;
+}
+
 }  // namespace lidartag::velodyne

@@ -3,9 +3,12 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <string>
 #include <string_view>
+
+#include "lidartag/driver/packet_source.hpp"
 
 namespace lidartag::velodyne {
 
@@ -42,6 +45,19 @@ struct UdpView {
 // padding past the IPv4 total length is ignored.
 [[nodiscard]] FrameStatus parse_udp_frame(LinkType link, std::span<const uint8_t> frame,
                                           UdpView& out);
+
+// What the sources deliver: UDP to the data or the position port, from `sensor` when one is set.
+struct UdpFilter {
+  uint16_t data_port = 0;
+  uint16_t position_port = 0;
+  std::optional<uint32_t> sensor_ipv4;
+};
+
+// Parses one captured frame and tells whether it is a packet to deliver (`udp` filled); anything
+// else is counted in `stats` (ignored, truncated, malformed; fragments count as ignored).
+[[nodiscard]] bool accept_udp_frame(LinkType link, std::span<const uint8_t> frame,
+                                    const UdpFilter& filter, UdpView& udp, SourceStats& stats,
+                                    FrameStatus& status);
 
 // Dotted quad of a host-byte-order IPv4 address, and its inverse (false unless exactly a dotted
 // quad of four numbers 0..255).
