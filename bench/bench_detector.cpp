@@ -7,8 +7,8 @@
 // BM_Detect: one call of Detector::detect per iteration, cycling over the capture's rotations.
 // Counters: the median over the iterations of each stage's time (ms, from ScanResult::timing_ms),
 // the median total, and `period_pct`: the median total as a percentage of the 100 ms rotation
-// period of a sensor at 600 rpm (the target is <= 2 %). BM_EdgeFeatures and BM_Clustering time
-// the first two stages alone.
+// period of a sensor at 600 rpm (the target is <= 2 %). The *_no_polish variants skip the pose's
+// polish on every point. BM_EdgeFeatures and BM_Clustering time the first two stages alone.
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -63,13 +63,15 @@ double median(std::vector<double> v) {
   return v[v.size() / 2];
 }
 
-void BM_Detect(benchmark::State& state, const std::string& name) {
+void BM_Detect(benchmark::State& state, const std::string& name, bool polish) {
   const Capture& c = capture(name);
   if (c.rotations.empty()) {
     state.SkipWithError("no complete rotations in the capture");
     return;
   }
-  detector::Detector det(c.options);
+  detector::DetectorOptions options = c.options;
+  if (!polish) options.pose.polish_evaluations = 0;
+  detector::Detector det(options);
   detector::ScanResult result;
   std::array<std::vector<double>, detector::kStageCount> stage_ms;
   std::vector<double> total_ms;
@@ -121,11 +123,16 @@ void BM_Clustering(benchmark::State& state, const std::string& name) {
   }
 }
 
-BENCHMARK_CAPTURE(BM_Detect, demo, std::string("demo"))->Unit(benchmark::kMillisecond);
-BENCHMARK_CAPTURE(BM_Detect, outdoor, std::string("outdoor"))->Unit(benchmark::kMillisecond);
-BENCHMARK_CAPTURE(BM_EdgeFeatures, demo, std::string("demo"))->Unit(benchmark::kMillisecond);
-BENCHMARK_CAPTURE(BM_EdgeFeatures, outdoor, std::string("outdoor"))
+BENCHMARK_CAPTURE(BM_Detect, demo, std::string("demo"), true)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Detect, outdoor, std::string("outdoor"), true)->Unit(benchmark::kMillisecond);
+// Without the pose's polish on every point (pose.polish_evaluations = 0): faster, and about twice
+// the rotation error (docs/detector.md).
+BENCHMARK_CAPTURE(BM_Detect, demo_no_polish, std::string("demo"), false)
     ->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Detect, outdoor_no_polish, std::string("outdoor"), false)
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_EdgeFeatures, demo, std::string("demo"))->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_EdgeFeatures, outdoor, std::string("outdoor"))->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Clustering, demo, std::string("demo"))->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Clustering, outdoor, std::string("outdoor"))->Unit(benchmark::kMillisecond);
 

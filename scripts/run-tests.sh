@@ -21,10 +21,13 @@ if [ "${1:-}" != "--no-sanitizers" ]; then
   cmake --build build-tsan -j "$jobs" --target test_scan_buffer
   TSAN_OPTIONS="halt_on_error=1" build-tsan/bin/test_scan_buffer
 
-  echo "== AddressSanitizer + UndefinedBehaviorSanitizer: driver and I/O =="
+  echo "== AddressSanitizer + UndefinedBehaviorSanitizer: driver, I/O, simulator, detector =="
   cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLIDARTAG_SANITIZE=address \
     -DLIDARTAG_BUILD_BENCHMARKS=OFF
-  targets=$(cmake --build build-asan --target help | sed -n 's/^\(test_\(driver\|io\)[a-z_]*\):.*/\1/p' | sort -u)
+  targets="test_driver_core test_driver_captures test_scan_buffer test_pcap_writer test_pcap_source
+    test_udp_source test_live_source test_calibration_file test_pcd test_capture_reader test_sim"
+  # The detector's unit tests, one target per stage (*_test).
+  targets="$targets $(cmake --build build-asan --target help | sed -n 's/^\([a-z_]*_test\):.*/\1/p' | sort -u | tr '\n' ' ')"
   cmake --build build-asan -j "$jobs" --target $targets
   for t in $targets; do
     echo "-- $t"

@@ -486,6 +486,7 @@ void visit_detector(V& v, detector::DetectorOptions& o) {
     s.field("inlier_m", o.plane.inlier_m, above(0.0f));
     s.field("max_outlier_ratio", o.plane.max_outlier_ratio, half_open(0.0f, 1.0f));
     s.field("iterations", o.plane.iterations, at_least(1));
+    s.field("score_points", o.plane.score_points, at_least(0));
   });
   v.section("corners", [&](V& s) {
     s.field("line_inlier_m", o.corners.line_inlier_m, above(0.0f));
@@ -504,6 +505,8 @@ void visit_detector(V& v, detector::DetectorOptions& o) {
     s.field("min_depth_epsilon_m", o.pose.min_depth_epsilon_m, above(0.0));
     s.field("max_mean_cost_m", o.pose.max_mean_cost_m, above(0.0));
     s.field("min_coverage", o.pose.min_coverage, closed(0.0, 1.0));
+    s.field("max_points", o.pose.max_points, at_least(8));
+    s.field("polish_evaluations", o.pose.polish_evaluations, at_least(0));
   });
   v.section("decode", [&](V& s) {
     s.field("samples_per_cell", o.decode.samples_per_cell, closed(1, 8));
@@ -514,6 +517,7 @@ void visit_detector(V& v, detector::DetectorOptions& o) {
     s.field("min_score", o.decode.min_score, closed(0.0, 1.0));
     s.field("min_margin_bits", o.decode.min_margin_bits, at_least(0.0));
     s.field("parallel_min_functions", o.decode.parallel_min_functions, at_least(1));
+    s.field("max_points", o.decode.max_points, at_least(16));
   });
 }
 

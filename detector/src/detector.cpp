@@ -150,6 +150,13 @@ struct Detector::Buffers {
   std::vector<Cluster> clusters;
   std::vector<int> labels, offsets, order, ring_cols;
   std::vector<ClusterPoint> points, subset, pulled;
+  std::vector<float> weights;
+  struct Hypothesis {
+    DecodeResult d;
+    int family = 0;
+    double shift = 0.0;
+  };
+  std::vector<Hypothesis> hypotheses;
   CornerWorkspace corners;
   std::vector<Eigen::Vector2d> hull_in, hull;
   DecodeWorkspace decode;
@@ -341,15 +348,31 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
   const size_t interior = b.points.size() - edges;
   const size_t keep = cap > edges ? cap - edges : 0;
   const size_t stride = keep > 0 ? std::max<size_t>(1, (interior + keep - 1) / keep) : 0;
-  size_t k = 0;
+  b.weights.clear();
+  size_t n_interior = 0;
   for (const auto& p : b.points) {
-    if (p.edge)
+    if (p.edge || (stride > 0 && n_interior++ % stride == 0)) {
       b.subset.push_back(p);
-    else if (stride > 0 && k++ % stride == 0)
-      b.subset.push_back(p);
+      b.weights.push_back(p.edge ? 1.0f : 0.0f);
+    }
   }
-  const PoseFitResult fit = b.solver.fit(b.subset, t_fit, eps, init, opt_.pose);
-  const double mean_cost = fit.cost / static_cast<double>(b.subset.size());
+  // Each kept interior point stands for the interior points it replaces, so that the depth term
+  // keeps its weight against the outline (else the fit tilts the plane to pull edge points in).
+  const size_t kept = b.subset.size() - edges;
+  const float interior_weight =
+      kept > 0 ? static_cast<float>(interior) / static_cast<float>(kept) : 0.0f;
+  for (size_t i = 0; i < b.subset.size(); ++i)
+    if (!b.subset[i].edge) b.weights[i] = interior_weight;
+  PoseFitResult fit = b.solver.fit(b.subset, t_fit, eps, init, opt_.pose, b.weights);
+  if (b.subset.size() < b.points.size() && opt_.pose.polish_evaluations > 0) {
+    // A few evaluations on every point from there: the depth term of the subsample is noisier.
+    PoseOptions polish = opt_.pose;
+    polish.max_evaluations = opt_.pose.polish_evaluations;
+    polish.translation_bound_m = 0.02;
+    polish.rotation_bound_rad = 0.02;
+    fit = b.solver.fit(b.points, t_fit, eps, fit.pose, polish);
+  }
+  const double mean_cost = fit.cost / static_cast<double>(b.points.size());
   diag.mean_cost_m = mean_cost;
   if (mean_cost > opt_.pose.max_mean_cost_m) {
     lap(Stage::kPose);
@@ -387,9 +410,11 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
   const bool search = !outline.unseen_axis.isZero();
   const double s0 = search ? std::min(0.0, hi - t / 2) : 0.0;
   const double s1 = search ? std::max(0.0, lo + t / 2) : 0.0;
-  DecodeResult best;
-  int best_family = -1;
-  double best_shift = 0.0, applied = 0.0;
+  // Every (shift, family) is a hypothesis: the best one must beat the best *other* function of its
+  // family at any shift (another code or rotation) by the margin, so that searching more shifts
+  // does not make a wrong ID more likely. Families are chosen between by score alone.
+  b.hypotheses.clear();
+  double applied = 0.0;
   auto try_shift = [&](double shift) {
     for (auto& q : b.pulled) {  // move the points by -(shift - applied) along the axis
       q.x -= static_cast<float>((shift - applied) * axis.x());
@@ -399,23 +424,44 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
     applied = shift;
     for (size_t f = 0; f < dicts_.size(); ++f) {
       const DecodeResult d = decode_tag(b.pulled, t, dicts_[f], opt_.decode, b.decode);
-      const bool ok = d.rejection == Rejection::kNone, best_ok = best.rejection == Rejection::kNone;
-      if (best_family < 0 || (ok && !best_ok) || (ok == best_ok && d.score > best.score)) {
-        best = d;
-        best_family = static_cast<int>(f);
-        best_shift = shift;
-      }
+      if (d.function >= 0) b.hypotheses.push_back({d, static_cast<int>(f), shift});
     }
+  };
+  auto best_so_far = [&]() {
+    size_t k = 0;
+    for (size_t i = 1; i < b.hypotheses.size(); ++i)
+      if (b.hypotheses[i].d.score > b.hypotheses[k].d.score) k = i;
+    return k;
   };
   if (!search) {
     try_shift(0.0);
   } else {
     for (double shift = s0; shift <= s1 + 1e-9; shift += cell / 2) try_shift(shift);
-    for (double step = cell / 4; step > cell / 10; step /= 2) {
-      const double centre = best_shift;
+    for (double step = cell / 4; step > cell / 10 && !b.hypotheses.empty(); step /= 2) {
+      const double centre = b.hypotheses[best_so_far()].shift;
       try_shift(std::max(s0, centre - step));
       try_shift(std::min(s1, centre + step));
     }
+  }
+  DecodeResult best;  // kLowContrast unless some hypothesis could be scored
+  int best_family = 0;
+  double best_shift = 0.0;
+  if (!b.hypotheses.empty()) {
+    const auto& h = b.hypotheses[best_so_far()];
+    double rival = -1e30;
+    for (const auto& o : b.hypotheses) {
+      if (o.family != h.family) continue;  // normalised scores of two families do not compare
+      if (o.d.function != h.d.function) rival = std::max(rival, o.d.score);
+      if (o.d.second_function >= 0 && o.d.second_function != h.d.function)
+        rival = std::max(rival, o.d.second_score);
+    }
+    best = h.d;
+    best_family = h.family;
+    best_shift = h.shift;
+    best.margin_bits = rival > -1e29 ? (h.d.score - rival) * h.d.cells_per_score : 1e9;
+    best.rejection = best.score < opt_.decode.min_score               ? Rejection::kLowScore
+                     : best.margin_bits < opt_.decode.min_margin_bits ? Rejection::kAmbiguous
+                                                                      : Rejection::kNone;
   }
   lap(Stage::kDecode);
   diag.score = best.score;

@@ -120,6 +120,7 @@ struct PoseSolver::Impl {
   nlopt_opt opt = nullptr;
   bool gradient_based = true;
   std::vector<Eigen::Vector3d> y;  // R0 (X_i - c): the points, centred and pre-rotated
+  std::vector<double> w;           // their weights
   Eigen::Matrix3d R0 = Eigen::Matrix3d::Identity();
   Eigen::Vector3d c = Eigen::Vector3d::Zero();
   Eigen::Vector3d q0 = Eigen::Vector3d::Zero();
@@ -151,16 +152,37 @@ double PoseSolver::objective(const double* theta, double* grad) const {
   const Eigen::Vector3d q = s.q0 + Eigen::Vector3d(theta[3], theta[4], theta[5]);
   const Eigen::Matrix3d R = exp_so3(w);
   double cost = 0.0;
-  Eigen::Vector3d gq = Eigen::Vector3d::Zero(), gw = Eigen::Vector3d::Zero();
-  for (const auto& y : s.y) {
-    const Eigen::Vector3d x = R * y + q;
-    Eigen::Vector3d r;
-    cost += l1(x.x(), s.eps, r.x()) + l1(x.y(), s.half, r.y()) + l1(x.z(), s.half, r.z());
-    if (grad != nullptr && !r.isZero()) {
-      gq += r;
-      gw += y.cross(R.transpose() * r);
+  Eigen::Vector3d gq = Eigen::Vector3d::Zero(), gw;
+  // Written out per coordinate: this loop is the pose stage's cost (points x evaluations).
+  const double r00 = R(0, 0), r01 = R(0, 1), r02 = R(0, 2), r10 = R(1, 0), r11 = R(1, 1),
+               r12 = R(1, 2), r20 = R(2, 0), r21 = R(2, 1), r22 = R(2, 2);
+  const double q0 = q.x(), q1 = q.y(), q2 = q.z(), eps = s.eps, half = s.half;
+  double h0 = 0, h1 = 0, h2 = 0;
+  const size_t n = s.y.size();
+  for (size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d& y = s.y[i];
+    const double x0 = r00 * y.x() + r01 * y.y() + r02 * y.z() + q0;
+    const double x1 = r10 * y.x() + r11 * y.y() + r12 * y.z() + q1;
+    const double x2 = r20 * y.x() + r21 * y.y() + r22 * y.z() + q2;
+    const double a0 = std::abs(x0) - eps, a1 = std::abs(x1) - half, a2 = std::abs(x2) - half;
+    if (a0 <= 0.0 && a1 <= 0.0 && a2 <= 0.0) continue;  // inside the template: no cost
+    const double wi = s.w[i];
+    const double e0 = a0 > 0.0 ? (x0 > 0 ? wi : -wi) : 0.0;
+    const double e1 = a1 > 0.0 ? (x1 > 0 ? wi : -wi) : 0.0;
+    const double e2 = a2 > 0.0 ? (x2 > 0 ? wi : -wi) : 0.0;
+    cost += wi * (std::max(a0, 0.0) + std::max(a1, 0.0) + std::max(a2, 0.0));
+    if (grad != nullptr) {
+      gq += Eigen::Vector3d(e0, e1, e2);
+      // R^T r, then y x (R^T r).
+      const double u0 = r00 * e0 + r10 * e1 + r20 * e2;
+      const double u1 = r01 * e0 + r11 * e1 + r21 * e2;
+      const double u2 = r02 * e0 + r12 * e1 + r22 * e2;
+      h0 += y.y() * u2 - y.z() * u1;
+      h1 += y.z() * u0 - y.x() * u2;
+      h2 += y.x() * u1 - y.y() * u0;
     }
   }
+  gw = Eigen::Vector3d(h0, h1, h2);
   if (grad != nullptr) {
     gw = right_jacobian(w).transpose() * gw;
     for (int k = 0; k < 3; ++k) {
@@ -172,7 +194,8 @@ double PoseSolver::objective(const double* theta, double* grad) const {
 }
 
 PoseFitResult PoseSolver::fit(std::span<const ClusterPoint> points, double t, double epsilon,
-                              const RigidPose& initial, const PoseOptions& opt) {
+                              const RigidPose& initial, const PoseOptions& opt,
+                              std::span<const float> weights) {
   Impl& s = *impl_;
   PoseFitResult res;
   res.pose = initial;
@@ -183,6 +206,9 @@ PoseFitResult PoseSolver::fit(std::span<const ClusterPoint> points, double t, do
   s.q0 = initial.R * s.c + initial.p;
   s.y.clear();
   for (const auto& p : points) s.y.push_back(s.R0 * (Eigen::Vector3d(p.x, p.y, p.z) - s.c));
+  s.w.assign(points.size(), 1.0);
+  if (weights.size() == points.size())
+    for (size_t i = 0; i < points.size(); ++i) s.w[i] = weights[i];
   s.half = t / 2;
   s.eps = epsilon;
   s.evaluations = 0;

@@ -141,23 +141,29 @@ DecodeResult decode_tag(std::span<const ClusterPoint> points, double t, const Rk
                       [&](const tbb::blocked_range<int>& r) { score_range(r.begin(), r.end()); });
   else
     score_range(0, nf);
-  int best = 0;
+  int best = 0, second = -1;
   float s1 = -1e30f, s2 = -1e30f;
   for (int f = 0; f < nf; ++f) {
     const float s = ws.scores[static_cast<size_t>(f)];
     if (s > s1) {
       s2 = s1;
+      second = best;
       s1 = s;
       best = f;
     } else if (s > s2) {
       s2 = s;
+      second = f;
     }
   }
+  res.function = best;
   res.code_index = best / 4;
   res.quarter_turns = best % 4;
   res.score = s1 / total;
+  res.second_function = nf > 1 ? second : -1;
+  res.second_score = nf > 1 ? s2 / total : -1.0;
   // One cell flipped changes a score by twice that cell's evidence; in units of the mean payload
   // cell.
+  res.cells_per_score = total / (2.0 * payload);
   res.margin_bits = nf > 1 ? (s1 - s2) / (2.0 * payload) : 1e9;
   if (res.score < opt.min_score)
     res.rejection = Rejection::kLowScore;

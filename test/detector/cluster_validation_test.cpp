@@ -114,5 +114,31 @@ TEST(ClusterValidation, PayloadBoundaryPointsNeedContrast) {
   EXPECT_EQ(count_boundary_points(flat.points, ValidationOptions{}), 0);
 }
 
+TEST(ClusterValidation, NarrowRingsAboveAndBelowAreTrimmed) {
+  // Rings 0-2: a 5 cm post; 3-6: the 1 m board, ring 5 crossing it narrowly at a gap; 7: a lamp.
+  std::vector<ClusterPoint> pts;
+  auto ring = [&](int r, float width) {
+    for (float y = 0.0f; y <= width + 1e-6f; y += 0.025f) {
+      ClusterPoint p;
+      p.x = 5.0f;
+      p.y = y;
+      p.z = 0.1f * static_cast<float>(r);
+      p.ring = r;
+      pts.push_back(p);
+    }
+  };
+  for (int r = 0; r < 3; ++r) ring(r, 0.05f);
+  for (int r = 3; r < 7; ++r) ring(r, r == 5 ? 0.05f : 1.0f);
+  ring(7, 0.1f);
+  const size_t before = pts.size();
+  const size_t dropped = trim_narrow_rings(pts, 0.3f);
+  EXPECT_EQ(dropped, 3u * 3u + 5u);
+  EXPECT_EQ(pts.size(), before - dropped);
+  EXPECT_EQ(pts.front().ring, 3);
+  EXPECT_EQ(pts.back().ring, 6);
+  EXPECT_EQ(rings_in(pts), 4);  // the narrow ring inside the board stays
+  EXPECT_EQ(trim_narrow_rings(pts, 0.0f), 0u);
+}
+
 }  // namespace
 }  // namespace lidartag::detector

@@ -78,5 +78,35 @@ TEST(Clustering, PartnersJoinAcrossATagWidth) {
   EXPECT_EQ(live(cs), 2);
 }
 
+// A tag (two features per ring, partners) and a chain of clutter whose first feature falls inside
+// the tag's padded box without being near any of its features: the box rule merges them into one
+// oversized cluster; the split keeps the tag whole and apart.
+TEST(Clustering, OversizedClustersSplitIntoTheirComponents) {
+  std::vector<Feature> f;
+  for (int ring = 5; ring <= 10; ++ring) {
+    f.push_back(at(6.0f, 0.5f, ring));
+    f.push_back(at(6.0f, -0.5f, ring, static_cast<int>(f.size()) - 1));
+  }
+  const size_t tag_end = f.size();
+  for (int k = 0; k < 12; ++k) f.push_back(at(6.0f + 0.3f * static_cast<float>(k), 0.0f, 11));
+  std::vector<Cluster> cs;
+  std::vector<int> labels;
+  cluster_features(f, 0.35f, ClusterOptions{}, cs, labels);  // the paper's rule alone
+  EXPECT_EQ(live(cs), 1);
+  ClusterOptions split;
+  split.max_extent_m = 2.1f;
+  cluster_features(f, 0.35f, split, cs, labels);
+  EXPECT_EQ(live(cs), 2);
+  for (size_t k = 1; k < tag_end; ++k) EXPECT_EQ(labels[k], labels[0]);
+  for (size_t k = tag_end; k < f.size(); ++k) EXPECT_NE(labels[k], labels[0]);
+  const Cluster& tag = cs[static_cast<size_t>(labels[0])];
+  EXPECT_LT(tag.parent, 0);
+  EXPECT_EQ(tag.features, static_cast<int>(tag_end));
+  EXPECT_FLOAT_EQ(tag.min_y, -0.5f);
+  EXPECT_FLOAT_EQ(tag.max_x, 6.0f);
+  EXPECT_EQ(tag.min_ring, 5);
+  EXPECT_EQ(tag.max_ring, 10);
+}
+
 }  // namespace
 }  // namespace lidartag::detector

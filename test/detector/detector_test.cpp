@@ -93,7 +93,12 @@ TEST(Detector, TwoSizesAndTwoFamiliesInOneScan) {
   Detector det(opt);
   ScanResult res;
   det.detect(scan, res);
-  ASSERT_EQ(res.detections.size(), 2u);
+  std::string why;
+  for (const auto& c : res.diagnostics)
+    if (c.points > 50)
+      why += std::string(rejection_name(c.rejection)) + " (score " + std::to_string(c.score) +
+             ", margin " + std::to_string(c.margin) + ", side " + std::to_string(c.side_m) + ") ";
+  ASSERT_EQ(res.detections.size(), 2u) << why;
   for (const auto& d : res.detections) {
     if (d.family == "tag16h5") {
       EXPECT_EQ(d.id, 4);

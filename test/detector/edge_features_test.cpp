@@ -120,5 +120,36 @@ TEST(EdgeFeatures, ATagInAFullRotationHasTwoFeaturesPerRingAcrossTheCut) {
   EXPECT_EQ(paired * 2, on_tag);
 }
 
+TEST(EdgeFeatures, ShortDropoutsOnASurfaceAreNotEdges) {
+  std::vector<float> r(60, 10.0f);                                 // a wall
+  r[10] = 0.0f;                                                    // one lost beam
+  for (int c = 30; c < 33; ++c) r[static_cast<size_t>(c)] = 0.0f;  // three in a row
+  const Scan s = ring_of(r);
+  std::vector<Feature> f;
+  std::vector<float> g;
+  detect_edge_features(s, FeatureOptions{}, f, g);
+  EXPECT_TRUE(f.empty());
+  // Every missing return is a jump without the gap rule: each dropout makes two edges.
+  FeatureOptions no_gap;
+  no_gap.max_gap = 0;
+  detect_edge_features(s, no_gap, f, g);
+  EXPECT_EQ(f.size(), 4u);
+}
+
+TEST(EdgeFeatures, LongGapsAndRealStepsAcrossADropoutStayEdges) {
+  std::vector<float> r(60, 0.0f);                                  // sky
+  for (int c = 10; c < 25; ++c) r[static_cast<size_t>(c)] = 5.0f;  // a board
+  for (int c = 27; c < 50; ++c) r[static_cast<size_t>(c)] = 9.0f;  // 4 m behind, after 2 lost
+  const Scan s = ring_of(r);
+  std::vector<Feature> f;
+  std::vector<float> g;
+  detect_edge_features(s, FeatureOptions{}, f, g);
+  ASSERT_EQ(f.size(), 3u);
+  EXPECT_EQ(f[0].col, 10);  // against the sky (more than max_gap columns without a return)
+  EXPECT_EQ(f[1].col, 24);  // the step to the background behind the dropout
+  EXPECT_EQ(f[1].side, 1);
+  EXPECT_EQ(f[2].col, 49);  // the background ends against the sky
+}
+
 }  // namespace
 }  // namespace lidartag::detector

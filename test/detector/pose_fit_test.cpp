@@ -148,5 +148,23 @@ TEST(PoseFit, AlgorithmNamesRoundTrip) {
   EXPECT_FALSE(pose_algorithm_from_name("lbfgs").has_value());
 }
 
+TEST(PoseFit, WeightsScaleEachPointsCost) {
+  const Eigen::Matrix3d R = truth_rotation();
+  const Eigen::Vector3d c(7.0, -1.0, 0.4);
+  const auto pts = tag_cloud(R, c, 1.2, 0.01, 3);
+  RigidPose off = procrustes_initial_guess(
+      {R * Eigen::Vector3d(0, -0.6, -0.6) + c, R * Eigen::Vector3d(0, 0.6, -0.6) + c,
+       R * Eigen::Vector3d(0, 0.6, 0.6) + c, R * Eigen::Vector3d(0, -0.6, 0.6) + c},
+      1.2);
+  off.p += Eigen::Vector3d(0.0, 0.05, -0.03);  // some points outside: a non-zero cost
+  PoseSolver solver(PoseAlgorithm::kMMA);
+  const PoseFitResult plain = solver.fit(pts, 1.2, 0.01, off, PoseOptions{});
+  const std::vector<float> twos(pts.size(), 2.0f);
+  const PoseFitResult doubled = solver.fit(pts, 1.2, 0.01, off, PoseOptions{}, twos);
+  ASSERT_GT(plain.initial_cost, 0.0);
+  EXPECT_NEAR(doubled.initial_cost, 2.0 * plain.initial_cost, 1e-9 * plain.initial_cost);
+  EXPECT_NEAR(plain.initial_cost, fitting_cost(pts, off, 1.2, 0.01), 1e-6);
+}
+
 }  // namespace
 }  // namespace lidartag::detector

@@ -144,5 +144,20 @@ TEST(RkhsDecoder, ARandomPatternIsNotDecoded) {
   EXPECT_EQ(accepted, 0);
 }
 
+TEST(RkhsDecoder, ReportsTheRunnerUpForComparisonsAcrossHypotheses) {
+  const auto& fam = tags::builtin_family("tag16h5");
+  const RkhsDictionary dict(fam);
+  std::vector<ClusterPoint> pts;
+  DecodeWorkspace ws;
+  synth(fam, 7, 1, {}, 3, pts);
+  const DecodeResult r = decode_tag(pts, 1.0, dict, DecodeOptions{}, ws);
+  ASSERT_EQ(r.rejection, Rejection::kNone);
+  EXPECT_EQ(r.function, 4 * 7 + 1);
+  EXPECT_NE(r.second_function, r.function);
+  EXPECT_GE(r.second_function, 0);
+  EXPECT_LT(r.second_score, r.score);
+  EXPECT_NEAR(r.margin_bits, (r.score - r.second_score) * r.cells_per_score, 1e-4 * r.margin_bits);
+}
+
 }  // namespace
 }  // namespace lidartag::detector

@@ -60,9 +60,8 @@ det::DetectorOptions detector_options(const DetectArgs& args) {
 
 bool is_pcd(const std::string& path) {
   std::string ext = std::filesystem::path(path).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) {
-    return static_cast<char>(std::tolower(c));
-  });
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   return ext == ".pcd";
 }
 
@@ -91,9 +90,8 @@ void load_pcd_scan(const DetectArgs& args, Scan& scan) {
     }
     cloud.push_back(p);
   }
-  const auto model = args.capture.model.empty()
-                         ? std::nullopt
-                         : velodyne::model_from_name(args.capture.model);
+  const auto model =
+      args.capture.model.empty() ? std::nullopt : velodyne::model_from_name(args.capture.model);
   if (ring) {
     const int rings = model ? velodyne::model_spec(*model).lasers : max_ring + 1;
     if (!det::organise_rings(cloud, rings, args.resolution_deg, scan))
@@ -159,7 +157,7 @@ nlohmann::json cluster_json(const det::ClusterDiagnostic& c) {
   o["points"] = c.points;
   o["boundary_points"] = c.boundary_points;
   const std::pair<const char*, double> measured[] = {
-      {"outlier_ratio", c.outlier_ratio}, {"side", c.side_m},   {"mean_cost", c.mean_cost_m},
+      {"outlier_ratio", c.outlier_ratio}, {"side", c.side_m}, {"mean_cost", c.mean_cost_m},
       {"coverage", c.coverage},           {"score", c.score}, {"margin", c.margin}};
   for (const auto& [key, value] : measured)
     if (value >= 0) o[key] = value;
@@ -210,24 +208,27 @@ nlohmann::json rotation_json(size_t n, const Scan& scan, const det::ScanResult& 
 }
 
 void print_rotation(size_t n, const Scan& scan, const det::ScanResult& r) {
-  fmt::print("scan {:4d}  stamp {:.6f}  {:6d} points  {:5d} features  {:4d} clusters  {:7.2f} ms"
-             "  {} detection{}\n",
-             n, static_cast<double>(scan.stamp_ns) * 1e-9, scan.point_count(), r.features,
-             r.clusters, r.total_ms(), r.detections.size(), r.detections.size() == 1 ? "" : "s");
+  fmt::print(
+      "scan {:4d}  stamp {:.6f}  {:6d} points  {:5d} features  {:4d} clusters  {:7.2f} ms"
+      "  {} detection{}\n",
+      n, static_cast<double>(scan.stamp_ns) * 1e-9, scan.point_count(), r.features, r.clusters,
+      r.total_ms(), r.detections.size(), r.detections.size() == 1 ? "" : "s");
   for (const auto& d : r.detections) {
     const auto& q = d.orientation;
-    fmt::print("  {:<9} id {:3d}  size {:.3f} m  position [{:8.3f} {:8.3f} {:8.3f}] m  "
-               "orientation [{:.4f} {:.4f} {:.4f} {:.4f}]  score {:.2f}  margin {:.1f}  "
-               "{} points\n",
-               d.family, d.id, d.size_m, d.position.x(), d.position.y(), d.position.z(), q.w(),
-               q.x(), q.y(), q.z(), d.score, d.margin, d.points);
+    fmt::print(
+        "  {:<9} id {:3d}  size {:.3f} m  position [{:8.3f} {:8.3f} {:8.3f}] m  "
+        "orientation [{:.4f} {:.4f} {:.4f} {:.4f}]  score {:.2f}  margin {:.1f}  "
+        "{} points\n",
+        d.family, d.id, d.size_m, d.position.x(), d.position.y(), d.position.z(), q.w(), q.x(),
+        q.y(), q.z(), d.score, d.margin, d.points);
   }
   for (const auto& c : r.diagnostics) {
     if (!explained(c)) continue;
-    fmt::print("  cluster x [{:.2f}, {:.2f}] y [{:.2f}, {:.2f}] rings {}-{}: {} features, {} points, "
-               "{} boundary",
-               c.min_x, c.max_x, c.min_y, c.max_y, c.min_ring, c.max_ring, c.features, c.points,
-               c.boundary_points);
+    fmt::print(
+        "  cluster x [{:.2f}, {:.2f}] y [{:.2f}, {:.2f}] rings {}-{}: {} features, {} points, "
+        "{} boundary",
+        c.min_x, c.max_x, c.min_y, c.max_y, c.min_ring, c.max_ring, c.features, c.points,
+        c.boundary_points);
     if (c.outlier_ratio >= 0) fmt::print(", outliers {:.2f}", c.outlier_ratio);
     if (c.side_m >= 0) fmt::print(", side {:.3f} m", c.side_m);
     if (c.mean_cost_m >= 0) fmt::print(", cost {:.4f} m", c.mean_cost_m);

@@ -26,12 +26,16 @@ struct DecodeOptions {
   double lift_cells = 0.5;
   // Fewest intensity units between the black and the white level. Default 8.
   double min_contrast = 8.0;
-  // Decision: the best normalised score (1 = every cell agrees) must reach min_score (default
-  // 0.5) and beat the second best function (another code or another rotation) by min_margin_bits
-  // payload cells' worth of evidence (default 1.0: with tag16h5's 5-bit distance, two wrong cells
-  // still decode, more are rejected, never decoded as another code).
-  double min_score = 0.5;
-  double min_margin_bits = 1.0;
+  // Decision: the best normalised score (1 = every cell agrees) must reach min_score and beat the
+  // best other function of the family (another code or rotation) by min_margin_bits payload
+  // cells' worth of evidence. min_score default 0.8: tags decode at 0.93-1.0 in bench_accuracy up
+  // to 20 m, while an under-sampled tag read as another family scored 0.57-0.65 in
+  // pcaps/outdoor.pcap. min_margin_bits default 1.25: the only wrong ID of bench_accuracy (a VLP-16
+  // at 6 m whose beams miss payload cells) had a margin of 1.04; correct reads below 1.25 occur
+  // only at the sampling limit (VLP-32C at 18-20 m and 45 degrees, VLP-16 at 6-8 m). With tag16h5's
+  // 5-bit distance one wrong cell still decodes.
+  double min_score = 0.8;
+  double min_margin_bits = 1.25;
   // Score the dictionary with TBB when it holds at least this many functions. Default 4096.
   int parallel_min_functions = 4096;
   // Most points decoded (evenly spaced over the cluster): about 8 per cell of a 16-bit family.
@@ -68,10 +72,16 @@ struct DecodeWorkspace {
 
 struct DecodeResult {
   Rejection rejection = Rejection::kLowContrast;
-  int code_index = -1;       // index into the family's codes
-  int quarter_turns = 0;     // the marker image, turned this many times clockwise, fits the points
-  double score = 0.0;        // normalised inner product of the best function, <= 1
-  double margin_bits = 0.0;  // best minus second best, in mean payload cells' worth of evidence
+  int code_index = -1;        // index into the family's codes
+  int quarter_turns = 0;      // the marker image, turned this many times clockwise, fits the points
+  double score = 0.0;         // normalised inner product of the best function, <= 1
+  double margin_bits = 0.0;   // best minus second best, in mean payload cells' worth of evidence
+  int function = -1;          // the best dictionary function (4 * code_index + quarter_turns)
+  int second_function = -1;   // the runner-up
+  double second_score = 0.0;  // its normalised score
+  // Payload cells' worth of evidence per unit of normalised score: margin_bits = (score -
+  // second_score) * cells_per_score. Lets a caller compare hypotheses decoded separately.
+  double cells_per_score = 0.0;
 };
 
 // `points` are pulled back into the estimated tag frame (x normal, y right, z up, metres) with
