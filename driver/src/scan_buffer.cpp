@@ -1,6 +1,56 @@
 #include "lidartag/driver/scan_buffer.hpp"
 
+#include <cstddef>
+
 namespace lidartag::velodyne {
+
+IndexQueue::IndexQueue(size_t capacity) {
+  size_t n = 2;
+  while (n < capacity) n *= 2;
+  cells_ = std::make_unique<Cell[]>(n);
+  mask_ = n - 1;
+  for (size_t i = 0; i < n; ++i) cells_[i].sequence.store(i, std::memory_order_relaxed);
+}
+
+bool IndexQueue::push(uint32_t value) {
+  size_t pos = enqueue_.load(std::memory_order_relaxed);
+  for (;;) {
+    Cell& cell = cells_[pos & mask_];
+    const size_t seq = cell.sequence.load(std::memory_order_acquire);
+    const auto diff = static_cast<std::ptrdiff_t>(seq) - static_cast<std::ptrdiff_t>(pos);
+    if (diff == 0) {
+      if (enqueue_.compare_exchange_weak(pos, pos + 1, std::memory_order_relaxed)) {
+        cell.value = value;
+        cell.sequence.store(pos + 1, std::memory_order_release);
+        return true;
+      }
+    } else if (diff < 0) {
+      return false;  // full
+    } else {
+      pos = enqueue_.load(std::memory_order_relaxed);
+    }
+  }
+}
+
+bool IndexQueue::pop(uint32_t& value) {
+  size_t pos = dequeue_.load(std::memory_order_relaxed);
+  for (;;) {
+    Cell& cell = cells_[pos & mask_];
+    const size_t seq = cell.sequence.load(std::memory_order_acquire);
+    const auto diff = static_cast<std::ptrdiff_t>(seq) - static_cast<std::ptrdiff_t>(pos + 1);
+    if (diff == 0) {
+      if (dequeue_.compare_exchange_weak(pos, pos + 1, std::memory_order_relaxed)) {
+        value = cell.value;
+        cell.sequence.store(pos + mask_ + 1, std::memory_order_release);
+        return true;
+      }
+    } else if (diff < 0) {
+      return false;  // empty
+    } else {
+      pos = dequeue_.load(std::memory_order_relaxed);
+    }
+  }
+}
 
 ScanBuffer::ScanBuffer(size_t depth, size_t consumers, int rings, int returns, int column_capacity)
     // The producer holds one scan being filled, each consumer one, and `depth` wait in between.
@@ -10,7 +60,7 @@ ScanBuffer::ScanBuffer(size_t depth, size_t consumers, int rings, int returns, i
   for (size_t i = 0; i < total; ++i) {
     scans_.push_back(std::make_unique<Scan>());
     scans_.back()->reserve(rings, returns, column_capacity);
-    free_.bounded_push(static_cast<uint32_t>(i));
+    free_.push(static_cast<uint32_t>(i));
   }
   depth_ = depth;
 }
@@ -40,9 +90,9 @@ void ScanBuffer::publish(Scan* scan) {
     uint32_t old;
     if (!ready_.pop(old)) break;
     dropped_.fetch_add(1, std::memory_order_relaxed);
-    free_.bounded_push(old);
+    free_.push(old);
   }
-  ready_.bounded_push(i);
+  ready_.push(i);
   published_.fetch_add(1, std::memory_order_relaxed);
 }
 
@@ -55,7 +105,7 @@ Scan* ScanBuffer::pop() {
 
 void ScanBuffer::release(Scan* scan) {
   const uint32_t i = index_of(scan);
-  if (i < scans_.size()) free_.bounded_push(i);
+  if (i < scans_.size()) free_.push(i);
 }
 
 size_t ScanBuffer::ready_count() const {

@@ -4,7 +4,6 @@
 #pragma once
 
 #include <atomic>
-#include <boost/lockfree/queue.hpp>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -13,6 +12,26 @@
 #include "lidartag/driver/scan_batcher.hpp"
 
 namespace lidartag::velodyne {
+
+// Bounded multi-producer multi-consumer queue of indices (D. Vyukov's array queue: one sequence
+// number per cell, acquire/release on it orders the value). Written here rather than taken from
+// boost::lockfree, whose freelist ThreadSanitizer reports as racy: this one it can verify.
+class IndexQueue {
+ public:
+  explicit IndexQueue(size_t capacity);
+  bool push(uint32_t value);  // false when full
+  bool pop(uint32_t& value);  // false when empty
+
+ private:
+  struct Cell {
+    std::atomic<size_t> sequence{0};
+    uint32_t value = 0;
+  };
+  std::unique_ptr<Cell[]> cells_;
+  size_t mask_;
+  alignas(64) std::atomic<size_t> enqueue_{0};
+  alignas(64) std::atomic<size_t> dequeue_{0};
+};
 
 class ScanBuffer final : public ScanSink {
  public:
@@ -36,8 +55,8 @@ class ScanBuffer final : public ScanSink {
 
  private:
   std::vector<std::unique_ptr<Scan>> scans_;
-  boost::lockfree::queue<uint32_t, boost::lockfree::fixed_sized<true>> free_;
-  boost::lockfree::queue<uint32_t, boost::lockfree::fixed_sized<true>> ready_;
+  IndexQueue free_;
+  IndexQueue ready_;
   std::atomic<uint64_t> published_{0}, popped_{0}, dropped_{0};
   size_t depth_ = 0;
   uint32_t index_of(const Scan* scan) const;
