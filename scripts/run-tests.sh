@@ -19,7 +19,7 @@ if [ "${1:-}" != "--no-sanitizers" ]; then
   cmake -S . -B build-tsan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLIDARTAG_SANITIZE=thread \
     -DLIDARTAG_BUILD_BENCHMARKS=OFF
   cmake --build build-tsan -j "$jobs" --target test_scan_buffer
-  TSAN_OPTIONS="halt_on_error=1" build-tsan/bin/test_scan_buffer
+  TSAN_OPTIONS="halt_on_error=1" timeout 600 build-tsan/bin/test_scan_buffer
 
   echo "== AddressSanitizer + UndefinedBehaviorSanitizer: driver, I/O, simulator, detector =="
   cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLIDARTAG_SANITIZE=address \
@@ -31,6 +31,6 @@ if [ "${1:-}" != "--no-sanitizers" ]; then
   cmake --build build-asan -j "$jobs" --target $targets
   for t in $targets; do
     echo "-- $t"
-    ASAN_OPTIONS="detect_leaks=1" UBSAN_OPTIONS="print_stacktrace=1" "build-asan/bin/$t"
+    ASAN_OPTIONS="detect_leaks=1" UBSAN_OPTIONS="print_stacktrace=1" timeout 900 "build-asan/bin/$t"
   done
 fi

@@ -52,15 +52,24 @@ bool IndexQueue::pop(uint32_t& value) {
   }
 }
 
+// The queues hold at most half their capacity, so a push fails only for the instant another
+// thread is finishing a pop of the same cell; retrying never loses an index.
+void ScanBuffer::push_index(IndexQueue& queue, uint32_t index) {
+  while (!queue.push(index)) {
+  }
+}
+
 ScanBuffer::ScanBuffer(size_t depth, size_t consumers, int rings, int returns, int column_capacity)
     // The producer holds one scan being filled, each consumer one, and `depth` wait in between.
-    : free_(depth + consumers + 1), ready_(depth + consumers + 1) {
+    // Twice the scans: a push can only find its cell busy while a pop of the cell one lap
+    // earlier is still completing (see push_index).
+    : free_(2 * (depth + consumers + 1)), ready_(2 * (depth + consumers + 1)) {
   const size_t total = depth + consumers + 1;
   scans_.reserve(total);
   for (size_t i = 0; i < total; ++i) {
     scans_.push_back(std::make_unique<Scan>());
     scans_.back()->reserve(rings, returns, column_capacity);
-    free_.push(static_cast<uint32_t>(i));
+    push_index(free_, static_cast<uint32_t>(i));
   }
   depth_ = depth;
 }
@@ -90,9 +99,9 @@ void ScanBuffer::publish(Scan* scan) {
     uint32_t old;
     if (!ready_.pop(old)) break;
     dropped_.fetch_add(1, std::memory_order_relaxed);
-    free_.push(old);
+    push_index(free_, old);
   }
-  ready_.push(i);
+  push_index(ready_, i);
   published_.fetch_add(1, std::memory_order_relaxed);
 }
 
@@ -105,7 +114,7 @@ Scan* ScanBuffer::pop() {
 
 void ScanBuffer::release(Scan* scan) {
   const uint32_t i = index_of(scan);
-  if (i < scans_.size()) free_.push(i);
+  if (i < scans_.size()) push_index(free_, i);
 }
 
 size_t ScanBuffer::ready_count() const {

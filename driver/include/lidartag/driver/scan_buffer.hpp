@@ -60,6 +60,7 @@ class ScanBuffer final : public ScanSink {
   std::atomic<uint64_t> published_{0}, popped_{0}, dropped_{0};
   size_t depth_ = 0;
   uint32_t index_of(const Scan* scan) const;
+  static void push_index(IndexQueue& queue, uint32_t index);
 };
 
 }  // namespace lidartag::velodyne
