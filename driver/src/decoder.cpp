@@ -14,11 +14,13 @@ constexpr double kMaxRateDegPerUs = 1300.0 * 360.0 / 60e6;
 constexpr double kDefaultRateDegPerUs = 600.0 * 360.0 / 60e6;
 
 // sin/cos of the azimuth at 0.01 deg steps; linear interpolation between entries is accurate to
-// 4e-9, far below the 0.01 deg resolution of the packets.
+// 4e-9, far below the 0.01 deg resolution of the packets. One spare entry past 360 deg so that an
+// index rounded up to 36000 still has a right neighbour.
+constexpr int kTrigSteps = 36000;
 struct TrigTable {
   std::vector<float> sin_v, cos_v;
-  TrigTable() : sin_v(36001), cos_v(36001) {
-    for (size_t i = 0; i <= 36000; ++i) {
+  TrigTable() : sin_v(kTrigSteps + 2), cos_v(kTrigSteps + 2) {
+    for (size_t i = 0; i < sin_v.size(); ++i) {
       const double a = static_cast<double>(i) * 0.01 * kDegToRad;
       sin_v[i] = static_cast<float>(std::sin(a));
       cos_v[i] = static_cast<float>(std::cos(a));
@@ -36,10 +38,86 @@ inline double wrap360(double deg) {
 }
 
 // For angles already within one turn of [0, 360): the per-point hot path.
-inline double wrap_near(double deg) {
-  if (deg < 0) return deg + 360.0;
-  if (deg >= 360.0) return deg - 360.0;
+inline float wrap_near(float deg) {
+  if (deg < 0) deg += 360.0f;
+  if (deg >= 360.0f) deg -= 360.0f;
   return deg;
+}
+
+// One firing of up to 32 lasers, in laser order: the echoes in, the points out.
+struct FiringPoints {
+  std::array<uint16_t, 32> distance;
+  std::array<uint8_t, 32> intensity;
+  std::array<ReturnType, 32> return_type;
+  std::array<float, 32> x, y, z, range, azimuth_deg, time_us;
+};
+
+struct ColumnContext {
+  double unit_m, min_range_m, max_range_m;
+  int lasers;
+};
+
+// The firing's azimuth, its sin/cos, the spin rate and its time from the packet's first firing.
+struct Firing {
+  float azimuth_deg, cos_az, sin_az, rate_deg_per_us, rate_rad_per_us, time_us;
+};
+
+// Points of one firing, in laser order, branch-free so that it vectorises. The (cos, sin) of a
+// point's azimuth are the firing's, turned by the laser's offset and by eps, the spin during the
+// laser's delay in the sequence (under 0.5 deg: two terms of its series are exact to 1e-10).
+void compute_firing(const detail::LaserTable& __restrict t, int base, const ColumnContext& cc,
+                    const Firing& fr, FiringPoints& __restrict pts) {
+  // Invariants in locals: the compiler cannot hoist loads that the stores might alias.
+  const auto min_r = static_cast<float>(cc.min_range_m), max_r = static_cast<float>(cc.max_range_m);
+  const double unit = cc.unit_m;
+  const float cos_az = fr.cos_az, sin_az = fr.sin_az, az0 = fr.azimuth_deg;
+  const float rate_deg = fr.rate_deg_per_us, rate_rad = fr.rate_rad_per_us, t0 = fr.time_us;
+  const int n = cc.lasers;
+  for (int j = 0; j < n; ++j) {
+    const auto l = static_cast<size_t>(base + j);
+    const auto uj = static_cast<size_t>(j);
+    const uint16_t raw = pts.distance[uj];
+    const auto d = static_cast<float>(raw * unit + t.dist_offset_m[l]);
+    // Invalid returns become zeros by a multiplication, not a branch: GCC would sink the loads
+    // of the valid case under the branch and then refuse to vectorise (loads that may trap).
+    const bool ok = (raw != 0) & (d >= min_r) & (d <= max_r);
+    const float okf = ok ? 1.0f : 0.0f;
+    const float cb = cos_az * t.cos_off[l] + sin_az * t.sin_off[l];  // azimuth - offset
+    const float sb = sin_az * t.cos_off[l] - cos_az * t.sin_off[l];
+    const float eps = rate_rad * t.time_us[l];
+    const float ce = 1.0f - 0.5f * eps * eps;
+    const float se = eps * (1.0f - eps * eps * (1.0f / 6.0f));
+    const float ca = cb * ce - sb * se;
+    const float sa = sb * ce + cb * se;
+    const float xy = d * t.cos_el[l] - t.v_sin[l];
+    pts.x[uj] = (xy * ca + t.horiz_offset_m[l] * sa) * okf;
+    pts.y[uj] = (t.horiz_offset_m[l] * ca - xy * sa) * okf;
+    pts.z[uj] = (d * t.sin_el[l] + t.v_cos[l]) * okf;
+    pts.range[uj] = d * okf;
+    float az = az0 + rate_deg * t.time_us[l] - t.az_offset_deg[l];
+    az = az < 0.0f ? az + 360.0f : az;
+    pts.azimuth_deg[uj] = az >= 360.0f ? az - 360.0f : az;
+    pts.time_us[uj] = t0 + t.time_us[l];
+    pts.return_type[uj] =
+        static_cast<ReturnType>(static_cast<uint8_t>(pts.return_type[uj]) * uint8_t{ok});
+  }
+}
+
+// Laser order -> ring order: the column's cells of ring r are r * columns apart.
+void scatter_firing(const FiringPoints& pts, const detail::LaserTable& t, int base, int n,
+                    DecodedPacket& out, int cell0) {
+  for (int j = 0; j < n; ++j) {
+    const auto uj = static_cast<size_t>(j);
+    const auto c = static_cast<size_t>(cell0 + t.ring[static_cast<size_t>(base + j)] * out.columns);
+    out.x[c] = pts.x[uj];
+    out.y[c] = pts.y[uj];
+    out.z[c] = pts.z[uj];
+    out.range[c] = pts.range[uj];
+    out.azimuth_deg[c] = pts.azimuth_deg[uj];
+    out.time_us[c] = pts.time_us[uj];
+    out.intensity[c] = pts.intensity[uj];
+    out.return_type[c] = pts.return_type[uj];
+  }
 }
 
 int bank_of_flag(uint16_t flag) {
@@ -47,11 +125,6 @@ int bank_of_flag(uint16_t flag) {
     if (kBankFlags[k] == flag) return static_cast<int>(k);
   return -1;
 }
-
-struct Echo {
-  uint16_t distance;
-  uint8_t intensity;
-};
 
 }  // namespace
 
@@ -91,16 +164,23 @@ Decoder::Decoder(Calibration calibration, DecoderOptions options)
   if (calibration_.ring_of_laser.size() != calibration_.lasers.size()) calibration_.update_rings();
   for (int l = 0; l < spec_->lasers; ++l) {
     const auto ul = static_cast<size_t>(l);
-    const double el = calibration_.lasers[ul].elevation_deg * kDegToRad;
-    sin_el_[ul] = std::sin(el);
-    cos_el_[ul] = std::cos(el);
-    laser_time_us_[ul] = spec_->laser_time_us(l);
-    ring_[ul] = calibration_.ring_of_laser[ul];
-    laser_of_ring_[static_cast<size_t>(ring_[ul])] = static_cast<uint8_t>(l);
-    az_offset_[ul] = calibration_.lasers[ul].azimuth_offset_deg;
-    vert_offset_[ul] = calibration_.lasers[ul].vertical_offset_m;
-    horiz_offset_[ul] = calibration_.lasers[ul].horizontal_offset_m;
-    dist_offset_[ul] = calibration_.lasers[ul].distance_offset_m;
+    const LaserCorrection& c = calibration_.lasers[ul];
+    const double el = c.elevation_deg * kDegToRad;
+    const int ring = calibration_.ring_of_laser[ul];
+    const double off = c.azimuth_offset_deg * kDegToRad;
+    detail::LaserTable& t = lasers_;
+    t.cos_el[ul] = static_cast<float>(std::cos(el));
+    t.sin_el[ul] = static_cast<float>(std::sin(el));
+    t.v_sin[ul] = static_cast<float>(c.vertical_offset_m * std::sin(el));
+    t.v_cos[ul] = static_cast<float>(c.vertical_offset_m * std::cos(el));
+    t.horiz_offset_m[ul] = static_cast<float>(c.horizontal_offset_m);
+    t.dist_offset_m[ul] = c.distance_offset_m;
+    t.time_us[ul] = static_cast<float>(spec_->laser_time_us(l));
+    t.az_offset_deg[ul] = static_cast<float>(c.azimuth_offset_deg);
+    t.cos_off[ul] = static_cast<float>(std::cos(off));
+    t.sin_off[ul] = static_cast<float>(std::sin(off));
+    t.ring[ul] = ring;
+    laser_of_ring_[static_cast<size_t>(ring)] = static_cast<uint8_t>(l);
   }
 }
 
@@ -199,34 +279,9 @@ DecodeStatus Decoder::decode(std::span<const uint8_t> payload, const SensorClock
   const float* sin_t = sin_table_;
   const float* cos_t = cos_table_;
 
-  auto store = [&](int cell, Echo e, int laser, double az_deg, float t_us, ReturnType type) {
-    const auto uc = static_cast<size_t>(cell);
-    const auto ul = static_cast<size_t>(laser);
-    const double d = e.distance * unit + dist_offset_[ul];
-    out.time_us[uc] = t_us;
-    out.intensity[uc] = e.intensity;
-    if (e.distance == 0 || d < min_range_m_ || d > max_range_m_) {
-      out.range[uc] = 0.0f;
-      out.x[uc] = out.y[uc] = out.z[uc] = 0.0f;
-      out.azimuth_deg[uc] = static_cast<float>(az_deg);
-      out.return_type[uc] = ReturnType::kNone;
-      return;
-    }
-    const double idx = az_deg * 100.0;
-    const auto i = static_cast<size_t>(idx);
-    const double f = idx - static_cast<double>(i);
-    const double sa = sin_t[i] + f * (sin_t[i + 1] - sin_t[i]);
-    const double ca = cos_t[i] + f * (cos_t[i + 1] - cos_t[i]);
-    const double v = vert_offset_[ul], h = horiz_offset_[ul];
-    const double xy = d * cos_el_[ul] - v * sin_el_[ul];
-    out.x[uc] = static_cast<float>(xy * ca + h * sa);
-    out.y[uc] = static_cast<float>(-xy * sa + h * ca);
-    out.z[uc] = static_cast<float>(d * sin_el_[ul] + v * cos_el_[ul]);
-    out.range[uc] = static_cast<float>(d);
-    out.azimuth_deg[uc] = static_cast<float>(az_deg);
-    out.return_type[uc] = type;
-  };
-
+  const ColumnContext cc{unit, min_range_m_, max_range_m_, lasers_per_firing};
+  FiringPoints pts[2];
+  const auto n_lasers = static_cast<size_t>(lasers_per_firing);
   for (int g = 0; g < groups; ++g) {
     const auto ug = static_cast<size_t>(g);
     for (int f = 0; f < fpb; ++f) {
@@ -234,40 +289,56 @@ DecodeStatus Decoder::decode(std::span<const uint8_t> payload, const SensorClock
       const auto ucol = static_cast<size_t>(col);
       const double col_t = col * spec.firing_period_us;
       const double col_az = group_azimuth[ug] * 0.01 + rate[ug] * f * spec.firing_period_us;
-      const double col_az_w = wrap360(col_az);
+      const auto col_az_w = static_cast<float>(wrap360(col_az));
       out.column_time_us[ucol] = col_t;
-      out.column_azimuth_deg[ucol] = static_cast<float>(col_az_w);
+      out.column_azimuth_deg[ucol] = col_az_w;
+      // sin/cos of the column azimuth, once per column.
+      const float idx = col_az_w * 100.0f;
+      const auto ti = std::min(static_cast<size_t>(idx), static_cast<size_t>(kTrigSteps));
+      const float tf = idx - static_cast<float>(ti);
+      const Firing firing{col_az_w,
+                          cos_t[ti] + tf * (cos_t[ti + 1] - cos_t[ti]),
+                          sin_t[ti] + tf * (sin_t[ti + 1] - sin_t[ti]),
+                          static_cast<float>(rate[ug]),
+                          static_cast<float>(rate[ug] * kDegToRad),
+                          static_cast<float>(col_t)};
       for (int bank = 0; bank < spec.blocks_per_firing; ++bank) {
         const auto ub = static_cast<size_t>(bank);
-        const uint8_t* blk0 = p + static_cast<size_t>(block_of[ug][0][ub]) * kBlockSize + 4;
-        const uint8_t* blk1 =
-            dual ? p + static_cast<size_t>(block_of[ug][1][ub]) * kBlockSize + 4 : nullptr;
-        for (int j = 0; j < lasers_per_firing; ++j) {
-          const int laser = bank * 32 + j;
-          const auto ul = static_cast<size_t>(laser);
-          const size_t ch = static_cast<size_t>(f * lasers_per_firing + j) * 3;
-          const double lt = laser_time_us_[ul];
-          const double az = wrap_near(col_az_w + rate[ug] * lt - az_offset_[ul]);
-          const auto t = static_cast<float>(col_t + lt);
-          const int ring = ring_[ul];
-          const Echo e0{read_u16(blk0 + ch), blk0[ch + 2]};
-          if (!dual) {
-            store(out.at(0, col, ring), e0, laser, az, t, single_type);
-            continue;
+        const size_t ch0 = static_cast<size_t>(f * lasers_per_firing) * 3 + 4;
+        const uint8_t* blk0 = p + static_cast<size_t>(block_of[ug][0][ub]) * kBlockSize + ch0;
+        const int base = bank * 32;
+        if (!dual) {
+          for (size_t j = 0; j < n_lasers; ++j) {
+            pts[0].distance[j] = read_u16(blk0 + j * 3);
+            pts[0].intensity[j] = blk0[j * 3 + 2];
+            pts[0].return_type[j] = single_type;
           }
-          // Dual: slot 0 always holds the strongest echo. e0 = last, e1 = strongest or second.
-          const Echo e1{read_u16(blk1 + ch), blk1[ch + 2]};
-          const int c0 = out.at(0, col, ring), c1 = out.at(1, col, ring);
-          if (e0.distance == e1.distance && e0.intensity == e1.intensity) {
-            store(c0, e0, laser, az, t, ReturnType::kBoth);
-            store(c1, Echo{0, 0}, laser, az, t, ReturnType::kNone);
-          } else if (e1.distance != 0 && (e0.distance == 0 || e1.intensity > e0.intensity)) {
-            store(c0, e1, laser, az, t, ReturnType::kStrongest);
-            store(c1, e0, laser, az, t, ReturnType::kLast);
-          } else {
-            store(c0, e0, laser, az, t, ReturnType::kLast);
-            store(c1, e1, laser, az, t, ReturnType::kSecond);
+        } else {
+          const uint8_t* blk1 = p + static_cast<size_t>(block_of[ug][1][ub]) * kBlockSize + ch0;
+          for (size_t j = 0; j < n_lasers; ++j) {
+            // Slot 0 always holds the strongest echo. e0 = last, e1 = strongest or second.
+            const uint16_t d0 = read_u16(blk0 + j * 3), d1 = read_u16(blk1 + j * 3);
+            const uint8_t i0 = blk0[j * 3 + 2], i1 = blk1[j * 3 + 2];
+            auto set = [&](uint16_t da, uint8_t ia, ReturnType ta, uint16_t db, uint8_t ib,
+                           ReturnType tb) {
+              pts[0].distance[j] = da;
+              pts[0].intensity[j] = ia;
+              pts[0].return_type[j] = ta;
+              pts[1].distance[j] = db;
+              pts[1].intensity[j] = ib;
+              pts[1].return_type[j] = tb;
+            };
+            if (d0 == d1 && i0 == i1)
+              set(d0, i0, ReturnType::kBoth, 0, 0, ReturnType::kNone);
+            else if (d1 != 0 && (d0 == 0 || i1 > i0))
+              set(d1, i1, ReturnType::kStrongest, d0, i0, ReturnType::kLast);
+            else
+              set(d0, i0, ReturnType::kLast, d1, i1, ReturnType::kSecond);
           }
+        }
+        for (int e = 0; e < (dual ? 2 : 1); ++e) {
+          compute_firing(lasers_, base, cc, firing, pts[e]);
+          scatter_firing(pts[e], lasers_, base, lasers_per_firing, out, out.at(e, col, 0));
         }
       }
     }

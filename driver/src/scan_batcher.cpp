@@ -7,6 +7,9 @@ namespace lidartag::velodyne {
 namespace {
 
 inline double wrap360(double deg) {
+  // Differences of two azimuths in [0, 360) need one add, not a division (per column).
+  if (deg >= 0 && deg < 360.0) return deg;
+  if (deg < 0 && deg >= -360.0) return deg + 360.0;
   deg = std::fmod(deg, 360.0);
   return deg < 0 ? deg + 360.0 : deg;
 }
@@ -14,6 +17,42 @@ inline double wrap360(double deg) {
 // A time step this far from the firing period is a discontinuity of the stream (sensor restart,
 // replay loop), not loss.
 constexpr double kMaxGapUs = 1e6;
+
+// n consecutive cells of one ring from a packet into a scan. Plain restrict pointers so that the
+// compiler neither reloads the vectors' data pointers after every store nor assumes aliasing.
+void copy_cells(const DecodedPacket& pk, size_t src, Scan& s, size_t dst, int n, float t_off) {
+  const float* __restrict px = pk.x.data() + src;
+  const float* __restrict py = pk.y.data() + src;
+  const float* __restrict pz = pk.z.data() + src;
+  const float* __restrict pr = pk.range.data() + src;
+  const float* __restrict pa = pk.azimuth_deg.data() + src;
+  const float* __restrict pt = pk.time_us.data() + src;
+  const uint8_t* __restrict pi = pk.intensity.data() + src;
+  const ReturnType* __restrict pty = pk.return_type.data() + src;
+  float* __restrict sx = s.x.data() + dst;
+  float* __restrict sy = s.y.data() + dst;
+  float* __restrict sz = s.z.data() + dst;
+  float* __restrict sr = s.range.data() + dst;
+  float* __restrict sa = s.azimuth_deg.data() + dst;
+  float* __restrict st = s.time_s.data() + dst;
+  uint8_t* __restrict si = s.intensity.data() + dst;
+  ReturnType* __restrict sty = s.return_type.data() + dst;
+  // The 8 x rings destination streams are too many for the hardware prefetcher: ask for the
+  // line the next packet's columns will land in now, so its fetch overlaps this packet's work.
+  for (float* p : {sx, sy, sz, sr, sa, st}) __builtin_prefetch(p + n + 16, 1);
+  __builtin_prefetch(si + n + 64, 1);
+  __builtin_prefetch(sty + n + 64, 1);
+  for (int k = 0; k < n; ++k) {
+    sx[k] = px[k];
+    sy[k] = py[k];
+    sz[k] = pz[k];
+    sr[k] = pr[k];
+    sa[k] = pa[k];
+    st[k] = t_off + pt[k] * 1e-6f;
+    si[k] = pi[k];
+    sty[k] = pty[k];
+  }
+}
 
 }  // namespace
 
@@ -46,6 +85,7 @@ void ScanBatcher::begin(double /*column_azimuth*/) {
 }
 
 void ScanBatcher::finish(bool ends_at_cut) {
+  copy_run();
   next_starts_at_cut_ = ends_at_cut;
   if (scan_ == nullptr) return;
   Scan* s = scan_;
@@ -85,6 +125,7 @@ void ScanBatcher::add(const DecodedPacket& pk) {
     return;
   }
   last_packet_stamp_ns_ = pk.stamp_ns;
+  packet_ = &pk;
   const double fp = spec_.firing_period_us;
   const int per_packet = spec_.columns_per_packet(pk.mode);
   for (int c = 0; c < pk.columns; ++c) {
@@ -161,19 +202,20 @@ void ScanBatcher::add(const DecodedPacket& pk) {
       }
       scan_->stamp_ns = stamp;
     }
-    copy_column(pk, c, stamp);
+    add_column(pk, c, stamp);
     have_last_ = true;
     last_column_azimuth_ = az;
     last_column_stamp_ns_ = stamp;
   }
+  copy_run();
+  packet_ = nullptr;
 }
 
-void ScanBatcher::copy_column(const DecodedPacket& pk, int c, int64_t stamp) {
+void ScanBatcher::add_column(const DecodedPacket& pk, int c, int64_t stamp) {
   Scan& s = *scan_;
   const int col = s.columns++;
   const auto ucol = static_cast<size_t>(col);
   const double t0 = static_cast<double>(stamp - s.stamp_ns) * 1e-9;  // column start from scan start
-  const double col_us = pk.column_time_us[static_cast<size_t>(c)];
   s.column_azimuth_deg[ucol] = pk.column_azimuth_deg[static_cast<size_t>(c)];
   s.column_time_s[ucol] = t0;
   if (col == 0) {
@@ -182,28 +224,37 @@ void ScanBatcher::copy_column(const DecodedPacket& pk, int c, int64_t stamp) {
       std::copy_n(pk.laser_of_ring, std::min(s.rings, pk.rings), s.laser_id.begin());
   }
   if (c == 0 && col > 0) ++s.packets;
+  if (run_columns_ == 0) {
+    run_packet_column_ = c;
+    run_scan_column_ = col;
+    // The packet's firing times are relative to its first column; the scan's to its own start.
+    run_time_offset_s_ = t0 - pk.column_time_us[static_cast<size_t>(c)] * 1e-6;
+  }
+  ++run_columns_;
+}
+
+void ScanBatcher::copy_run() {
+  if (run_columns_ == 0 || scan_ == nullptr || packet_ == nullptr) {
+    run_columns_ = 0;
+    return;
+  }
+  const DecodedPacket& pk = *packet_;
+  Scan& s = *scan_;
+  const int n = run_columns_;
+  run_columns_ = 0;
   const int rings = std::min(s.rings, pk.rings);
-  const auto cap = static_cast<size_t>(s.column_capacity);
-  const auto t_off = static_cast<float>(t0 - col_us * 1e-6);
+  const auto t_off = static_cast<float>(run_time_offset_s_);
+  // Both layouts are ring-major: each ring's columns are one contiguous run on either side.
   for (int r = 0; r < s.returns; ++r) {
-    size_t dst = s.at(r, 0, col);
-    if (r >= pk.returns) {  // a single-return packet in a dual-return scan
-      for (int ring = 0; ring < rings; ++ring, dst += cap) {
-        s.range[dst] = 0.0f;
-        s.return_type[dst] = ReturnType::kNone;
+    for (int ring = 0; ring < rings; ++ring) {
+      const size_t dst = s.at(r, ring, run_scan_column_);
+      if (r >= pk.returns) {  // a single-return packet in a dual-return scan
+        std::fill_n(s.range.begin() + static_cast<std::ptrdiff_t>(dst), n, 0.0f);
+        std::fill_n(s.return_type.begin() + static_cast<std::ptrdiff_t>(dst), n, ReturnType::kNone);
+        continue;
       }
-      continue;
-    }
-    auto src = static_cast<size_t>(pk.at(r, c, 0));
-    for (int ring = 0; ring < rings; ++ring, dst += cap, ++src) {
-      s.x[dst] = pk.x[src];
-      s.y[dst] = pk.y[src];
-      s.z[dst] = pk.z[src];
-      s.range[dst] = pk.range[src];
-      s.azimuth_deg[dst] = pk.azimuth_deg[src];
-      s.time_s[dst] = t_off + pk.time_us[src] * 1e-6f;
-      s.intensity[dst] = pk.intensity[src];
-      s.return_type[dst] = pk.return_type[src];
+      const auto src = static_cast<size_t>(pk.at(r, run_packet_column_, ring));
+      copy_cells(pk, src, s, dst, n, t_off);
     }
   }
 }

@@ -1,6 +1,5 @@
 // Runs build/bin/lidartag info/dump on the real captures and checks what it reports and writes.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <array>
@@ -10,37 +9,22 @@
 #include <string>
 
 #include "lidartag/driver/io/pcd.hpp"
+#include "run_tool.hpp"
 
 namespace {
 
 namespace fs = std::filesystem;
 const std::string kCaptures = LIDARTAG_SHARED_DIR "/captures/";
 
-struct Result {
-  int exit_code = -1;
-  std::string out;  // stdout and stderr together
-};
-
-Result run(const std::string& args) {
-  const std::string command = std::string(LIDARTAG_CLI) + " " + args + " 2>&1";
-  Result r;
-  FILE* pipe = ::popen(command.c_str(), "r");
-  if (pipe == nullptr) return r;
-  std::array<char, 4096> buffer{};
-  size_t n = 0;
-  while ((n = std::fread(buffer.data(), 1, buffer.size(), pipe)) > 0)
-    r.out.append(buffer.data(), n);
-  const int status = ::pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
+using Result = lidartag::testing::ToolResult;
+using lidartag::testing::run_tool;
 
 #define REQUIRE_CAPTURE(name)                     \
   const std::string capture = kCaptures + (name); \
   if (!fs::exists(capture)) GTEST_SKIP() << "capture not available: " << capture
 
 nlohmann::json info_json(const std::string& capture) {
-  const Result r = run("info --json " + capture);
+  const Result r = run_tool("info --json " + capture);
   EXPECT_EQ(r.exit_code, 0) << r.out;
   return nlohmann::json::parse(r.out, nullptr, false);
 }
@@ -59,7 +43,7 @@ class TempDir {
 
 TEST(CliInfo, Vlp16WithGpsReportsModelModePacketsAndGps) {
   REQUIRE_CAPTURE("vlp16_mrpt_gps.pcap");
-  const Result r = run("info " + capture);
+  const Result r = run_tool("info " + capture);
   ASSERT_EQ(r.exit_code, 0) << r.out;
   EXPECT_NE(r.out.find("model:          vlp16 (from product byte)"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("return mode:    strongest"), std::string::npos) << r.out;
@@ -131,7 +115,7 @@ TEST(CliInfo, RestrictedFieldOfViewShowsGaps) {
 
 TEST(CliInfo, GivenModelContradictingTheTimingIsShown) {
   REQUIRE_CAPTURE("vlp16_rlu.pcap");
-  const Result r = run("info --model vlp32c " + capture);
+  const Result r = run_tool("info --model vlp32c " + capture);
   ASSERT_EQ(r.exit_code, 0) << r.out;
   EXPECT_NE(r.out.find("model:          vlp32c (from --model)"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("MISMATCH:     --model vlp32c but the packet timing fits vlp16"),
@@ -143,7 +127,7 @@ TEST(CliDump, WritesOnePcdPerCompleteRotation) {
   REQUIRE_CAPTURE("vlp16_dual_nebula.pcap");
   TempDir dir;
   const std::string out = dir.str() + "/nested/scans";
-  const Result r = run("dump " + capture + " --out " + out);
+  const Result r = run_tool("dump " + capture + " --out " + out);
   ASSERT_EQ(r.exit_code, 0) << r.out;
   size_t files = 0, points = 0;
   for (; fs::exists(out + "/scan_00000" + std::to_string(files) + ".pcd"); ++files) {
@@ -169,7 +153,7 @@ TEST(CliDump, WritesOnePcdPerCompleteRotation) {
 TEST(CliDump, PartialAlsoWritesTheIncompleteRotations) {
   REQUIRE_CAPTURE("vlp16_dual_nebula.pcap");
   TempDir dir;
-  const Result r = run("dump --partial " + capture + " --out " + dir.str());
+  const Result r = run_tool("dump --partial " + capture + " --out " + dir.str());
   ASSERT_EQ(r.exit_code, 0) << r.out;
   size_t points = 0;
   for (int i = 0; i < 5; ++i) {
@@ -183,16 +167,16 @@ TEST(CliDump, PartialAlsoWritesTheIncompleteRotations) {
 }
 
 TEST(CliErrors, UsageErrorsExitTwoSetupErrorsExitOne) {
-  EXPECT_EQ(run("").exit_code, 2);
-  EXPECT_EQ(run("no-such-command").exit_code, 2);
-  EXPECT_EQ(run("info /nonexistent-lidartag/x.pcap").exit_code, 2);
-  EXPECT_EQ(run("--help").exit_code, 0);
+  EXPECT_EQ(run_tool("").exit_code, 2);
+  EXPECT_EQ(run_tool("no-such-command").exit_code, 2);
+  EXPECT_EQ(run_tool("info /nonexistent-lidartag/x.pcap").exit_code, 2);
+  EXPECT_EQ(run_tool("--help").exit_code, 0);
   REQUIRE_CAPTURE("vlp16_rlu.pcap");
-  const Result bad_model = run("info --model vlp99 " + capture);
+  const Result bad_model = run_tool("info --model vlp99 " + capture);
   EXPECT_EQ(bad_model.exit_code, 2);
   EXPECT_NE(bad_model.out.find("vlp16, puck-hires, vlp32c, hdl32e, vls128"), std::string::npos)
       << bad_model.out;
-  EXPECT_EQ(run("dump " + capture).exit_code, 2);  // --out is required
+  EXPECT_EQ(run_tool("dump " + capture).exit_code, 2);  // --out is required
   TempDir dir;
   fs::create_directories(dir.str());
   const std::string yaml = dir.str() + "/bad.yaml";
@@ -201,11 +185,12 @@ TEST(CliErrors, UsageErrorsExitTwoSetupErrorsExitOne) {
     std::fputs("lasers: 3\n", f);
     std::fclose(f);
   }
-  const Result bad_calibration = run("info --model vlp16 --calibration " + yaml + " " + capture);
+  const Result bad_calibration =
+      run_tool("info --model vlp16 --calibration " + yaml + " " + capture);
   EXPECT_EQ(bad_calibration.exit_code, 1);
   EXPECT_EQ(bad_calibration.out.rfind("lidartag: error: calibration file '" + yaml, 0), 0u)
       << bad_calibration.out;
-  const Result not_pcap = run("info " + yaml);
+  const Result not_pcap = run_tool("info " + yaml);
   EXPECT_EQ(not_pcap.exit_code, 1);
   EXPECT_EQ(not_pcap.out.rfind("lidartag: error: cannot open capture", 0), 0u) << not_pcap.out;
 }

@@ -1,7 +1,6 @@
 // Runs build/bin/lidartag detect on the bundled demo capture (pcap and PCD) and checks what it
 // prints against the simulator's truth (pcaps/demo.truth.json).
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <array>
@@ -15,6 +14,7 @@
 #include <vector>
 
 #include "lidartag/driver/io/pcd.hpp"
+#include "run_tool.hpp"
 
 namespace {
 
@@ -22,25 +22,8 @@ namespace fs = std::filesystem;
 const std::string kDemo = LIDARTAG_SOURCE_DIR "/pcaps/demo.pcap";
 const std::string kDemoTruth = LIDARTAG_SOURCE_DIR "/pcaps/demo.truth.json";
 
-struct Result {
-  int exit_code = -1;
-  std::string out;  // stdout (and stderr when merged)
-};
-
-Result run(const std::string& args, bool merge_stderr = true) {
-  const std::string command =
-      std::string(LIDARTAG_CLI) + " " + args + (merge_stderr ? " 2>&1" : " 2>/dev/null");
-  Result r;
-  FILE* pipe = ::popen(command.c_str(), "r");
-  if (pipe == nullptr) return r;
-  std::array<char, 4096> buffer{};
-  size_t n = 0;
-  while ((n = std::fread(buffer.data(), 1, buffer.size(), pipe)) > 0)
-    r.out.append(buffer.data(), n);
-  const int status = ::pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
+using Result = lidartag::testing::ToolResult;
+using lidartag::testing::run_tool;
 
 class TempDir {
  public:
@@ -98,7 +81,7 @@ nlohmann::json demo_truth() {
 }
 
 TEST(CliDetect, JsonOfTheDemoCaptureMatchesItsTruth) {
-  const Result r = run("detect " + kDemo + " --tag-size 0.8 --tag-size 0.6 --json", false);
+  const Result r = run_tool("detect " + kDemo + " --tag-size 0.8 --tag-size 0.6 --json", false);
   ASSERT_EQ(r.exit_code, 0) << r.out;
   const auto truth = demo_truth();
   std::istringstream lines(r.out);
@@ -126,7 +109,7 @@ TEST(CliDetect, JsonOfTheDemoCaptureMatchesItsTruth) {
 }
 
 TEST(CliDetect, TableSummarisesTheRotations) {
-  const Result r = run("detect " + kDemo + " --tag-size 0.8 --tag-size 0.6", false);
+  const Result r = run_tool("detect " + kDemo + " --tag-size 0.8 --tag-size 0.6", false);
   ASSERT_EQ(r.exit_code, 0) << r.out;
   EXPECT_NE(r.out.find("10 rotations: tag16h5 id 0 in 10, tag16h5 id 1 in 10 rotations"),
             std::string::npos)
@@ -134,7 +117,7 @@ TEST(CliDetect, TableSummarisesTheRotations) {
   EXPECT_NE(r.out.find("stage"), std::string::npos);
   EXPECT_NE(r.out.find("decode"), std::string::npos);
   // No progress bar when stderr is not a terminal.
-  const Result merged = run("detect " + kDemo + " --tag-size 0.8 --tag-size 0.6");
+  const Result merged = run_tool("detect " + kDemo + " --tag-size 0.8 --tag-size 0.6");
   EXPECT_EQ(merged.out.find('\r'), std::string::npos);
 }
 
@@ -146,22 +129,23 @@ TEST(CliDetect, ConfigFileSetsTheDetector) {
     std::ofstream b(dir / "bad.yaml");
     b << "detector:\n  features:\n    zeta: 0.5\n";
   }
-  const Result good = run("detect " + kDemo + " --config " + (dir / "good.yaml").string(), false);
+  const Result good =
+      run_tool("detect " + kDemo + " --config " + (dir / "good.yaml").string(), false);
   ASSERT_EQ(good.exit_code, 0) << good.out;
   EXPECT_NE(good.out.find("tag16h5 id 0 in 10, tag16h5 id 1 in 10"), std::string::npos) << good.out;
-  const Result bad = run("detect " + kDemo + " --config " + (dir / "bad.yaml").string());
+  const Result bad = run_tool("detect " + kDemo + " --config " + (dir / "bad.yaml").string());
   EXPECT_EQ(bad.exit_code, 1);
   EXPECT_NE(bad.out.find("detector.features.zeta"), std::string::npos) << bad.out;
 }
 
 TEST(CliDetect, PcdWithRingsAndWithout) {
   TempDir dir;
-  const Result dump = run("dump " + kDemo + " --out " + (dir / "scans").string());
+  const Result dump = run_tool("dump " + kDemo + " --out " + (dir / "scans").string());
   ASSERT_EQ(dump.exit_code, 0) << dump.out;
   const std::string with_rings = (dir / "scans" / "scan_000000.pcd").string();
   const auto truth = demo_truth();
 
-  Result r = run("detect " + with_rings + " --tag-size 0.8 --tag-size 0.6 --json", false);
+  Result r = run_tool("detect " + with_rings + " --tag-size 0.8 --tag-size 0.6 --json", false);
   ASSERT_EQ(r.exit_code, 0) << r.out;
   auto j = nlohmann::json::parse(r.out);
   expect_matches_truth(j["detections"], truth["rotations"][0], "PCD with rings");
@@ -180,24 +164,25 @@ TEST(CliDetect, PcdWithRingsAndWithout) {
     for (size_t k = 0; k < cloud.size(); ++k)
       o << x[k] << " " << y[k] << " " << z[k] << " " << i[k] << "\n";
   }
-  r = run("detect " + no_rings + " --model vlp32c --tag-size 0.8 --tag-size 0.6 --json", false);
+  r = run_tool("detect " + no_rings + " --model vlp32c --tag-size 0.8 --tag-size 0.6 --json",
+               false);
   ASSERT_EQ(r.exit_code, 0) << r.out;
   j = nlohmann::json::parse(r.out);
   expect_matches_truth(j["detections"], truth["rotations"][0], "PCD without rings, --model");
 
-  r = run("detect " + no_rings + " --rings 32 --tag-size 0.8 --tag-size 0.6 --json", false);
+  r = run_tool("detect " + no_rings + " --rings 32 --tag-size 0.8 --tag-size 0.6 --json", false);
   ASSERT_EQ(r.exit_code, 0) << r.out;
   j = nlohmann::json::parse(r.out);
   expect_matches_truth(j["detections"], truth["rotations"][0], "PCD without rings, --rings");
 
-  r = run("detect " + no_rings);
+  r = run_tool("detect " + no_rings);
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.out.find("no ring field; give --model"), std::string::npos) << r.out;
 }
 
 TEST(CliDetect, BadArgumentsAreUsageErrors) {
-  EXPECT_EQ(run("detect " + kDemo + " --tag-size -1").exit_code, 2);
-  const Result r = run("detect " + kDemo + " --family tag99h1");
+  EXPECT_EQ(run_tool("detect " + kDemo + " --tag-size -1").exit_code, 2);
+  const Result r = run_tool("detect " + kDemo + " --family tag99h1");
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.out.find("tag99h1"), std::string::npos) << r.out;
 }

@@ -63,13 +63,19 @@ class ScanBatcher {
   void begin(double column_azimuth);
   void finish(bool ends_at_cut);
   bool crossed_cut(double from_deg, double to_deg) const;
-  void copy_column(const DecodedPacket& packet, int column, int64_t stamp_ns);
+  // Column bookkeeping; the points of consecutive columns are copied as one run per ring.
+  void add_column(const DecodedPacket& packet, int column, int64_t stamp_ns);
+  void copy_run();
 
   const ModelSpec& spec_;
   ReturnMode mode_;
   BatcherOptions options_;
   ScanSink& sink_;
   Scan* scan_ = nullptr;
+  // Columns of the packet being added that are waiting to be copied into scan_.
+  const DecodedPacket* packet_ = nullptr;
+  int run_columns_ = 0, run_packet_column_ = 0, run_scan_column_ = 0;
+  double run_time_offset_s_ = 0;
   BatcherStats stats_{};
   uint64_t sequence_ = 0;
   bool have_last_ = false;
