@@ -18,6 +18,7 @@
 #include <thread>
 
 #include "daemon/process.hpp"
+#include "fake_notify_socket.hpp"
 #include "lidartag/driver/io/pcap_source.hpp"
 #include "lidartag/raw_packet_t.hpp"
 #include "lidartag/status_t.hpp"
@@ -368,31 +369,8 @@ TEST(Multicast, EndToEndInANetworkNamespaceWithLcmLogger) {
 
 // ---------------------------------------------------------------------------------------------
 
-class FakeNotifySocket {
- public:
-  FakeNotifySocket() : path_(temp("notify.sock")) {
-    unlink(path_.c_str());
-    fd_ = socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
-    sockaddr_un addr{};
-    addr.sun_family = AF_UNIX;
-    path_.copy(addr.sun_path, sizeof(addr.sun_path) - 1);
-    EXPECT_EQ(bind(fd_, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)), 0);
-  }
-  ~FakeNotifySocket() { close(fd_); }
-  std::string env() const { return "NOTIFY_SOCKET=" + path_; }
-  // The next message, or "" after `timeout`.
-  std::string receive(std::chrono::milliseconds timeout) {
-    timeval tv{static_cast<time_t>(timeout.count() / 1000),
-               static_cast<suseconds_t>((timeout.count() % 1000) * 1000)};
-    setsockopt(fd_, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof(tv));
-    char buf[4096];
-    const ssize_t n = recv(fd_, buf, sizeof(buf), 0);
-    return n > 0 ? std::string(buf, static_cast<size_t>(n)) : std::string();
-  }
-
- private:
-  std::string path_;
-  int fd_ = -1;
+struct FakeNotifySocket : lidartag::testing::FakeNotifySocket {
+  FakeNotifySocket() : lidartag::testing::FakeNotifySocket(temp("notify.sock")) {}
 };
 
 TEST(Notify, ReadyStatusWatchdogAtTheIntervalAndStopping) {

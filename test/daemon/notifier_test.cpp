@@ -2,43 +2,21 @@
 #include "lidartag/daemon/notifier.hpp"
 
 #include <gtest/gtest.h>
-#include <sys/socket.h>
-#include <sys/un.h>
 #include <unistd.h>
 
 #include <cstdlib>
 #include <string>
 
+#include "fake_notify_socket.hpp"
+
 namespace lidartag::daemon {
 namespace {
 
-class FakeNotifySocket {
- public:
-  FakeNotifySocket() {
-    path_ = ::testing::TempDir() + "/notify." + std::to_string(getpid());
-    unlink(path_.c_str());
-    fd_ = socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
-    sockaddr_un addr{};
-    addr.sun_family = AF_UNIX;
-    path_.copy(addr.sun_path, sizeof(addr.sun_path) - 1);
-    EXPECT_EQ(bind(fd_, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)), 0);
-    timeval tv{1, 0};
-    setsockopt(fd_, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof(tv));
-  }
-  ~FakeNotifySocket() {
-    close(fd_);
-    unlink(path_.c_str());
-  }
-  const std::string& path() const { return path_; }
-  std::string receive() {
-    char buf[4096];
-    const ssize_t n = recv(fd_, buf, sizeof(buf), 0);
-    return n > 0 ? std::string(buf, static_cast<size_t>(n)) : std::string();
-  }
-
- private:
-  std::string path_;
-  int fd_ = -1;
+// One socket path per test process.
+struct FakeNotifySocket : lidartag::testing::FakeNotifySocket {
+  FakeNotifySocket()
+      : lidartag::testing::FakeNotifySocket(::testing::TempDir() + "/notify." +
+                                            std::to_string(getpid())) {}
 };
 
 TEST(Notifier, SendsReadyStatusWatchdogStopping) {
