@@ -501,6 +501,7 @@ void visit_detector(V& v, detector::DetectorOptions& o) {
     s.field("translation_bound_m", o.pose.translation_bound_m, above(0.0));
     s.field("rotation_bound_rad", o.pose.rotation_bound_rad, above(0.0));
     s.field("xtol_rel", o.pose.xtol_rel, above(0.0));
+    s.field("xtol_abs", o.pose.xtol_abs, at_least(0.0));
     s.field("max_evaluations", o.pose.max_evaluations, at_least(1));
     s.field("min_depth_epsilon_m", o.pose.min_depth_epsilon_m, above(0.0));
     s.field("max_mean_cost_m", o.pose.max_mean_cost_m, above(0.0));

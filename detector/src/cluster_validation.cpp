@@ -26,36 +26,59 @@ Rejection fill_cluster(const Scan& scan, std::span<const Feature> features,
     if (ring_cols[r] < 0 || f.col < ring_cols[r]) ring_cols[r] = f.col;
     if (ring_cols[r + 1] < 0 || f.col > ring_cols[r + 1]) ring_cols[r + 1] = f.col;
   }
+  // The features' x-y box padded by the margin.
   const float m = opt.fill_margin_m;
+  const float lo_x = cluster.min_x - m, hi_x = cluster.max_x + m, lo_y = cluster.min_y - m,
+              hi_y = cluster.max_y + m;
   const bool wraps = rotation_wraps(scan);
   const int cols = scan.columns;
   for (int k = 0; k < nr; ++k) {
-    int c0 = ring_cols[static_cast<size_t>(2 * k)];
-    int c1 = ring_cols[static_cast<size_t>(2 * k + 1)];
-    if (c0 < 0 || c1 <= c0) continue;   // a ring with one feature does not cross the object
+    int& c0 = ring_cols[static_cast<size_t>(2 * k)];
+    int& c1 = ring_cols[static_cast<size_t>(2 * k + 1)];
+    if (c0 < 0 || c1 <= c0) {  // a ring with one feature does not cross the object
+      c0 = c1 = -1;
+      continue;
+    }
     if (wraps && c1 - c0 > cols / 2) {  // the object straddles the start of the rotation
       const int t = c0;
       c0 = c1;
       c1 = t + cols;
     }
+    // The edge test read only the ranges: the other arrays of these columns are usually not in
+    // the cache. Ask for all their lines first, so that the misses of all rings overlap.
+    const size_t base = scan.at(0, cluster.min_ring + k, 0);
+    for (int cc = c0; cc <= c1; cc += 16) {
+      const size_t i = base + static_cast<size_t>(cc >= cols ? cc - cols : cc);
+      __builtin_prefetch(scan.x.data() + i);
+      __builtin_prefetch(scan.y.data() + i);
+      __builtin_prefetch(scan.z.data() + i);
+      __builtin_prefetch(scan.intensity.data() + i);
+    }
+  }
+  for (int k = 0; k < nr; ++k) {
+    const int c0 = ring_cols[static_cast<size_t>(2 * k)];
+    const int c1 = ring_cols[static_cast<size_t>(2 * k + 1)];
+    if (c0 < 0) continue;
     const int ring = cluster.min_ring + k;
+    const size_t base = scan.at(0, ring, 0);
+    const float *xs = scan.x.data() + base, *ys = scan.y.data() + base, *zs = scan.z.data() + base,
+                *rs = scan.range.data() + base;
+    const uint8_t* is = scan.intensity.data() + base;
     const size_t first = out.size();
-    for (int cc = c0; cc <= c1; ++cc) {
-      const int c = cc >= cols ? cc - cols : cc;
-      const size_t i = scan.at(0, ring, c);
-      if (!scan.valid(i)) continue;
-      const float x = scan.x[i], y = scan.y[i];
-      if (x < cluster.min_x - m || x > cluster.max_x + m || y < cluster.min_y - m ||
-          y > cluster.max_y + m)
-        continue;
-      ClusterPoint p;
-      p.x = x;
-      p.y = y;
-      p.z = scan.z[i];
-      p.intensity = static_cast<float>(scan.intensity[i]);
-      p.ring = ring;
-      p.col = c;
-      out.push_back(p);
+    // Columns [c0, c1], in two pieces when they cross the end of the rotation.
+    const int pieces[2][2] = {{c0, std::min(c1, cols - 1)}, {0, c1 - cols}};
+    for (const auto& piece : pieces) {
+      for (int c = piece[0]; c <= piece[1]; ++c) {
+        const float x = xs[c], y = ys[c];
+        if (!(rs[c] > 0.0f) || x < lo_x || x > hi_x || y < lo_y || y > hi_y) continue;
+        ClusterPoint& p = out.emplace_back();
+        p.x = x;
+        p.y = y;
+        p.z = zs[c];
+        p.intensity = static_cast<float>(is[c]);
+        p.ring = ring;
+        p.col = c;
+      }
     }
     if (out.size() > first) {
       out[first].edge = true;
@@ -99,11 +122,15 @@ double max_tag_points(std::span<const ClusterPoint> points, double t_max,
                       double horizontal_resolution_rad) {
   if (points.empty() || horizontal_resolution_rad <= 0.0) return 0.0;
   double sum = 0.0;
-  for (const auto& p : points)
-    sum += std::sqrt(double{p.x} * p.x + double{p.y} * p.y + double{p.z} * p.z);
+  int rings = 0, last = -1;
+  for (const auto& p : points) {
+    sum += std::sqrt(p.x * p.x + p.y * p.y + p.z * p.z);
+    rings += p.ring != last ? 1 : 0;
+    last = p.ring;
+  }
   const double d = sum / static_cast<double>(points.size());
   // M t sqrt(2) / (D sin theta): the tag's diagonal over the spacing of two returns, per ring.
-  return rings_in(points) * t_max * std::sqrt(2.0) / (d * std::sin(horizontal_resolution_rad));
+  return rings * t_max * std::sqrt(2.0) / (d * std::sin(horizontal_resolution_rad));
 }
 
 int rings_in(std::span<const ClusterPoint> points) {
@@ -124,17 +151,12 @@ int count_boundary_points(std::span<const ClusterPoint> points, const Validation
   const auto thr = std::max(static_cast<float>(opt.boundary_ratio * mean), opt.min_intensity_step);
   const auto l = static_cast<size_t>(std::max(opt.gi_ell, 1));
   int count = 0;
-  size_t begin = 0;
-  while (begin < points.size()) {
-    size_t end = begin;
-    while (end < points.size() && points[end].ring == points[begin].ring) ++end;
-    for (size_t i = begin + l; i + l < end; ++i) {
-      // eq. (GI); counting the side where the step is ahead gives one point per transition.
-      const float g = std::fabs(points[i + l].intensity - points[i].intensity) -
-                      std::fabs(points[i - l].intensity - points[i].intensity);
-      if (g > thr) ++count;
-    }
-    begin = end;
+  // Points come ring by ring: i - l and i + l on the ring of i means all three are on one ring.
+  for (size_t i = l; i + l < points.size(); ++i) {
+    const ClusterPoint &a = points[i - l], &p = points[i], &b = points[i + l];
+    // eq. (GI); counting the side where the step is ahead gives one point per transition.
+    const float g = std::fabs(b.intensity - p.intensity) - std::fabs(a.intensity - p.intensity);
+    count += (a.ring == p.ring) & (b.ring == p.ring) & (g > thr) ? 1 : 0;
   }
   return count;
 }

@@ -26,9 +26,15 @@ void absorb(Cluster& into, const Cluster& from) {
   into.features += from.features;
 }
 
-}  // namespace
-
-namespace {
+// The cluster of one feature.
+Cluster single(const Feature& f) {
+  Cluster c;
+  c.min_x = c.max_x = f.x;
+  c.min_y = c.max_y = f.y;
+  c.min_ring = c.max_ring = f.ring;
+  c.features = 1;
+  return c;
+}
 
 // Splits cluster `c` (too large) into the single-linkage components of its features: two features
 // link when both x and y differ by at most tau and their rings by at most ring_gap, or when they
@@ -74,21 +80,11 @@ void split_cluster(std::span<const Feature> features, float tau, int ring_gap, i
     const Feature& f = features[static_cast<size_t>(members[i])];
     int& cl = root_cluster[static_cast<size_t>(r)];
     if (cl < 0) {
-      Cluster n;
-      n.min_x = n.max_x = f.x;
-      n.min_y = n.max_y = f.y;
-      n.min_ring = n.max_ring = f.ring;
-      clusters.push_back(n);
+      clusters.push_back(single(f));
       cl = static_cast<int>(clusters.size()) - 1;
+    } else {
+      absorb(clusters[static_cast<size_t>(cl)], single(f));
     }
-    Cluster& n = clusters[static_cast<size_t>(cl)];
-    n.min_x = std::min(n.min_x, f.x);
-    n.max_x = std::max(n.max_x, f.x);
-    n.min_y = std::min(n.min_y, f.y);
-    n.max_y = std::max(n.max_y, f.y);
-    n.min_ring = std::min(n.min_ring, f.ring);
-    n.max_ring = std::max(n.max_ring, f.ring);
-    n.features += 1;
     labels[static_cast<size_t>(members[i])] = cl;
   }
   clusters[static_cast<size_t>(c)].parent = root_cluster[0];  // retired
@@ -100,12 +96,24 @@ void cluster_features(std::span<const Feature> features, float tau, const Cluste
                       std::vector<Cluster>& clusters, std::vector<int>& labels) {
   clusters.clear();
   labels.assign(features.size(), -1);
+  // The live clusters a feature may still link to, in index order. Features come ring by ring, so
+  // a cluster whose ring span ends more than ring_gap below the feature's ring is out of reach for
+  // good: it is dropped from the list (the linkage loop was features x clusters). The list is
+  // rebuilt when that reasoning does not hold: the rings go down, or a partner link revives a
+  // dropped cluster.
+  thread_local std::vector<int> active;
+  active.clear();
+  bool rebuild = false;
+  int prev_ring = 0;
   for (size_t k = 0; k < features.size(); ++k) {
     const Feature& f = features[k];
-    Cluster one;
-    one.min_x = one.max_x = f.x;
-    one.min_y = one.max_y = f.y;
-    one.min_ring = one.max_ring = f.ring;
+    if (rebuild || (k > 0 && f.ring < prev_ring)) {
+      active.clear();
+      for (size_t c = 0; c < clusters.size(); ++c)
+        if (clusters[c].parent < 0) active.push_back(static_cast<int>(c));
+      rebuild = false;
+    }
+    prev_ring = f.ring;
     int target = -1;
     auto link = [&](int c) {
       c = find_root(clusters, c);
@@ -116,23 +124,30 @@ void cluster_features(std::span<const Feature> features, float tau, const Cluste
         clusters[static_cast<size_t>(c)].parent = target;
       }
     };
-    for (size_t c = 0; c < clusters.size(); ++c) {
-      const Cluster& cl = clusters[c];
-      if (cl.parent >= 0) continue;
+    size_t kept = 0;
+    for (size_t a = 0; a < active.size(); ++a) {
+      const int c = active[a];
+      const Cluster& cl = clusters[static_cast<size_t>(c)];
+      if (cl.parent >= 0 || cl.max_ring + opt.ring_gap < f.ring) continue;  // merged, or behind
+      active[kept++] = c;
       // eq. (linkage): inside the tau-padded x-y box and within one ring of the ring span.
       if (f.x >= cl.min_x - tau && f.x <= cl.max_x + tau && f.y >= cl.min_y - tau &&
-          f.y <= cl.max_y + tau && f.ring >= cl.min_ring - opt.ring_gap &&
-          f.ring <= cl.max_ring + opt.ring_gap)
-        link(static_cast<int>(c));
+          f.y <= cl.max_y + tau && f.ring >= cl.min_ring - opt.ring_gap)
+        link(c);
     }
-    if (f.partner >= 0) link(labels[static_cast<size_t>(f.partner)]);
+    active.resize(kept);
+    if (f.partner >= 0) {
+      const int root = find_root(clusters, labels[static_cast<size_t>(f.partner)]);
+      if (clusters[static_cast<size_t>(root)].max_ring + opt.ring_gap < f.ring) rebuild = true;
+      link(root);
+    }
     if (target < 0) {
-      clusters.push_back(one);
+      clusters.push_back(single(f));
       target = static_cast<int>(clusters.size()) - 1;
+      active.push_back(target);
     } else {
-      absorb(clusters[static_cast<size_t>(target)], one);
+      absorb(clusters[static_cast<size_t>(target)], single(f));
     }
-    clusters[static_cast<size_t>(target)].features += 1;
     labels[k] = target;
   }
   for (auto& l : labels) l = find_root(clusters, l);

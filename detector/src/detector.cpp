@@ -133,6 +133,7 @@ void validate_options(const DetectorOptions& o) {
   need(o.corners.size_tolerance > 0.0f, "corners.size_tolerance must be > 0");
   need(o.pose.translation_bound_m > 0 && o.pose.rotation_bound_rad > 0, "pose bounds must be > 0");
   need(o.pose.max_evaluations >= 1, "pose.max_evaluations must be >= 1");
+  need(o.pose.xtol_rel >= 0 && o.pose.xtol_abs >= 0, "pose tolerances must be >= 0");
   need(o.pose.min_coverage >= 0 && o.pose.min_coverage <= 1, "pose.min_coverage in [0, 1]");
   need(o.pose.max_points >= 8, "pose.max_points must be >= 8");
   need(o.decode.max_points >= 16, "decode.max_points must be >= 16");
@@ -146,7 +147,7 @@ void validate_options(const DetectorOptions& o) {
 
 struct Detector::Buffers {
   std::vector<Feature> features;
-  std::vector<float> gradient;
+  std::vector<float> edge_buffer;  // detect_edge_features' work buffer
   std::vector<Cluster> clusters;
   std::vector<int> labels, offsets, order, ring_cols;
   std::vector<ClusterPoint> points, subset, pulled;
@@ -157,6 +158,7 @@ struct Detector::Buffers {
     double shift = 0.0;
   };
   std::vector<Hypothesis> hypotheses;
+  std::vector<double> shifts;  // tried along an unseen axis
   CornerWorkspace corners;
   std::vector<Eigen::Vector2d> hull_in, hull;
   DecodeWorkspace decode;
@@ -238,7 +240,7 @@ void Detector::detect(const Scan& scan, ScanResult& out) noexcept {
     Buffers& b = *buf_;
     auto t0 = Clock::now();
     // eq. (GD) per ring, with the "one edge among n+1" rule.
-    detect_edge_features(scan, opt_.features, b.features, b.gradient);
+    detect_edge_features(scan, opt_.features, b.features, b.edge_buffer);
     out.features = static_cast<int>(b.features.size());
     out.timing_ms[static_cast<size_t>(Stage::kFeatures)] += ms_since(t0);
 
@@ -414,8 +416,14 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
   // family at any shift (another code or rotation) by the margin, so that searching more shifts
   // does not make a wrong ID more likely. Families are chosen between by score alone.
   b.hypotheses.clear();
+  b.shifts.clear();
   double applied = 0.0;
   auto try_shift = [&](double shift) {
+    // The refinement's steps are clamped to [s0, s1]: a shift tried before would only add the
+    // same hypotheses again.
+    for (double s : b.shifts)
+      if (std::abs(s - shift) < 1e-9 * t) return;
+    b.shifts.push_back(shift);
     for (auto& q : b.pulled) {  // move the points by -(shift - applied) along the axis
       q.x -= static_cast<float>((shift - applied) * axis.x());
       q.y -= static_cast<float>((shift - applied) * axis.y());

@@ -31,6 +31,13 @@ bool fit_plane(std::vector<ClusterPoint>& points, const PlaneOptions& opt, uint3
   int best_count = -1;
   const size_t stride =
       opt.score_points > 0 ? std::max<size_t>(1, n / static_cast<size_t>(opt.score_points)) : 1;
+  const float tol = opt.inlier_m;
+  // Distances in float (metres to 0.1 micrometre at 40 m is plenty for a 5 cm threshold); the
+  // plane through the sample point a, so that the offsets stay small.
+  auto inlier = [tol](const ClusterPoint& p, float nx, float ny, float nz, float ax, float ay,
+                      float az) {
+    return std::fabs(nx * (p.x - ax) + ny * (p.y - ay) + nz * (p.z - az)) <= tol;
+  };
   for (int it = 0; it < opt.iterations; ++it) {
     const Eigen::Vector3d a = pos(points[xorshift(s) % n]);
     const Eigen::Vector3d b = pos(points[xorshift(s) % n]);
@@ -39,46 +46,66 @@ bool fit_plane(std::vector<ClusterPoint>& points, const PlaneOptions& opt, uint3
     const double len = nn.norm();
     if (len < 1e-9) continue;
     nn /= len;
-    const double d = -nn.dot(a);
+    const auto nx = static_cast<float>(nn.x()), ny = static_cast<float>(nn.y()),
+               nz = static_cast<float>(nn.z()), ax = static_cast<float>(a.x()),
+               ay = static_cast<float>(a.y()), az = static_cast<float>(a.z());
     int count = 0;
-    for (size_t k = 0; k < n; k += stride)
-      count += std::fabs(nn.dot(pos(points[k])) + d) <= opt.inlier_m ? 1 : 0;
+    for (size_t k = 0; k < n; k += stride) count += inlier(points[k], nx, ny, nz, ax, ay, az);
     if (count > best_count) {
       best_count = count;
       best_n = nn;
-      best_d = d;
+      best_d = -nn.dot(a);
     }
   }
   if (best_count < 3) return false;
-  // Least squares on the inliers (PCA), then the final inlier set.
+  // The plane as a unit normal and a point on it, in float, for the inlier tests.
+  Eigen::Vector3d on = -best_d * best_n;
+  auto inliers_of = [&](const Eigen::Vector3d& nrm, const Eigen::Vector3d& at) {
+    return [=, nx = static_cast<float>(nrm.x()), ny = static_cast<float>(nrm.y()),
+            nz = static_cast<float>(nrm.z()), ax = static_cast<float>(at.x()),
+            ay = static_cast<float>(at.y()), az = static_cast<float>(at.z())](
+               const ClusterPoint& p) { return inlier(p, nx, ny, nz, ax, ay, az); };
+  };
+  // Least squares on the inliers (PCA), then the final inlier set. One pass per refinement: sums
+  // of the offsets from a point on the plane (small numbers, no cancellation in double).
   for (int pass = 0; pass < 2; ++pass) {
-    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    const auto is_inlier = inliers_of(best_n, on);
+    const auto ox = static_cast<float>(on.x()), oy = static_cast<float>(on.y()),
+               oz = static_cast<float>(on.z());
+    double sx = 0, sy = 0, sz = 0, sxx = 0, sxy = 0, sxz = 0, syy = 0, syz = 0, szz = 0;
     int m = 0;
-    for (const auto& p : points)
-      if (std::fabs(best_n.dot(pos(p)) + best_d) <= opt.inlier_m) {
-        mean += pos(p);
-        ++m;
-      }
+    for (const auto& p : points) {
+      if (!is_inlier(p)) continue;
+      const double x = p.x - ox, y = p.y - oy, z = p.z - oz;
+      sx += x;
+      sy += y;
+      sz += z;
+      sxx += x * x;
+      sxy += x * y;
+      sxz += x * z;
+      syy += y * y;
+      syz += y * z;
+      szz += z * z;
+      ++m;
+    }
     if (m < 3) return false;
-    mean /= m;
-    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-    for (const auto& p : points)
-      if (std::fabs(best_n.dot(pos(p)) + best_d) <= opt.inlier_m) {
-        const Eigen::Vector3d q = pos(p) - mean;
-        cov += q * q.transpose();
-      }
-    cov /= m;
+    const Eigen::Vector3d mo = Eigen::Vector3d(sx, sy, sz) / m;  // mean offset
+    Eigen::Matrix3d cov;
+    cov << sxx, sxy, sxz, sxy, syy, syz, sxz, syz, szz;
+    cov = cov / m - mo * mo.transpose();
+    const Eigen::Vector3d mean = Eigen::Vector3d(ox, oy, oz) + mo;
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
     best_n = es.eigenvectors().col(0);
     if (best_n.dot(mean) > 0) best_n = -best_n;  // toward the sensor
-    best_d = -best_n.dot(mean);
+    on = mean;
     plane.centroid = mean;
     plane.depth_sigma = std::sqrt(std::max(es.eigenvalues()(0), 0.0));
   }
   plane.normal = best_n;
+  const auto is_inlier = inliers_of(best_n, on);
   size_t w = 0;
   for (size_t i = 0; i < n; ++i)
-    if (std::fabs(best_n.dot(pos(points[i])) + best_d) <= opt.inlier_m) points[w++] = points[i];
+    if (is_inlier(points[i])) points[w++] = points[i];
   plane.inliers = static_cast<int>(w);
   plane.outlier_ratio = 1.0 - static_cast<double>(w) / static_cast<double>(n);
   points.resize(w);

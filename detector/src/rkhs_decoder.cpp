@@ -24,9 +24,27 @@ RkhsDictionary::RkhsDictionary(const tags::TagFamily& family)
       img.swap(rot);
     }
   }
+  // The cells that tell functions apart; the others (white ring, black border) add the same to
+  // every score.
+  const int nf = functions();
+  for (size_t i = 0; i < w * w; ++i) {
+    bool same = true;
+    for (int f = 1; f < nf && same; ++f) same = signs(f)[i] == signs(0)[i];
+    if (!same) varying_.push_back(static_cast<int>(i));
+  }
+  varying_signs_.resize(nf, static_cast<Eigen::Index>(varying_.size()));
+  for (int f = 0; f < nf; ++f)
+    for (size_t k = 0; k < varying_.size(); ++k)
+      varying_signs_(f, static_cast<Eigen::Index>(k)) = signs(f)[varying_[k]];
 }
 
 namespace {
+
+// floor() without the library call, for arguments well within int range.
+int floor_int(double v) {
+  const int i = static_cast<int>(v);
+  return v < i ? i - 1 : i;
+}
 
 float median(std::vector<float>& v) {
   const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
@@ -59,63 +77,79 @@ DecodeResult decode_tag(std::span<const ClusterPoint> points, double t, const Rk
   const int W = dict.width();
   const int S = std::max(opt.samples_per_cell, 1);
   const int N = W * S;  // template sample points per axis
-  const auto n2 = static_cast<size_t>(N * N);
-  ws.acc_white.assign(n2, 0.0f);
-  ws.acc_black.assign(n2, 0.0f);
+  const auto cells_w = static_cast<size_t>(W);
+  const auto cells = cells_w * cells_w;
+  ws.acc.assign(cells, 0.0);
   // Everything in units of the tag size: the dictionary does not depend on t.
   const double sigma = opt.length_scale_cells / W;
   const double inv2s2 = 1.0 / (2 * sigma * sigma);
   const double lift = opt.lift_cells / W;
   const double inv2li = 1.0 / (2 * opt.intensity_length_scale * opt.intensity_length_scale);
   const int reach = static_cast<int>(std::ceil(3 * sigma * N));
+  // The spatial kernel between a point and the sample at index j (in sample steps) is
+  // exp(-a (j - f)^2): starting from the first sample j0 of the reach, its factor is
+  // exp(-a (j0 - f)^2) times prod of ratios exp(-a (2 (j - f) + 1)), each ratio the previous one
+  // times exp(-2 a). Two exponentials per axis instead of one per sample.
+  const double a = inv2s2 / (static_cast<double>(N) * N);
+  const double ratio_step = std::exp(-2 * a);
   ws.ex.resize(static_cast<size_t>(2 * reach + 2));
   ws.ez.resize(static_cast<size_t>(2 * reach + 2));
+  // Per cell along one axis, the sum of the factors of its samples in reach; returns the cells.
+  auto cell_factors = [&](int j0, int j1, double f, std::vector<double>& out) {
+    double g = 1.0, ratio = std::exp(static_cast<float>(-a * (2 * (j0 - f) + 1)));
+    size_t n = 0;
+    int left = (j0 / S + 1) * S - j0;  // samples of the first cell in reach
+    out[0] = 0.0;
+    for (int j = j0; j <= j1; ++j) {
+      out[n] += g;
+      g *= ratio;
+      ratio *= ratio_step;
+      if (--left == 0 && j < j1) {
+        out[++n] = 0.0;
+        left = S;
+      }
+    }
+    return n + 1;
+  };
   for (const auto& p : points) {
     const double label = (p.intensity - black) / static_cast<double>(white - black);
     const double yn = p.y / t, zn = p.z / t;
     // 3-D lifting remark: the normal coordinate carries the intensity.
     const double xl = p.x / t + lift * label;
-    // eq. (kernel) along the normal and eq. (kernel_intensity), against a white and a black
-    // template point.
-    const double ww =
-        std::exp(-(xl - lift) * (xl - lift) * inv2s2 - (label - 1) * (label - 1) * inv2li);
-    const double wb = std::exp(-xl * xl * inv2s2 - label * label * inv2li);
     // Sample j sits at (j + 0.5) / N - 0.5 across (y) and 0.5 - (j + 0.5) / N down (z).
     const double fc = (yn + 0.5) * N - 0.5, fr = (0.5 - zn) * N - 0.5;
-    const int c0 = std::max(0, static_cast<int>(std::floor(fc)) - reach);
-    const int c1 = std::min(N - 1, static_cast<int>(std::floor(fc)) + reach + 1);
-    const int r0 = std::max(0, static_cast<int>(std::floor(fr)) - reach);
-    const int r1 = std::min(N - 1, static_cast<int>(std::floor(fr)) + reach + 1);
+    if (!(std::fabs(fc) <= 4.0 * N && std::fabs(fr) <= 4.0 * N)) continue;  // far off the tag
+    const int ic = floor_int(fc), ir = floor_int(fr);
+    const int c0 = std::max(0, ic - reach), c1 = std::min(N - 1, ic + reach + 1);
+    const int r0 = std::max(0, ir - reach), r1 = std::min(N - 1, ir + reach + 1);
     if (c0 > c1 || r0 > r1) continue;
-    for (int c = c0; c <= c1; ++c) {
-      const double d = (c - fc) / N;
-      ws.ex[static_cast<size_t>(c - c0)] = static_cast<float>(std::exp(-d * d * inv2s2));
-    }
-    for (int r = r0; r <= r1; ++r) {
-      const double d = (r - fr) / N;
-      ws.ez[static_cast<size_t>(r - r0)] = static_cast<float>(std::exp(-d * d * inv2s2));
-    }
-    for (int r = r0; r <= r1; ++r) {
-      const float kw = static_cast<float>(ww) * ws.ez[static_cast<size_t>(r - r0)];
-      const float kb = static_cast<float>(wb) * ws.ez[static_cast<size_t>(r - r0)];
-      float* aw = ws.acc_white.data() + static_cast<size_t>(r * N);
-      float* ab = ws.acc_black.data() + static_cast<size_t>(r * N);
-      for (int c = c0; c <= c1; ++c) {
-        aw[c] += kw * ws.ex[static_cast<size_t>(c - c0)];
-        ab[c] += kb * ws.ex[static_cast<size_t>(c - c0)];
-      }
+    // eq. (kernel) along the normal and eq. (kernel_intensity), against a white and a black
+    // template point, times the spatial kernel of the first sample in reach. Single precision
+    // exponentials: the weights need no more than the float evidence they add to.
+    const double first = -a * ((c0 - fc) * (c0 - fc) + (r0 - fr) * (r0 - fr));
+    const double kw = std::exp(static_cast<float>(first - (xl - lift) * (xl - lift) * inv2s2 -
+                                                  (label - 1) * (label - 1) * inv2li));
+    const double kb =
+        std::exp(static_cast<float>(first - xl * xl * inv2s2 - label * label * inv2li));
+    // The kernel is separable: a cell's sum over its S x S samples is the product of the sums of
+    // its sample rows and columns.
+    const size_t ncol = cell_factors(c0, c1, fc, ws.ex);
+    const size_t nrow = cell_factors(r0, r1, fr, ws.ez);
+    const double k = kw - kb;
+    for (size_t r = 0; r < nrow; ++r) {
+      const double kr = k * ws.ez[r];
+      double* out = ws.acc.data() + static_cast<size_t>((r0 / S) * W + c0 / S) + r * cells_w;
+      for (size_t c = 0; c < ncol; ++c) out[c] += kr * ws.ex[c];
     }
   }
   // eq. (InnerProduct) against a template function is a sum over its sample points; per cell,
   // the white-minus-black evidence makes every code's inner product a signed sum over cells.
-  const auto cells = static_cast<size_t>(W * W);
-  ws.evidence.assign(cells, 0.0f);
+  ws.evidence.resize(cells);
   double total = 0.0;
-  for (int r = 0; r < N; ++r)
-    for (int c = 0; c < N; ++c) {
-      const size_t s = static_cast<size_t>(r * N + c);
-      ws.evidence[static_cast<size_t>((r / S) * W + c / S)] += ws.acc_white[s] - ws.acc_black[s];
-    }
+  for (size_t i = 0; i < cells; ++i) {
+    ws.evidence[i] = static_cast<float>(ws.acc[i]);
+    total += std::fabs(ws.evidence[i]);
+  }
   // Mean evidence of a payload cell: the unit of the margin.
   double payload = 0.0;
   const int b0 = dict.family().border_start() + 1, pw = dict.family().payload_width();
@@ -123,24 +157,41 @@ DecodeResult decode_tag(std::span<const ClusterPoint> points, double t, const Rk
     for (int c = b0; c < b0 + pw; ++c)
       payload += std::fabs(ws.evidence[static_cast<size_t>(r * W + c)]);
   payload /= pw * pw;
-  for (float e : ws.evidence) total += std::fabs(e);
   if (total <= 0.0 || payload <= 0.0) return res;
 
-  const int nf = dict.functions();
-  ws.scores.resize(static_cast<size_t>(nf));
-  auto score_range = [&](int f0, int f1) {
-    for (int f = f0; f < f1; ++f) {
-      const float* s = dict.signs(f);
-      float acc = 0.0f;
-      for (size_t i = 0; i < cells; ++i) acc += s[i] * ws.evidence[i];
-      ws.scores[static_cast<size_t>(f)] = acc;
+  // eq. (InnerProduct) of every function: the cells common to all functions add `common`, the
+  // varying cells a matrix-vector product.
+  const auto& vary = dict.varying_cells();
+  const auto nv = static_cast<Eigen::Index>(vary.size());
+  ws.varying.resize(vary.size());
+  for (size_t k = 0; k < vary.size(); ++k)
+    ws.varying[k] = ws.evidence[static_cast<size_t>(vary[k])];
+  double common = 0.0;
+  {
+    const float* s0 = dict.signs(0);
+    size_t k = 0;
+    for (size_t i = 0; i < cells; ++i) {
+      if (k < vary.size() && static_cast<size_t>(vary[k]) == i)
+        ++k;
+      else
+        common += s0[i] * ws.evidence[i];
     }
-  };
-  if (nf >= opt.parallel_min_functions)
-    tbb::parallel_for(tbb::blocked_range<int>(0, nf, 256),
-                      [&](const tbb::blocked_range<int>& r) { score_range(r.begin(), r.end()); });
-  else
-    score_range(0, nf);
+  }
+  const int nf = dict.functions();
+  const auto& signs = dict.varying_signs();
+  // Plain vectors mapped, not Eigen vectors: those reallocate on every change of size.
+  ws.scores.resize(static_cast<size_t>(nf));
+  const Eigen::Map<const Eigen::VectorXf> evidence(ws.varying.data(), nv);
+  Eigen::Map<Eigen::VectorXf> scores(ws.scores.data(), nf);
+  if (nf >= opt.parallel_min_functions) {
+    tbb::parallel_for(tbb::blocked_range<int>(0, nf, 1024), [&](const tbb::blocked_range<int>& r) {
+      const auto n = r.end() - r.begin();
+      scores.segment(r.begin(), n).noalias() = signs.middleRows(r.begin(), n) * evidence;
+    });
+  } else {
+    scores.noalias() = signs * evidence;
+  }
+  // Best and runner-up; of equal scores the first function.
   int best = 0, second = -1;
   float s1 = -1e30f, s2 = -1e30f;
   for (int f = 0; f < nf; ++f) {
@@ -158,9 +209,9 @@ DecodeResult decode_tag(std::span<const ClusterPoint> points, double t, const Rk
   res.function = best;
   res.code_index = best / 4;
   res.quarter_turns = best % 4;
-  res.score = s1 / total;
+  res.score = (s1 + common) / total;
   res.second_function = nf > 1 ? second : -1;
-  res.second_score = nf > 1 ? s2 / total : -1.0;
+  res.second_score = nf > 1 ? (s2 + common) / total : -1.0;
   // One cell flipped changes a score by twice that cell's evidence; in units of the mean payload
   // cell.
   res.cells_per_score = total / (2.0 * payload);

@@ -108,5 +108,24 @@ TEST(Clustering, OversizedClustersSplitIntoTheirComponents) {
   EXPECT_EQ(tag.max_ring, 10);
 }
 
+// Features come ring by ring, so clusters whose rings ended more than ring_gap below are no longer
+// tested; a partner link that reaches such a cluster brings it back: later features near its
+// (grown) box still join it.
+TEST(Clustering, APartnerLinkKeepsAnOldClusterReachable) {
+  std::vector<Feature> f = {at(5, 0, 0), at(5, 0, 5, 0), at(5, 0.1f, 6)};
+  std::vector<Cluster> cs;
+  std::vector<int> labels;
+  cluster_features(f, 0.42f, ClusterOptions{}, cs, labels);
+  EXPECT_EQ(live(cs), 1);
+  EXPECT_EQ(labels[1], labels[0]);
+  EXPECT_EQ(labels[2], labels[0]);
+  EXPECT_EQ(cs[static_cast<size_t>(labels[0])].max_ring, 6);
+  f[1].partner = -1;  // without the link: three rings apart, three clusters
+  cluster_features(f, 0.42f, ClusterOptions{}, cs, labels);
+  EXPECT_EQ(live(cs), 2);
+  EXPECT_NE(labels[1], labels[0]);
+  EXPECT_EQ(labels[2], labels[1]);
+}
+
 }  // namespace
 }  // namespace lidartag::detector

@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include "synthetic_scene.hpp"
 
 namespace lidartag::detector {
@@ -149,6 +151,25 @@ TEST(EdgeFeatures, LongGapsAndRealStepsAcrossADropoutStayEdges) {
   EXPECT_EQ(f[1].col, 24);  // the step to the background behind the dropout
   EXPECT_EQ(f[1].side, 1);
   EXPECT_EQ(f[2].col, 49);  // the background ends against the sky
+}
+
+// The interior of a ring is tested in blocks of columns: an object starting and ending at any
+// column of a block (and at the ends of the ring) is found the same way.
+TEST(EdgeFeatures, EdgesAreFoundWhereverTheyFallInARing) {
+  for (int start = 1; start < 40; ++start) {
+    std::vector<float> r(48, 10.0f);
+    for (int c = start; c < start + 7 && c < 47; ++c) r[static_cast<size_t>(c)] = 6.0f;
+    const int end = std::min(start + 6, 46);
+    const Scan s = ring_of(r);
+    std::vector<Feature> f;
+    std::vector<float> g;
+    detect_edge_features(s, FeatureOptions{}, f, g);
+    ASSERT_EQ(f.size(), 2u) << "object at columns " << start << "-" << end;
+    EXPECT_EQ(f[0].col, start);
+    EXPECT_EQ(f[0].side, -1);
+    EXPECT_EQ(f[1].col, end);
+    EXPECT_EQ(f[1].side, 1);
+  }
 }
 
 }  // namespace

@@ -3,9 +3,39 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
+#include <atomic>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <new>
 #include <random>
+
+namespace {
+std::atomic<long> allocations{0};
+}  // namespace
+
+// Counts the test program's heap allocations (DecodingDoesNotAllocateOnceTheWorkspaceHasGrown).
+// GCC pairs the free() in the replaced operator delete with the library's operator new.
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
+#endif
+void* operator new(std::size_t n) {
+  allocations.fetch_add(1, std::memory_order_relaxed);
+  if (void* p = std::malloc(n > 0 ? n : 1)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept {
+  std::free(p);
+}
+void operator delete(void* p, std::size_t) noexcept {
+  std::free(p);
+}
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
 
 namespace lidartag::detector {
 namespace {
@@ -157,6 +187,104 @@ TEST(RkhsDecoder, ReportsTheRunnerUpForComparisonsAcrossHypotheses) {
   EXPECT_GE(r.second_function, 0);
   EXPECT_LT(r.second_score, r.score);
   EXPECT_NEAR(r.margin_bits, (r.score - r.second_score) * r.cells_per_score, 1e-4 * r.margin_bits);
+}
+
+// Scores are computed on the cells that differ between functions, plus the common cells once: the
+// best and runner-up must be those of the full inner product with every function (first of equal
+// scores), on clean, misaligned and noisy points of every family.
+TEST(RkhsDecoder, BestAndRunnerUpAreThoseOfTheInnerProductWithEveryFunction) {
+  std::mt19937 rng(17);
+  std::normal_distribution<float> noise(0.0f, 1.0f);
+  std::vector<ClusterPoint> pts;
+  DecodeWorkspace ws;
+  for (const auto& name : tags::builtin_family_names()) {
+    const auto& fam = tags::builtin_family(name);
+    const RkhsDictionary dict(fam);
+    const auto cells = static_cast<size_t>(dict.width() * dict.width());
+    for (int trial = 0; trial < 12; ++trial) {
+      synth(fam, static_cast<int>(rng() % fam.codes.size()), trial % 4, {}, 2, pts);
+      // Misaligned by up to half a cell, noisy intensities, a third of the points dropped.
+      const float dz = static_cast<float>(trial % 3) * 0.25f / static_cast<float>(dict.width());
+      std::vector<ClusterPoint> kept;
+      for (auto p : pts) {
+        if (rng() % 3 == 0) continue;
+        p.z += dz;
+        p.intensity += 25.0f * noise(rng);
+        kept.push_back(p);
+      }
+      const DecodeResult r = decode_tag(kept, 1.0, dict, DecodeOptions{}, ws);
+      ASSERT_GE(r.function, 0) << name;
+      ASSERT_EQ(ws.evidence.size(), cells);
+      double total = 0.0;
+      for (float e : ws.evidence) total += std::fabs(e);
+      int best = -1, second = -1;
+      double s1 = -1e30, s2 = -1e30;
+      for (int f = 0; f < dict.functions(); ++f) {
+        double s = 0.0;
+        for (size_t i = 0; i < cells; ++i) s += dict.signs(f)[i] * ws.evidence[i];
+        if (s > s1) {
+          s2 = s1;
+          second = best;
+          s1 = s;
+          best = f;
+        } else if (s > s2) {
+          s2 = s;
+          second = f;
+        }
+      }
+      // Exact ties between different functions (symmetric codes) may order either way.
+      if (std::fabs(s1 - s2) > 1e-5 * total) {
+        EXPECT_EQ(r.function, best) << name << " trial " << trial;
+      }
+      EXPECT_NEAR(r.score, s1 / total, 1e-5) << name << " trial " << trial;
+      EXPECT_NEAR(r.second_score, s2 / total, 1e-5) << name << " trial " << trial;
+      if (r.second_function != second) {
+        EXPECT_NEAR(r.second_score, s2 / total, 1e-6) << "a tie, else the wrong runner-up";
+      }
+    }
+  }
+}
+
+// The cells that tell functions apart are the payload; the white ring and the black border are
+// common to every function.
+TEST(RkhsDecoder, VaryingCellsAreThePayload) {
+  for (const char* name : {"tag16h5", "tag25h9", "tag36h11"}) {
+    const auto& fam = tags::builtin_family(name);
+    const RkhsDictionary dict(fam);
+    const int w = fam.total_width, b = fam.border_start() + 1, pw = fam.payload_width();
+    std::vector<int> payload;
+    for (int r = b; r < b + pw; ++r)
+      for (int c = b; c < b + pw; ++c) payload.push_back(r * w + c);
+    EXPECT_EQ(dict.varying_cells(), payload) << name;
+    ASSERT_EQ(dict.varying_signs().rows(), dict.functions());
+    ASSERT_EQ(dict.varying_signs().cols(), pw * pw);
+    for (int f = 0; f < dict.functions(); f += 7)
+      for (size_t k = 0; k < payload.size(); ++k)
+        EXPECT_EQ(dict.varying_signs()(f, static_cast<Eigen::Index>(k)), dict.signs(f)[payload[k]]);
+  }
+}
+
+// Per-scan paths do not allocate in steady state: once grown, the workspace serves families of
+// different sizes decoded in turn without a heap allocation (counted by operator new below).
+TEST(RkhsDecoder, DecodingDoesNotAllocateOnceTheWorkspaceHasGrown) {
+  std::vector<RkhsDictionary> dicts;
+  for (const char* name : {"tag36h11", "tag16h5", "tag25h9"})
+    dicts.emplace_back(tags::builtin_family(name));
+  std::vector<std::vector<ClusterPoint>> pts(dicts.size());
+  for (size_t k = 0; k < dicts.size(); ++k) synth(dicts[k].family(), 1, 0, {}, 2, pts[k]);
+  DecodeWorkspace ws;
+  for (size_t k = 0; k < dicts.size(); ++k)
+    ASSERT_EQ(decode_tag(pts[k], 1.0, dicts[k], DecodeOptions{}, ws).rejection, Rejection::kNone);
+  std::array<DecodeResult, 9> results;
+  const long before = allocations.load();
+  for (size_t i = 0; i < results.size(); ++i)
+    results[i] = decode_tag(pts[i % 3], 1.0, dicts[i % 3], DecodeOptions{}, ws);
+  const long during = allocations.load() - before;
+  EXPECT_EQ(during, 0);
+  for (const auto& r : results) {
+    EXPECT_EQ(r.code_index, 1);
+    EXPECT_EQ(r.rejection, Rejection::kNone);
+  }
 }
 
 }  // namespace

@@ -34,16 +34,16 @@ struct FeatureOptions {
   float max_pair_chord_m = 0.0f;
 };
 
-// Appends the features of return 0 (the strongest echo) of every ring to `out` (cleared first),
-// ring by ring from ring 0 upward and by column within a ring. A missing neighbour (no return
-// within max_gap further columns) counts as infinitely far, so a tag against the sky still has
-// edges. Only the near side of a
-// jump is an edge point: the features lie on the foreground object.
 // True when the scan's columns cover the full circle, so that the last column neighbours the
 // first (a complete rotation); features and fill-in then wrap around.
 bool rotation_wraps(const Scan& scan);
 
+// Appends the features of return 0 (the strongest echo) of every ring to `out` (cleared first),
+// ring by ring from ring 0 upward and by column within a ring. A missing neighbour (no return
+// within max_gap further columns) counts as infinitely far, so a tag against the sky still has
+// edges. Only the near side of a jump is an edge point: the features lie on the foreground object.
+// `edge_buffer` is a work buffer (one ring's edge points), kept by the caller between rotations.
 void detect_edge_features(const Scan& scan, const FeatureOptions& opt, std::vector<Feature>& out,
-                          std::vector<float>& gradient_buffer);
+                          std::vector<float>& edge_buffer);
 
 }  // namespace lidartag::detector

@@ -3,6 +3,7 @@
 // code x 4 rotations built from the family's code words.
 #pragma once
 
+#include <Eigen/Core>
 #include <span>
 #include <vector>
 
@@ -45,6 +46,8 @@ struct DecodeOptions {
 
 // The function dictionary of one family: for code k and quarter turn q (clockwise, seen from the
 // front), the sign (+1 white, -1 black) of each of the W x W cells of the rotated marker image.
+// Scores are computed on the cells where functions differ (the payload of the built-in families):
+// the other cells (white ring, black border) add the same to every function's inner product.
 class RkhsDictionary {
  public:
   explicit RkhsDictionary(const tags::TagFamily& family);
@@ -55,19 +58,27 @@ class RkhsDictionary {
   const float* signs(int f) const {
     return signs_.data() + static_cast<size_t>(f) * static_cast<size_t>(width_ * width_);
   }
+  // Cells (row-major indices) whose sign is not the same in every function, ascending.
+  const std::vector<int>& varying_cells() const { return varying_; }
+  // Row f: the signs of function f on the varying cells.
+  const Eigen::MatrixXf& varying_signs() const { return varying_signs_; }
 
  private:
   tags::TagFamily family_;
   int width_ = 0;
   std::vector<float> signs_;
+  std::vector<int> varying_;
+  Eigen::MatrixXf varying_signs_;  // functions x varying cells, column-major
 };
 
+// Scratch memory of decode_tag, reused between calls (no allocation once grown).
 struct DecodeWorkspace {
-  std::vector<float> acc_white, acc_black;  // kernel sums at the template sample points
-  std::vector<float> evidence;              // per cell: white minus black evidence
-  std::vector<float> scores;                // per dictionary function
-  std::vector<float> ex, ez;                // per point kernel factors
-  std::vector<float> sorted;                // intensity medians
+  std::vector<double> acc;      // per cell: white minus black kernel sums
+  std::vector<float> evidence;  // per cell: the same in float, what the functions are scored on
+  std::vector<double> ex, ez;   // per point: kernel factors of the sample columns and rows
+  std::vector<float> sorted;    // intensity medians
+  std::vector<float> varying;   // the evidence on the dictionary's varying cells
+  std::vector<float> scores;    // per function, without the cells common to all functions
 };
 
 struct DecodeResult {
