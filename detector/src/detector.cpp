@@ -418,6 +418,7 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
   b.hypotheses.clear();
   b.shifts.clear();
   double applied = 0.0;
+  const IntensityLevels levels = intensity_levels(b.pulled, b.decode);
   auto try_shift = [&](double shift) {
     // The refinement's steps are clamped to [s0, s1]: a shift tried before would only add the
     // same hypotheses again.
@@ -430,8 +431,9 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
       q.z -= static_cast<float>((shift - applied) * axis.z());
     }
     applied = shift;
+    prepare_decode(b.pulled, levels, t, b.decode);  // the same for every family
     for (size_t f = 0; f < dicts_.size(); ++f) {
-      const DecodeResult d = decode_tag(b.pulled, t, dicts_[f], opt_.decode, b.decode);
+      const DecodeResult d = decode_prepared(dicts_[f], opt_.decode, b.decode);
       if (d.function >= 0) b.hypotheses.push_back({d, static_cast<int>(f), shift});
     }
   };

@@ -4,6 +4,7 @@
 #include <array>
 #include <bit>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <cstring>
 #include <limits>
@@ -58,13 +59,30 @@ struct Ring {
     return false;
   }
 
+  // neighbour() for a column whose search window lies inside the ring: no wrap, no end test.
+  bool neighbour_inside(int c, int step, size_t& at, float& d) const {
+    const size_t i = base + static_cast<size_t>(c);
+    const float* r = scan.range.data() + static_cast<std::ptrdiff_t>(i) + step * opt.ell;
+    for (int k = 0; k <= opt.max_gap; ++k) {
+      if (r[step * k] > 0.0f) {
+        at = static_cast<size_t>(static_cast<std::ptrdiff_t>(i) + step * (opt.ell + k));
+        d = k == 0 ? dist(scan, at, i) : std::fabs(scan.range[at] - scan.range[i]);
+        return true;
+      }
+    }
+    return false;
+  }
+
   // The signed eq. (GD) value at column c (a usable point that is not quiet) when it is an edge
   // point on the near side of its jump; 0 otherwise.
   float edge_value(int c) const {
     const size_t i = base + static_cast<size_t>(c);
     size_t il = 0, ir = 0;
     float dl = kInf, dr = kInf;
-    const bool has_l = neighbour(c, -1, il, dl), has_r = neighbour(c, 1, ir, dr);
+    const int span = opt.ell + opt.max_gap;
+    const bool inside = c - span >= 0 && c + span < cols;
+    const bool has_l = inside ? neighbour_inside(c, -1, il, dl) : neighbour(c, -1, il, dl);
+    const bool has_r = inside ? neighbour_inside(c, 1, ir, dr) : neighbour(c, 1, ir, dr);
     if (!has_l && !has_r) return 0.0f;  // an isolated return: noise, not an edge
     // eq. (GD): grad D = |p_{i+l} - p_i| - |p_{i-l} - p_i|.
     const float g = std::isinf(dr) ? kInf : std::isinf(dl) ? -kInf : dr - dl;

@@ -54,25 +54,59 @@ float median(std::vector<float>& v) {
 
 }  // namespace
 
-DecodeResult decode_tag(std::span<const ClusterPoint> points, double t, const RkhsDictionary& dict,
-                        const DecodeOptions& opt, DecodeWorkspace& ws) {
-  DecodeResult res;
-  if (points.size() < 4 || t <= 0) return res;
-  // Intensity labels: split around the mean, the median of each side is the black and the white
-  // level (robust to a few specular or dark returns); labels are 0 for black, 1 for white.
+IntensityLevels intensity_levels(std::span<const ClusterPoint> points, DecodeWorkspace& ws) {
+  IntensityLevels lv;
+  if (points.empty()) return lv;
+  // Split around the mean, the median of each side is the black and the white level (robust to a
+  // few specular or dark returns).
   double mean = 0.0;
   for (const auto& p : points) mean += p.intensity;
   mean /= static_cast<double>(points.size());
   ws.sorted.clear();
   for (const auto& p : points)
     if (p.intensity < mean) ws.sorted.push_back(p.intensity);
-  if (ws.sorted.empty()) return res;
-  const float black = median(ws.sorted);
+  if (ws.sorted.empty()) return lv;
+  lv.black = median(ws.sorted);
   ws.sorted.clear();
   for (const auto& p : points)
     if (p.intensity >= mean) ws.sorted.push_back(p.intensity);
-  const float white = median(ws.sorted);
-  if (white - black < opt.min_contrast) return res;
+  lv.white = median(ws.sorted);
+  lv.valid = true;
+  return lv;
+}
+
+DecodeResult decode_tag(std::span<const ClusterPoint> points, double t, const RkhsDictionary& dict,
+                        const DecodeOptions& opt, DecodeWorkspace& ws) {
+  if (points.size() < 4 || t <= 0) return DecodeResult{};
+  return decode_tag(points, intensity_levels(points, ws), t, dict, opt, ws);
+}
+
+void prepare_decode(std::span<const ClusterPoint> points, const IntensityLevels& levels, double t,
+                    DecodeWorkspace& ws) {
+  ws.prepared.clear();
+  ws.levels = levels;
+  ws.prepared_ok = points.size() >= 4 && t > 0 && levels.valid;
+  if (!ws.prepared_ok) return;
+  // Intensity labels: 0 for black, 1 for white. Coordinates in units of the tag size: the
+  // dictionary does not depend on t.
+  const float black = levels.black, white = levels.white;
+  for (const auto& p : points)
+    ws.prepared.push_back(
+        {p.x / t, p.y / t, p.z / t, (p.intensity - black) / static_cast<double>(white - black)});
+}
+
+DecodeResult decode_tag(std::span<const ClusterPoint> points, const IntensityLevels& levels,
+                        double t, const RkhsDictionary& dict, const DecodeOptions& opt,
+                        DecodeWorkspace& ws) {
+  prepare_decode(points, levels, t, ws);
+  return decode_prepared(dict, opt, ws);
+}
+
+DecodeResult decode_prepared(const RkhsDictionary& dict, const DecodeOptions& opt,
+                             DecodeWorkspace& ws) {
+  DecodeResult res;
+  if (!ws.prepared_ok) return res;
+  if (ws.levels.white - ws.levels.black < opt.min_contrast) return res;
 
   const int W = dict.width();
   const int S = std::max(opt.samples_per_cell, 1);
@@ -111,11 +145,10 @@ DecodeResult decode_tag(std::span<const ClusterPoint> points, double t, const Rk
     }
     return n + 1;
   };
-  for (const auto& p : points) {
-    const double label = (p.intensity - black) / static_cast<double>(white - black);
-    const double yn = p.y / t, zn = p.z / t;
+  for (const auto& p : ws.prepared) {
+    const double label = p.label, yn = p.yn, zn = p.zn;
     // 3-D lifting remark: the normal coordinate carries the intensity.
-    const double xl = p.x / t + lift * label;
+    const double xl = p.xn + lift * label;
     // Sample j sits at (j + 0.5) / N - 0.5 across (y) and 0.5 - (j + 0.5) / N down (z).
     const double fc = (yn + 0.5) * N - 0.5, fr = (0.5 - zn) * N - 0.5;
     if (!(std::fabs(fc) <= 4.0 * N && std::fabs(fr) <= 4.0 * N)) continue;  // far off the tag

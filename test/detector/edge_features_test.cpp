@@ -172,5 +172,38 @@ TEST(EdgeFeatures, EdgesAreFoundWhereverTheyFallInARing) {
   }
 }
 
+// Inside a ring the neighbour behind a dropout is found from the window's returns at once, near
+// the ends column by column: a dropout of any length next to an object at any column gives the
+// same features as the rule says (gaps up to max_gap are bridged, longer ones are sky).
+TEST(EdgeFeatures, DropoutsAreBridgedTheSameWayAnywhereInARing) {
+  const FeatureOptions opt;
+  for (int gap = 1; gap <= opt.max_gap + 2; ++gap) {
+    for (int start = 1; start < 30; ++start) {
+      std::vector<float> r(40, 10.0f);  // a wall; an object 4 m in front, then a dropout
+      const int end = std::min(start + 4, 39);
+      for (int c = start; c <= end; ++c) r[static_cast<size_t>(c)] = 6.0f;
+      for (int c = end + 1; c <= end + gap && c < 40; ++c) r[static_cast<size_t>(c)] = 0.0f;
+      const Scan s = ring_of(r);
+      std::vector<Feature> f;
+      std::vector<float> g;
+      detect_edge_features(s, opt, f, g);
+      // The object's right end is an edge whether the wall behind the dropout is reached (a
+      // range step of 4 m) or not (no return: infinitely far).
+      const auto has = [&](int col, int side) {
+        return std::any_of(f.begin(), f.end(),
+                           [&](const Feature& e) { return e.col == col && e.side == side; });
+      };
+      EXPECT_TRUE(has(start, -1)) << "object at " << start << ", gap " << gap;
+      EXPECT_TRUE(has(end, 1)) << "object at " << start << ", gap " << gap;
+      // Beyond max_gap the wall after the dropout starts against the sky: its first column is an
+      // edge too; a bridged dropout leaves the wall's columns quiet.
+      const int wall = end + gap + 1;
+      if (wall < 39) {
+        EXPECT_EQ(has(wall, -1), gap > opt.max_gap) << "object at " << start << ", gap " << gap;
+      }
+    }
+  }
+}
+
 }  // namespace
 }  // namespace lidartag::detector

@@ -153,6 +153,70 @@ TEST(RkhsDecoder, NoContrastIsRejected) {
   EXPECT_EQ(decode_tag(pts, 1.0, dict, DecodeOptions{}, ws).rejection, Rejection::kLowContrast);
 }
 
+TEST(RkhsDecoder, IntensityLevelsAreTheMediansOfEachSideOfTheMean) {
+  std::vector<ClusterPoint> pts(7);
+  // Mean 100: below it 10, 20, 90 (median 20); at or above it 100, 110, 120, 250 (median 120).
+  const std::array<float, 7> in = {90.0f, 250.0f, 10.0f, 110.0f, 100.0f, 20.0f, 120.0f};
+  for (size_t i = 0; i < pts.size(); ++i) pts[i].intensity = in[i];
+  DecodeWorkspace ws;
+  const IntensityLevels lv = intensity_levels(pts, ws);
+  ASSERT_TRUE(lv.valid);
+  EXPECT_EQ(lv.black, 20.0f);
+  EXPECT_EQ(lv.white, 120.0f);
+  for (auto& p : pts) p.intensity = 50.0f;  // one level only: nothing below the mean
+  EXPECT_FALSE(intensity_levels(pts, ws).valid);
+  EXPECT_FALSE(intensity_levels({}, ws).valid);
+}
+
+// The detector computes the levels once per cluster and decodes every shift and family with them:
+// the same result as computing them in each call.
+TEST(RkhsDecoder, DecodingWithPrecomputedLevelsGivesTheSameResult) {
+  for (const char* name : {"tag16h5", "tag25h9", "tag36h11"}) {
+    const RkhsDictionary dict(tags::builtin_family(name));
+    std::vector<ClusterPoint> pts;
+    synth(dict.family(), 2, 1, {dict.width() * 3 + 3}, 2, pts);
+    DecodeWorkspace ws;
+    const DecodeResult a = decode_tag(pts, 1.0, dict, DecodeOptions{}, ws);
+    const DecodeResult b =
+        decode_tag(pts, intensity_levels(pts, ws), 1.0, dict, DecodeOptions{}, ws);
+    EXPECT_EQ(a.rejection, b.rejection) << name;
+    EXPECT_EQ(a.function, b.function) << name;
+    EXPECT_EQ(a.second_function, b.second_function) << name;
+    EXPECT_EQ(a.score, b.score) << name;
+    EXPECT_EQ(a.second_score, b.second_score) << name;
+    EXPECT_EQ(a.margin_bits, b.margin_bits) << name;
+    EXPECT_EQ(a.function, 9) << name;  // code 2, one quarter turn
+    EXPECT_EQ(decode_tag(pts, IntensityLevels{}, 1.0, dict, DecodeOptions{}, ws).rejection,
+              Rejection::kLowContrast)
+        << name;
+  }
+}
+
+// One preparation serves every family: decoding it against another dictionary in between leaves
+// it as it was, and each family decodes it as decode_tag does.
+TEST(RkhsDecoder, PreparedPointsDecodeAgainstSeveralFamilies) {
+  const RkhsDictionary d16(tags::builtin_family("tag16h5")), d25(tags::builtin_family("tag25h9"));
+  std::vector<ClusterPoint> pts;
+  synth(d16.family(), 4, 2, {}, 2, pts);
+  DecodeWorkspace ws, ref;
+  prepare_decode(pts, intensity_levels(pts, ws), 1.0, ws);
+  const DecodeResult first = decode_prepared(d16, DecodeOptions{}, ws);
+  const DecodeResult other = decode_prepared(d25, DecodeOptions{}, ws);
+  const DecodeResult again = decode_prepared(d16, DecodeOptions{}, ws);
+  EXPECT_EQ(first.function, 18);  // code 4, two quarter turns
+  EXPECT_EQ(first.rejection, Rejection::kNone);
+  EXPECT_EQ(again.function, first.function);
+  EXPECT_EQ(again.score, first.score);
+  EXPECT_EQ(again.margin_bits, first.margin_bits);
+  const DecodeResult other_ref = decode_tag(pts, 1.0, d25, DecodeOptions{}, ref);
+  EXPECT_EQ(other.function, other_ref.function);
+  EXPECT_EQ(other.score, other_ref.score);
+  EXPECT_EQ(other.rejection, other_ref.rejection);
+  // Too few points: nothing to decode.
+  prepare_decode(std::span<const ClusterPoint>(pts.data(), 3), intensity_levels(pts, ws), 1.0, ws);
+  EXPECT_EQ(decode_prepared(d16, DecodeOptions{}, ws).function, -1);
+}
+
 TEST(RkhsDecoder, ARandomPatternIsNotDecoded) {
   // Cells of random colour: the white ring and black border do not match any function.
   const RkhsDictionary dict(tags::builtin_family("tag16h5"));

@@ -71,9 +71,27 @@ class RkhsDictionary {
   Eigen::MatrixXf varying_signs_;  // functions x varying cells, column-major
 };
 
+// The black and the white intensity level of a cluster: the points split around their mean
+// intensity, the median of each side. Invalid for no points.
+struct IntensityLevels {
+  float black = 0.0f;
+  float white = 0.0f;
+  bool valid = false;
+};
+
+// A point as every family decodes it: coordinates in units of the tag size, intensity label (0
+// black, 1 white).
+struct DecodePoint {
+  double xn = 0, yn = 0, zn = 0;
+  double label = 0;
+};
+
 // Scratch memory of decode_tag, reused between calls (no allocation once grown).
 struct DecodeWorkspace {
-  std::vector<double> acc;      // per cell: white minus black kernel sums
+  std::vector<DecodePoint> prepared;  // the points of prepare_decode
+  IntensityLevels levels;             // their levels
+  bool prepared_ok = false;           // enough points, a valid size and levels
+  std::vector<double> acc;            // per cell: white minus black kernel sums
   std::vector<float> evidence;  // per cell: the same in float, what the functions are scored on
   std::vector<double> ex, ez;   // per point: kernel factors of the sample columns and rows
   std::vector<float> sorted;    // intensity medians
@@ -95,9 +113,24 @@ struct DecodeResult {
   double cells_per_score = 0.0;
 };
 
+// The levels of `points` (uses ws.sorted).
+IntensityLevels intensity_levels(std::span<const ClusterPoint> points, DecodeWorkspace& ws);
+
+// decode_tag in two steps, for several families decoding the same points: prepare_decode keeps
+// what does not depend on the family in `ws`, decode_prepared decodes it against one dictionary.
+void prepare_decode(std::span<const ClusterPoint> points, const IntensityLevels& levels, double t,
+                    DecodeWorkspace& ws);
+DecodeResult decode_prepared(const RkhsDictionary& dict, const DecodeOptions& opt,
+                             DecodeWorkspace& ws);
+
 // `points` are pulled back into the estimated tag frame (x normal, y right, z up, metres) with
 // their intensities; t is the tag size.
 DecodeResult decode_tag(std::span<const ClusterPoint> points, double t, const RkhsDictionary& dict,
                         const DecodeOptions& opt, DecodeWorkspace& ws);
+// The same with the levels of intensity_levels(points) computed once: they do not change when the
+// points move (shifts) or another family is tried.
+DecodeResult decode_tag(std::span<const ClusterPoint> points, const IntensityLevels& levels,
+                        double t, const RkhsDictionary& dict, const DecodeOptions& opt,
+                        DecodeWorkspace& ws);
 
 }  // namespace lidartag::detector
