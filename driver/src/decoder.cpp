@@ -5,6 +5,8 @@
 #include <numbers>
 #include <vector>
 
+#include "angles.hpp"
+
 namespace lidartag::velodyne {
 namespace {
 
@@ -32,18 +34,6 @@ const TrigTable& trig() {
   return t;
 }
 
-inline double wrap360(double deg) {
-  deg = std::fmod(deg, 360.0);
-  return deg < 0 ? deg + 360.0 : deg;
-}
-
-// For angles already within one turn of [0, 360): the per-point hot path.
-inline float wrap_near(float deg) {
-  if (deg < 0) deg += 360.0f;
-  if (deg >= 360.0f) deg -= 360.0f;
-  return deg;
-}
-
 // One firing of up to 32 lasers, in laser order: the echoes in, the points out.
 struct FiringPoints {
   std::array<uint16_t, 32> distance;
@@ -52,7 +42,8 @@ struct FiringPoints {
   std::array<float, 32> x, y, z, range, azimuth_deg, time_us;
 };
 
-struct ColumnContext {
+// What every firing of a packet shares: distance unit, range limits, lasers per firing.
+struct PacketContext {
   double unit_m, min_range_m, max_range_m;
   int lasers;
 };
@@ -65,7 +56,7 @@ struct Firing {
 // Points of one firing, in laser order, branch-free so that it vectorises. The (cos, sin) of a
 // point's azimuth are the firing's, turned by the laser's offset and by eps, the spin during the
 // laser's delay in the sequence (under 0.5 deg: two terms of its series are exact to 1e-10).
-void compute_firing(const detail::LaserTable& __restrict t, int base, const ColumnContext& cc,
+void compute_firing(const detail::LaserTable& __restrict t, int base, const PacketContext& cc,
                     const Firing& fr, FiringPoints& __restrict pts) {
   // Invariants in locals: the compiler cannot hoist loads that the stores might alias.
   const auto min_r = static_cast<float>(cc.min_range_m), max_r = static_cast<float>(cc.max_range_m);
@@ -94,9 +85,7 @@ void compute_firing(const detail::LaserTable& __restrict t, int base, const Colu
     pts.y[uj] = (t.horiz_offset_m[l] * ca - xy * sa) * okf;
     pts.z[uj] = (d * t.sin_el[l] + t.v_cos[l]) * okf;
     pts.range[uj] = d * okf;
-    float az = az0 + rate_deg * t.time_us[l] - t.az_offset_deg[l];
-    az = az < 0.0f ? az + 360.0f : az;
-    pts.azimuth_deg[uj] = az >= 360.0f ? az - 360.0f : az;
+    pts.azimuth_deg[uj] = wrap_near(az0 + rate_deg * t.time_us[l] - t.az_offset_deg[l]);
     pts.time_us[uj] = t0 + t.time_us[l];
     pts.return_type[uj] =
         static_cast<ReturnType>(static_cast<uint8_t>(pts.return_type[uj]) * uint8_t{ok});
@@ -279,7 +268,7 @@ DecodeStatus Decoder::decode(std::span<const uint8_t> payload, const SensorClock
   const float* sin_t = sin_table_;
   const float* cos_t = cos_table_;
 
-  const ColumnContext cc{unit, min_range_m_, max_range_m_, lasers_per_firing};
+  const PacketContext cc{unit, min_range_m_, max_range_m_, lasers_per_firing};
   FiringPoints pts[2];
   const auto n_lasers = static_cast<size_t>(lasers_per_firing);
   for (int g = 0; g < groups; ++g) {

@@ -3,16 +3,10 @@
 #include <algorithm>
 #include <cmath>
 
+#include "angles.hpp"
+
 namespace lidartag::velodyne {
 namespace {
-
-inline double wrap360(double deg) {
-  // Differences of two azimuths in [0, 360) need one add, not a division (per column).
-  if (deg >= 0 && deg < 360.0) return deg;
-  if (deg < 0 && deg >= -360.0) return deg + 360.0;
-  deg = std::fmod(deg, 360.0);
-  return deg < 0 ? deg + 360.0 : deg;
-}
 
 // A time step this far from the firing period is a discontinuity of the stream (sensor restart,
 // replay loop), not loss.

@@ -29,6 +29,19 @@ std::vector<ClusterPoint> tag_cloud(const Eigen::Matrix3d& R, const Eigen::Vecto
   return pts;
 }
 
+// A starting pose for the fit of a tag at rotation R and centre c: turned by `angle` radians about
+// a random axis and moved by up to `offset` metres along each axis.
+RigidPose perturbed_start(const Eigen::Matrix3d& R, const Eigen::Vector3d& c, double angle,
+                          double offset, std::mt19937& rng) {
+  std::uniform_real_distribution<double> u(-1, 1);
+  RigidPose init;
+  init.R = Eigen::AngleAxisd(angle, Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized())
+               .toRotationMatrix() *
+           R.transpose();
+  init.p = -init.R * c + offset * Eigen::Vector3d(u(rng), u(rng), u(rng));
+  return init;
+}
+
 Eigen::Matrix3d truth_rotation() {
   return (Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()) *
           Eigen::AngleAxisd(2.8, Eigen::Vector3d::UnitZ()) *
@@ -95,7 +108,6 @@ TEST(PoseFit, AlgorithmsCompared) {
   const Eigen::Matrix3d R = truth_rotation();
   const Eigen::Vector3d c(8, 2, 0.5);
   std::mt19937 rng(5);
-  std::uniform_real_distribution<double> u(-1, 1);
   double default_worst_t = 0, default_worst_r = 0;
   for (auto alg : {PoseAlgorithm::kMMA, PoseAlgorithm::kCCSAQ, PoseAlgorithm::kSLSQP,
                    PoseAlgorithm::kSBPLX, PoseAlgorithm::kBOBYQA}) {
@@ -106,11 +118,7 @@ TEST(PoseFit, AlgorithmsCompared) {
     const int trials = 20;
     for (int k = 0; k < trials; ++k) {
       const auto pts = tag_cloud(R, c, 1.2, 0.01, static_cast<uint32_t>(10 + k));
-      RigidPose init;
-      init.R = Eigen::AngleAxisd(0.08, Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized())
-                   .toRotationMatrix() *
-               R.transpose();
-      init.p = -init.R * c + 0.05 * Eigen::Vector3d(u(rng), u(rng), u(rng));
+      const RigidPose init = perturbed_start(R, c, 0.08, 0.05, rng);
       const PoseFitResult r = solver.fit(pts, 1.2, 0.01, init, PoseOptions{});
       if (alg == PoseOptions{}.algorithm) {
         EXPECT_LT(r.cost, 0.5 * r.initial_cost);
@@ -176,18 +184,13 @@ TEST(PoseFit, AbsoluteToleranceStopsEarlyAtTheSamePose) {
   const Eigen::Matrix3d R = truth_rotation();
   const Eigen::Vector3d c(8, 2, 0.5);
   std::mt19937 rng(9);
-  std::uniform_real_distribution<double> u(-1, 1);
   PoseSolver solver(PoseAlgorithm::kMMA);
   PoseOptions tight;
   tight.xtol_abs = 0.0;
   int evals = 0, evals_tight = 0;
   for (int k = 0; k < 10; ++k) {
     const auto pts = tag_cloud(R, c, 1.2, 0.01, static_cast<uint32_t>(30 + k));
-    RigidPose init;
-    init.R = Eigen::AngleAxisd(0.05, Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized())
-                 .toRotationMatrix() *
-             R.transpose();
-    init.p = -init.R * c + 0.03 * Eigen::Vector3d(u(rng), u(rng), u(rng));
+    const RigidPose init = perturbed_start(R, c, 0.05, 0.03, rng);
     const PoseFitResult a = solver.fit(pts, 1.2, 0.01, init, PoseOptions{});
     const PoseFitResult b = solver.fit(pts, 1.2, 0.01, init, tight);
     evals += a.evaluations;

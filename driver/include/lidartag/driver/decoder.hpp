@@ -71,7 +71,7 @@ struct DecoderOptions {
   double max_range_m = 0.0;
 };
 
-// Decodes data packets of one sensor. Holds the calibration, sin/cos tables and the last measured
+// Decodes data packets of one sensor. Holds the calibration, per-laser constants and the last measured
 // rotation rate (used where a packet's own azimuths cannot give it).
 class Decoder {
  public:
@@ -95,7 +95,7 @@ class Decoder {
   detail::LaserTable lasers_{};
   std::array<uint8_t, 128> laser_of_ring_{};
   double rate_deg_per_us_;
-  const float* sin_table_;  // sin of azimuth in 0.01 deg steps, 36001 entries
+  const float* sin_table_;  // sin of azimuth in 0.01 deg steps, 36002 entries
   const float* cos_table_;
   // Previous packet, to measure the rate where a packet holds one azimuth (VLS-128 dual).
   bool have_previous_ = false;
