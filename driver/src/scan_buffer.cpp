@@ -81,14 +81,22 @@ uint32_t ScanBuffer::index_of(const Scan* scan) const {
 }
 
 Scan* ScanBuffer::acquire() {
-  uint32_t i;
-  if (free_.pop(i)) return scans_[i].get();
-  // Consumers fell behind: recycle the oldest rotation still waiting.
-  if (ready_.pop(i)) {
-    dropped_.fetch_add(1, std::memory_order_relaxed);
-    return scans_[i].get();
+  for (;;) {
+    // Read before the pops: a release that ended before this load is visible to them.
+    const int releasing = releasing_.load(std::memory_order_acquire);
+    uint32_t i;
+    if (free_.pop(i)) return scans_[i].get();
+    // Consumers fell behind: recycle the oldest rotation still waiting.
+    if (ready_.pop(i)) {
+      dropped_.fetch_add(1, std::memory_order_relaxed);
+      return scans_[i].get();
+    }
+    // A queue cell whose push is half done hides it and every later cell from pop(). With a
+    // consumer's release in that state the scan is free but not yet visible: wait for the push
+    // (a few instructions) rather than drop a rotation. Seen under ThreadSanitizer, where a
+    // preempted release made thousands of acquires in a row fail.
+    if (releasing == 0) return nullptr;  // every scan is held by a consumer: the caller drops
   }
-  return nullptr;  // every scan is held by a consumer: the caller drops this rotation
 }
 
 void ScanBuffer::publish(Scan* scan) {
@@ -114,7 +122,10 @@ Scan* ScanBuffer::pop() {
 
 void ScanBuffer::release(Scan* scan) {
   const uint32_t i = index_of(scan);
-  if (i < scans_.size()) push_index(free_, i);
+  if (i >= scans_.size()) return;
+  releasing_.fetch_add(1, std::memory_order_acq_rel);
+  push_index(free_, i);
+  releasing_.fetch_sub(1, std::memory_order_release);
 }
 
 size_t ScanBuffer::ready_count() const {

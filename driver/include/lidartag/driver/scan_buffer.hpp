@@ -39,7 +39,8 @@ class ScanBuffer final : public ScanSink {
   // scan at a time (between pop and release). Every scan is reserved here, once.
   ScanBuffer(size_t depth, size_t consumers, int rings, int returns, int column_capacity);
 
-  // Producer side (one thread).
+  // Producer side (one thread). acquire() waits only for a consumer's release() that is half done
+  // (a scan that is free but not yet visible); nullptr when every scan is really taken.
   Scan* acquire() override;
   void publish(Scan* scan) override;
 
@@ -58,6 +59,8 @@ class ScanBuffer final : public ScanSink {
   IndexQueue free_;
   IndexQueue ready_;
   std::atomic<uint64_t> published_{0}, popped_{0}, dropped_{0};
+  // Releases under way: their index is on its way into free_ and not yet visible to a pop.
+  std::atomic<int> releasing_{0};
   size_t depth_ = 0;
   uint32_t index_of(const Scan* scan) const;
   static void push_index(IndexQueue& queue, uint32_t index);
