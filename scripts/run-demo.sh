@@ -7,6 +7,6 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install-deps.sh
 cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo
-cmake --build build -j "$(nproc)" --target lidartagd lidartag
+cmake --build build -j "$(nproc)" --target lidartagd lidartag lidartag_lcmtypes_jar
 build/bin/lidartagd --config config/demo.yaml --max-speed --print-detections "$@"
 echo "LCM log: /tmp/lidartag-demo.lcmlog (lcm-logplayer, or build/bin/lidartag-spy to inspect)"

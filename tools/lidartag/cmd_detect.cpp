@@ -323,6 +323,7 @@ const Registrar kDetect(
     [](CLI::App& app) -> RunFunction {
       auto args = std::make_shared<DetectArgs>();
       add_capture_options(app, args->capture);
+      app.get_option("capture")->description("pcap or pcapng file, or a PCD point cloud");
       app.add_option("--config", args->config,
                      "YAML file whose `detector:` section sets the detector's options "
                      "(config/lidartagd.yaml)")

@@ -26,8 +26,9 @@ struct BatcherOptions {
   double cut_azimuth_deg = 180.0;
   // A rotation in progress is delivered (incomplete) when no packet arrived for this long.
   double flush_timeout_s = 0.25;
-  // An azimuth step larger than this between consecutive columns that packet timing does not
-  // explain is a jump (sensor restart): the rotation in progress is delivered incomplete.
+  // An azimuth step larger than this between consecutive columns without a time gap is the
+  // blanked sector of a restricted field of view (counted in fov_gaps, the rotation goes on), not
+  // lost packets. A time step of a second or more, or backwards, is a jump (restart).
   double max_column_step_deg = 5.0;
 };
 

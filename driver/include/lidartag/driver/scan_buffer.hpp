@@ -1,6 +1,6 @@
 // Lock-free, bounded, preallocated hand-over of rotations from the receiving thread to consumers.
-// The producer never blocks: when consumers fall behind, the oldest queued rotation is recycled
-// and counted as dropped.
+// The producer never waits for a consumer (only for a release already under way to finish its
+// push): when consumers fall behind, the oldest queued rotation is recycled and counted as dropped.
 #pragma once
 
 #include <atomic>
