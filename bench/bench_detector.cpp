@@ -2,7 +2,7 @@
 // rotations of pcaps/demo.pcap (lab, VLP-32C, two tags) and pcaps/outdoor.pcap (parking lot,
 // VLP-32C, three tags), single-threaded.
 //
-//   bench_detector [--benchmark_min_time=2s]
+//   bench_detector [--benchmark_min_time=2]
 //
 // BM_Detect: one call of Detector::detect per iteration, cycling over the capture's rotations.
 // Counters: the median over the iterations of each stage's time (ms, from ScanResult::timing_ms),

@@ -558,10 +558,14 @@ void visit(V& v, DaemonOptions& o) {
   v.section("lcm", [&](V& s) {
     s.field("url", o.lcm.url);
     s.field("publish_raw", o.lcm.publish_raw);
+    s.field("publish_tag_points", o.detector.keep_tag_points);
+    s.field("cloud_decimation", o.lcm.cloud_decimation, at_least(0));
     s.section("channels", [&](V& c) {
       c.field("detections", o.lcm.channels.detections, non_empty());
       c.field("status", o.lcm.channels.status, non_empty());
       c.field("raw", o.lcm.channels.raw, non_empty());
+      c.field("tag_points", o.lcm.channels.tag_points, non_empty());
+      c.field("cloud", o.lcm.channels.cloud, non_empty());
     });
   });
   v.section("pipeline", [&](V& s) {
@@ -612,6 +616,22 @@ void check_relations(const DaemonOptions& o) {
     if (src.kind == SourceKind::kInterface && src.interface.empty()) {
       throw ConfigError(key + ".source.interface", src.interface,
                         "required for source kind interface");
+    }
+  }
+  // Each channel carries one type (a subscriber decodes by channel).
+  const auto& ch = o.lcm.channels;
+  const std::array<std::pair<const char*, const std::string*>, 5> channels = {
+      {{"detections", &ch.detections},
+       {"status", &ch.status},
+       {"raw", &ch.raw},
+       {"tag_points", &ch.tag_points},
+       {"cloud", &ch.cloud}}};
+  for (size_t i = 1; i < channels.size(); ++i) {
+    for (size_t j = 0; j < i; ++j) {
+      if (*channels[i].second == *channels[j].second) {
+        throw ConfigError(fmt::format("lcm.channels.{}", channels[i].first), *channels[i].second,
+                          fmt::format("same as lcm.channels.{}", channels[j].first));
+      }
     }
   }
   const auto& f = o.detector.features;

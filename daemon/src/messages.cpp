@@ -1,6 +1,8 @@
 #include "lidartag/daemon/messages.hpp"
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 
 namespace lidartag::daemon {
 
@@ -51,6 +53,65 @@ void fill_detections(const RotationResult& r, const std::string& sensor,
   out.ndetections = static_cast<int32_t>(detections.size());
   out.detections.resize(detections.size());
   for (size_t i = 0; i < detections.size(); ++i) fill_detection(detections[i], out.detections[i]);
+}
+
+void fill_tag_points(const RotationResult& r, const std::string& sensor,
+                     const std::string& frame_id, lidartag::tag_points_t& out) {
+  out.utime = r.stamp_ns / 1000;
+  out.frame_id = frame_id;
+  out.sensor = sensor;
+  out.sequence = static_cast<int64_t>(r.sequence);
+  const auto& detections = r.detection.detections;
+  const size_t n = detections.size();
+  out.ntags = static_cast<int32_t>(n);
+  out.family.resize(n);
+  out.id.resize(n);
+  out.first_point.resize(n);
+  out.tag_npoints.resize(n);
+  // Packed again from the detections' own spans: the message is consistent whatever
+  // ScanResult::tag_points holds beyond them.
+  size_t total = 0;
+  for (const auto& d : detections) total += r.detection.points_of(d).size();
+  out.npoints = static_cast<int32_t>(total);
+  out.x.resize(total);
+  out.y.resize(total);
+  out.z.resize(total);
+  out.intensity.resize(total);
+  out.ring.resize(total);
+  size_t k = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const auto& d = detections[i];
+    const auto points = r.detection.points_of(d);
+    out.family[i].assign(d.family.data(), d.family.size());
+    out.id[i] = d.id;
+    out.first_point[i] = static_cast<int32_t>(k);
+    out.tag_npoints[i] = static_cast<int32_t>(points.size());
+    for (const auto& p : points) {
+      out.x[k] = p.x;
+      out.y[k] = p.y;
+      out.z[k] = p.z;
+      out.intensity[k] = static_cast<uint8_t>(std::clamp(std::lround(p.intensity), 0L, 255L));
+      out.ring[k] = static_cast<uint8_t>(p.ring);
+      ++k;
+    }
+  }
+}
+
+void fill_point_cloud(const RotationResult& r, const std::string& sensor,
+                      const std::string& frame_id, lidartag::point_cloud_t& out) {
+  const DecimatedCloud& c = r.cloud;
+  out.utime = r.stamp_ns / 1000;
+  out.frame_id = frame_id;
+  out.sensor = sensor;
+  out.sequence = static_cast<int64_t>(r.sequence);
+  out.decimation = c.decimation;
+  out.columns = c.columns;
+  out.npoints = static_cast<int32_t>(c.size());
+  out.x.assign(c.x.begin(), c.x.end());
+  out.y.assign(c.y.begin(), c.y.end());
+  out.z.assign(c.z.begin(), c.z.end());
+  out.intensity.assign(c.intensity.begin(), c.intensity.end());
+  out.ring.assign(c.ring.begin(), c.ring.end());
 }
 
 void fill_status(const SensorStatus& s, int64_t utime, double uptime_s, lidartag::status_t& out) {

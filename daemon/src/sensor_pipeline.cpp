@@ -123,6 +123,8 @@ SensorPipeline::SensorPipeline(const SensorOptions& sensor, const DaemonOptions&
                                                      sensor.source.kind == SourceKind::kLcm)),
       detections_channel_(channel_of(sensor, options.lcm.channels.detections)),
       raw_channel_(channel_of(sensor, options.lcm.channels.raw)),
+      tag_points_channel_(channel_of(sensor, options.lcm.channels.tag_points)),
+      cloud_channel_(channel_of(sensor, options.lcm.channels.cloud)),
       ordered_(static_cast<size_t>(workers), static_cast<size_t>(options.pipeline.publish_queue)),
       snapshot_(std::make_unique<Snapshot>()) {
   for (int i = 0; i < workers_; ++i) {
@@ -309,6 +311,7 @@ void SensorPipeline::process(OrderedResults::Slot* slot) {
   // Isolated: while this thread waits inside the detector's own parallel loops it must not pick
   // up another rotation, which would delay this one (and the publication order) behind it.
   tbb::this_task_arena::isolate([&] { detector.detect(scan, r.detection); });
+  decimate_scan(scan, options_.lcm.cloud_decimation, r.cloud);
   r.detected_ns = steady_ns();
   buffer_ptr_.load(std::memory_order_relaxed)->release(slot->scan);
   processed_.fetch_add(1, std::memory_order_relaxed);
@@ -329,6 +332,15 @@ void SensorPipeline::publish(OrderedResults::Slot* slot) {
   fill_detections(r, sensor_.name, sensor_.frame_id, wall_utime(), ms(before - assembled),
                   static_cast<int64_t>(dropped_rotations()), message_);
   bus_.publish(detections_channel_, message_);
+  // The visualisation messages follow their rotation's detections, in rotation order too.
+  if (options_.detector.keep_tag_points && !r.detection.detections.empty()) {
+    fill_tag_points(r, sensor_.name, sensor_.frame_id, tag_points_message_);
+    bus_.publish(tag_points_channel_, tag_points_message_);
+  }
+  if (options_.lcm.cloud_decimation > 0) {
+    fill_point_cloud(r, sensor_.name, sensor_.frame_id, cloud_message_);
+    bus_.publish(cloud_channel_, cloud_message_);
+  }
   const int64_t after = steady_ns();
   published_.fetch_add(1, std::memory_order_relaxed);
   detections_.fetch_add(r.detection.detections.size(), std::memory_order_relaxed);

@@ -98,6 +98,15 @@ double ScanResult::total_ms() const {
   return t;
 }
 
+std::span<const ClusterPoint> ScanResult::points_of(const Detection& d) const {
+  if (d.first_point < 0 || d.points < 0 ||
+      static_cast<size_t>(d.first_point) + static_cast<size_t>(d.points) > tag_points.size()) {
+    return {};
+  }
+  return std::span<const ClusterPoint>(tag_points)
+      .subspan(static_cast<size_t>(d.first_point), static_cast<size_t>(d.points));
+}
+
 uint32_t ScanResult::rejected_at(Stage s) const {
   uint32_t n = 0;
   for (int r = 1; r < kRejectionCount; ++r)
@@ -232,6 +241,7 @@ double horizontal_resolution(const Scan& s) {
 void Detector::detect(const Scan& scan, ScanResult& out) noexcept {
   out.detections.clear();
   out.diagnostics.clear();
+  out.tag_points.clear();
   out.timing_ms.fill(0.0);
   out.rejected.fill(0);
   out.features = out.clusters = 0;
@@ -504,6 +514,10 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
   det.margin = best.margin_bits;
   det.points = static_cast<int>(b.points.size());
   det.fit_cost = fit.cost;
+  if (opt_.keep_tag_points) {
+    det.first_point = static_cast<int>(out.tag_points.size());
+    out.tag_points.insert(out.tag_points.end(), b.points.begin(), b.points.end());
+  }
   out.detections.push_back(det);
   finish(Rejection::kNone);
 }

@@ -1,8 +1,11 @@
 #!/bin/sh
 # `cmake --install` (into a scratch DESTDIR, so nothing outside it is touched) puts the daemon's
-# files where the unit and lidartag-spy look for them. Usage: check_install.sh BUILD_DIR
+# files where the unit and lidartag-spy look for them, the jar holding every LCM type.
+# Usage: check_install.sh BUILD_DIR LCMTYPES_DIR JAR_TOOL
 set -eu
 build=$1
+lcmtypes=$2
+jar_tool=$3
 root=$(mktemp -d)
 trap 'rm -rf "$root"' EXIT
 DESTDIR=$root cmake --install "$build" >/dev/null
@@ -18,10 +21,19 @@ find_one() {
 daemon=$(find_one bin/lidartagd)
 spy=$(find_one bin/lidartag-spy)
 unit=$(find_one lib/systemd/system/lidartagd.service)
-find_one share/java/lidartag_lcmtypes.jar >/dev/null
+jar=$(find_one share/java/lidartag_lcmtypes.jar)
 find_one share/doc/lidartag/daemon.md >/dev/null
 config=$(find_one etc/lidartag/lidartagd.yaml)
 [ $status -eq 0 ] || exit 1
+# lcm-spy decodes what the jar holds: a class for each type of lcmtypes/.
+classes=$("$jar_tool" tf "$jar")
+for type in "$lcmtypes"/*.lcm; do
+  name=$(basename "$type" .lcm)
+  echo "$classes" | grep -qx "lidartag/$name.class" || {
+    echo "the jar has no lidartag/$name.class"
+    exit 1
+  }
+done
 # The unit starts the installed binary with the installed configuration (paths without DESTDIR).
 grep -q "^ExecStart=${daemon#"$root"} --config ${config#"$root"}\$" "$unit" || {
   echo "unit does not name the installed files:"

@@ -56,7 +56,8 @@ constexpr size_t field_count() {
 // The detector's option structs are still growing: a new field must get its key in config.cpp
 // (visit_detector) and config/lidartagd.yaml, then its count here.
 TEST(Config, EveryDetectorOptionIsMapped) {
-  EXPECT_EQ(field_count<detector::DetectorOptions>(), 10u);
+  // keep_tag_points is lcm.publish_tag_points (outside the detector section).
+  EXPECT_EQ(field_count<detector::DetectorOptions>(), 11u);
   EXPECT_EQ(field_count<detector::FeatureOptions>(), 7u);  // max_pair_chord_m is derived
   EXPECT_EQ(field_count<detector::ClusterOptions>(), 3u);  // max_extent_m is derived
   EXPECT_EQ(field_count<detector::ValidationOptions>(), 10u);
@@ -91,6 +92,37 @@ TEST(Config, PrintedConfigParsesBackToTheSameOptions) {
   EXPECT_EQ(back.sensors[0].source.file, "/tmp/a b.pcap");
   EXPECT_EQ(back.detector.tag_sizes_m, (std::vector<double>{0.8, 0.6}));
   EXPECT_EQ(back.detector.pose.algorithm, detector::PoseAlgorithm::kSBPLX);
+}
+
+TEST(Config, VisualisationOutputsAreOffByDefaultAndMappedOntoTheOptions) {
+  const DaemonOptions defaults;
+  EXPECT_FALSE(defaults.detector.keep_tag_points);
+  EXPECT_EQ(defaults.lcm.cloud_decimation, 0);
+  EXPECT_EQ(defaults.lcm.channels.tag_points, "LIDARTAG_TAG_POINTS");
+  EXPECT_EQ(defaults.lcm.channels.cloud, "LIDARTAG_CLOUD");
+  const std::string printed = print_config(defaults);
+  for (const char* key : {"publish_tag_points: false", "cloud_decimation: 0",
+                          "tag_points: \"LIDARTAG_TAG_POINTS\"", "cloud: \"LIDARTAG_CLOUD\""}) {
+    EXPECT_NE(printed.find(key), std::string::npos) << key << " in\n" << printed;
+  }
+  const DaemonOptions o = parse_config(R"(
+lcm:
+  publish_tag_points: true
+  cloud_decimation: 4
+  channels: {tag_points: PTS, cloud: CLOUD}
+)");
+  EXPECT_TRUE(o.detector.keep_tag_points);
+  EXPECT_EQ(o.lcm.cloud_decimation, 4);
+  EXPECT_EQ(o.lcm.channels.tag_points, "PTS");
+  EXPECT_EQ(o.lcm.channels.cloud, "CLOUD");
+  const DaemonOptions back = parse_config(print_config(o));
+  EXPECT_TRUE(back.detector.keep_tag_points);
+  EXPECT_EQ(back.lcm.cloud_decimation, 4);
+  EXPECT_EQ(back.lcm.channels.cloud, "CLOUD");
+  const DaemonOptions set =
+      parse_config("", {"lcm.publish_tag_points=true", "lcm.cloud_decimation=1"});
+  EXPECT_TRUE(set.detector.keep_tag_points);
+  EXPECT_EQ(set.lcm.cloud_decimation, 1);
 }
 
 TEST(Config, PartialFileKeepsDefaultsAndSensorEntriesStartFromDefaults) {
@@ -158,6 +190,14 @@ TEST(Config, EachBadKeyOrValueNamesKeyValueAndReason) {
       {"logging: {level: loud}", "logging.level", "loud", "expected trace"},
       {"logging: {journald: sometimes}", "logging.journald", "sometimes", "expected auto"},
       {"lcm: {channels: {status: \"\"}}", "lcm.channels.status", "", "must not be empty"},
+      {"lcm: {channels: {tag_points: \"\"}}", "lcm.channels.tag_points", "", "must not be empty"},
+      {"lcm: {channels: {cloud: LIDARTAG_STATUS}}", "lcm.channels.cloud", "LIDARTAG_STATUS",
+       "same as lcm.channels.status"},
+      {"lcm: {channels: {raw: X, tag_points: X}}", "lcm.channels.tag_points", "X",
+       "same as lcm.channels.raw"},
+      {"lcm: {cloud_decimation: -1}", "lcm.cloud_decimation", "-1", "must be >= 0"},
+      {"lcm: {cloud_decimation: 2.5}", "lcm.cloud_decimation", "2.5", "integer"},
+      {"lcm: {publish_tag_points: 1}", "lcm.publish_tag_points", "1", "true or false"},
       {"detector: {tag_sizes_m: [1.2, -1]}", "detector.tag_sizes_m[1]", "-1", "(0, 20)"},
       {"detector: {tag_sizes_m: 1.2}", "detector.tag_sizes_m", "1.2", "expected a list"},
       {"detector: {families: [tag99h1]}", "detector.families[0]", "tag99h1", "unknown tag family"},
@@ -205,6 +245,17 @@ TEST(Config, ValidateChecksOptionsBuiltInCode) {
   }
   o = DaemonOptions{};
   o.sensors[0].source.kind = SourceKind::kLcm;
+  EXPECT_THROW(validate(o), ConfigError);
+  o = DaemonOptions{};
+  o.lcm.cloud_decimation = -2;
+  try {
+    validate(o);
+    ADD_FAILURE() << "accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.key(), "lcm.cloud_decimation");
+  }
+  o = DaemonOptions{};
+  o.lcm.channels.cloud = o.lcm.channels.detections;
   EXPECT_THROW(validate(o), ConfigError);
 }
 

@@ -20,9 +20,11 @@
 #include "daemon/process.hpp"
 #include "fake_notify_socket.hpp"
 #include "lidartag/driver/io/pcap_source.hpp"
+#include "lidartag/point_cloud_t.hpp"
 #include "lidartag/raw_packet_t.hpp"
 #include "lidartag/status_t.hpp"
 #include "lidartag/tag_detections_t.hpp"
+#include "lidartag/tag_points_t.hpp"
 
 namespace lidartag::daemon {
 namespace {
@@ -111,6 +113,8 @@ struct Decoded {
   std::vector<lidartag::tag_detections_t> detections;
   std::vector<lidartag::status_t> status;
   std::vector<lidartag::raw_packet_t> raw;
+  std::vector<lidartag::tag_points_t> tag_points;
+  std::vector<lidartag::point_cloud_t> clouds;
 };
 
 Decoded read_log(const std::string& path, const std::string& prefix = "") {
@@ -126,6 +130,10 @@ Decoded read_log(const std::string& path, const std::string& prefix = "") {
       EXPECT_TRUE(decode(e->data, size, d.status.emplace_back()));
     } else if (e->channel == prefix + "LIDARTAG_RAW") {
       EXPECT_TRUE(decode(e->data, size, d.raw.emplace_back()));
+    } else if (e->channel == prefix + "LIDARTAG_TAG_POINTS") {
+      EXPECT_TRUE(decode(e->data, size, d.tag_points.emplace_back()));
+    } else if (e->channel == prefix + "LIDARTAG_CLOUD") {
+      EXPECT_TRUE(decode(e->data, size, d.clouds.emplace_back()));
     }
   }
   return d;
@@ -159,6 +167,9 @@ TEST(Replay, DemoIntoAnLcmLogEveryRotationInOrderWithTheTruthTags) {
   EXPECT_EQ(last.model, "vlp32c");
   EXPECT_EQ(last.return_mode, "strongest");
   EXPECT_GT(last.packets_received, 0);
+  // The visualisation messages are off by default.
+  EXPECT_TRUE(d.tag_points.empty());
+  EXPECT_TRUE(d.clouds.empty());
   // One printed line per rotation, in order.
   const auto lines = lines_of(p.out());
   ASSERT_EQ(lines.size(), d.detections.size());
@@ -212,6 +223,53 @@ TEST(Replay, TwoSensorsPublishOnTheirOwnPrefixedChannels) {
     EXPECT_EQ(r.frame_id, "velodyne_rear");
   }
   EXPECT_TRUE(read_log(log).detections.empty());  // nothing on the unprefixed channel
+}
+
+TEST(Replay, TagPointsAndDecimatedCloudOnThePrefixedChannels) {
+  REQUIRE_DEMO();
+  const std::string log = temp("visual.lcmlog");
+  Process p({kDaemon, "--config", kDemoConfig, "--replay", kDemo, "--max-speed", "--lcm-url",
+             "file://" + log + "?mode=w", "--set", "sensors[0].channel_prefix=FRONT_", "--set",
+             "lcm.publish_tag_points=true", "--set", "lcm.cloud_decimation=10"},
+            {}, temp("visual"));
+  ASSERT_EQ(p.wait(120s), 0) << p.err();
+  const Decoded d = read_log(log, "FRONT_");
+  ASSERT_FALSE(d.status.empty());
+  expect_truthful(d.detections, static_cast<uint64_t>(d.status.back().rotations_assembled));
+  // A cloud per rotation: every 10th column.
+  ASSERT_EQ(d.clouds.size(), d.detections.size());
+  for (size_t i = 0; i < d.clouds.size(); ++i) {
+    const auto& c = d.clouds[i];
+    const auto& r = d.detections[i];
+    EXPECT_EQ(c.sequence, r.sequence);
+    EXPECT_EQ(c.utime, r.utime);
+    EXPECT_EQ(c.decimation, 10);
+    EXPECT_EQ(c.columns, (r.columns + 9) / 10);
+    EXPECT_EQ(c.npoints, static_cast<int32_t>(c.x.size()));
+    // Roughly a tenth of the rotation's returns (the room surrounds the sensor).
+    EXPECT_NEAR(c.npoints, r.points / 10, r.points / 50 + 40) << "rotation " << i;
+  }
+  // Tag points for each rotation with detections, matching them.
+  auto points = d.tag_points.begin();
+  for (const auto& r : d.detections) {
+    if (r.ndetections == 0) continue;
+    ASSERT_NE(points, d.tag_points.end());
+    const auto& t = *points++;
+    EXPECT_EQ(t.sequence, r.sequence);
+    ASSERT_EQ(t.ntags, r.ndetections);
+    int32_t total = 0;
+    for (size_t i = 0; i < r.detections.size(); ++i) {
+      EXPECT_EQ(t.family[i], r.detections[i].family);
+      EXPECT_EQ(t.id[i], r.detections[i].id);
+      EXPECT_EQ(t.tag_npoints[i], r.detections[i].points);
+      total += t.tag_npoints[i];
+    }
+    EXPECT_EQ(t.npoints, total);
+  }
+  EXPECT_EQ(points, d.tag_points.end());
+  EXPECT_FALSE(d.tag_points.empty());
+  const Decoded unprefixed = read_log(log);
+  EXPECT_TRUE(unprefixed.tag_points.empty() && unprefixed.clouds.empty());
 }
 
 TEST(Replay, RecordWritesTheReceivedPacketsToAPcap) {
@@ -540,6 +598,7 @@ TEST(CommandLine, EachBadSettingIsOneLineAndExitStatusTwo) {
       {{"--set", "sensors[0].source.kind=serial"}, "sensors[0].source.kind: 'serial'"},
       {{"--set", "detector.families=[tag1h1]"}, "detector.families[0]: 'tag1h1'"},
       {{"--set", "lcm.channels.status="}, "lcm.channels.status: '': must not be empty"},
+      {{"--set", "lcm.cloud_decimation=-1"}, "lcm.cloud_decimation: '-1': must be >= 0"},
       {{"--set", "nonsense"}, "--set: 'nonsense': expected KEY=VALUE"},
       {{"--workers", "-3"}, "pipeline.worker_threads: '-3'"},
       {{"--log-level", "loud"}, "logging.level: 'loud'"},

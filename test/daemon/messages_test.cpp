@@ -114,6 +114,113 @@ TEST(Messages, EmptyRotationIsStillAMessage) {
   EXPECT_EQ(msg.encode(buf.data(), 0, static_cast<int>(buf.size())), static_cast<int>(buf.size()));
 }
 
+// sample_result() with a second detection and both detections' points.
+RotationResult result_with_points() {
+  RotationResult r = sample_result();
+  detector::Detection second = r.detection.detections[0];
+  second.family_index = 0;
+  second.family = "tag16h5";
+  second.id = 3;
+  r.detection.detections.push_back(second);
+  auto& points = r.detection.tag_points;
+  int first = 0;
+  for (auto& d : r.detection.detections) {
+    d.first_point = first;
+    d.points = d.id == 7 ? 5 : 3;
+    for (int i = 0; i < d.points; ++i) {
+      detector::ClusterPoint p;
+      p.x = 4.0f + 0.01f * static_cast<float>(first + i);
+      p.y = -0.5f * static_cast<float>(i);
+      p.z = 0.25f * static_cast<float>(d.id);
+      p.intensity = static_cast<float>(20 + 50 * i);
+      p.ring = 10 + i;
+      points.push_back(p);
+    }
+    first += d.points;
+  }
+  return r;
+}
+
+TEST(Messages, TagPointsCarryEachDetectionsPointsThroughMemq) {
+  LcmBus bus("memq://");
+  Capture capture;
+  bus.lcm().subscribe("FRONT_LIDARTAG_TAG_POINTS", &Capture::handle, &capture);
+  const RotationResult r = result_with_points();
+  lidartag::tag_points_t msg;
+  fill_tag_points(r, "front", "velodyne_front", msg);
+  ASSERT_TRUE(bus.publish("FRONT_LIDARTAG_TAG_POINTS", msg));
+  ASSERT_EQ(bus.lcm().handleTimeout(100), 1);
+  ASSERT_EQ(capture.messages.size(), 1u);
+  const auto got = decode<lidartag::tag_points_t>(capture.messages[0]);
+  EXPECT_EQ(got.utime, 1700000000123456);
+  EXPECT_EQ(got.sensor, "front");
+  EXPECT_EQ(got.frame_id, "velodyne_front");
+  EXPECT_EQ(got.sequence, 17);
+  ASSERT_EQ(got.ntags, 2);
+  EXPECT_EQ(got.family, (std::vector<std::string>{"tag25h9", "tag16h5"}));
+  EXPECT_EQ(got.id, (std::vector<int32_t>{7, 3}));
+  EXPECT_EQ(got.first_point, (std::vector<int32_t>{0, 5}));
+  EXPECT_EQ(got.tag_npoints, (std::vector<int32_t>{5, 3}));
+  ASSERT_EQ(got.npoints, 8);
+  const auto& points = r.detection.tag_points;
+  for (size_t i = 0; i < points.size(); ++i) {
+    EXPECT_EQ(got.x[i], points[i].x);
+    EXPECT_EQ(got.y[i], points[i].y);
+    EXPECT_EQ(got.z[i], points[i].z);
+    EXPECT_EQ(got.intensity[i], static_cast<uint8_t>(points[i].intensity));
+    EXPECT_EQ(got.ring[i], points[i].ring);
+  }
+  EXPECT_EQ(got.intensity[4], 220);  // unsigned, above 127
+  // Reused for a rotation with fewer detections: counts and arrays shrink together.
+  RotationResult one = r;
+  one.detection.detections.pop_back();
+  fill_tag_points(one, "front", "velodyne_front", msg);
+  EXPECT_EQ(msg.ntags, 1);
+  EXPECT_EQ(msg.family.size(), 1u);
+  EXPECT_EQ(msg.npoints, 5);
+  EXPECT_EQ(msg.x.size(), 5u);
+  EXPECT_EQ(msg.ring.size(), 5u);
+  std::vector<uint8_t> buf(static_cast<size_t>(msg.getEncodedSize()));
+  EXPECT_EQ(msg.encode(buf.data(), 0, static_cast<int>(buf.size())), static_cast<int>(buf.size()));
+}
+
+TEST(Messages, PointCloudCarriesTheDecimatedRotationThroughMemq) {
+  RotationResult r = sample_result();
+  Scan scan;
+  scan.reserve(3, 1, 10);
+  scan.columns = 10;
+  for (int ring = 0; ring < 3; ++ring)
+    for (int c = 0; c < 10; ++c) {
+      const size_t i = scan.at(0, ring, c);
+      scan.x[i] = static_cast<float>(c);
+      scan.y[i] = static_cast<float>(ring);
+      scan.z[i] = -1.0f;
+      scan.range[i] = ring == 1 && c == 4 ? 0.0f : 5.0f;  // one cell without a return
+      scan.intensity[i] = static_cast<uint8_t>(200 + ring);
+    }
+  decimate_scan(scan, 4, r.cloud);  // columns 0, 4, 8
+  LcmBus bus("memq://");
+  Capture capture;
+  bus.lcm().subscribe("LIDARTAG_CLOUD", &Capture::handle, &capture);
+  lidartag::point_cloud_t msg;
+  fill_point_cloud(r, "front", "velodyne_front", msg);
+  ASSERT_TRUE(bus.publish("LIDARTAG_CLOUD", msg));
+  ASSERT_EQ(bus.lcm().handleTimeout(100), 1);
+  const auto got = decode<lidartag::point_cloud_t>(capture.messages.at(0));
+  EXPECT_EQ(got.utime, 1700000000123456);
+  EXPECT_EQ(got.sensor, "front");
+  EXPECT_EQ(got.frame_id, "velodyne_front");
+  EXPECT_EQ(got.sequence, 17);
+  EXPECT_EQ(got.decimation, 4);
+  EXPECT_EQ(got.columns, 3);
+  ASSERT_EQ(got.npoints, 8);
+  EXPECT_EQ(got.x, (std::vector<float>{0, 0, 0, 4, 4, 8, 8, 8}));
+  EXPECT_EQ(got.y, (std::vector<float>{0, 1, 2, 0, 2, 0, 1, 2}));
+  EXPECT_EQ(got.z, std::vector<float>(8, -1.0f));
+  EXPECT_EQ(got.intensity, (std::vector<uint8_t>{200, 201, 202, 200, 202, 200, 201, 202}));
+  EXPECT_EQ(got.ring, (std::vector<uint8_t>{0, 1, 2, 0, 2, 0, 1, 2}));
+}
+
 TEST(Messages, StatusCarriesCountersAndStagePercentiles) {
   SensorStatus s;
   s.sensor = "front";

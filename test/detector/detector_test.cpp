@@ -3,9 +3,37 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <cstdlib>
+#include <new>
 #include <numbers>
 
 #include "synthetic_scene.hpp"
+
+namespace {
+std::atomic<long> allocations{0};
+}  // namespace
+
+// Counts the test program's heap allocations (TagPointsAddNoAllocationOnceGrown).
+// GCC pairs the free() in the replaced operator delete with the library's operator new.
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
+#endif
+void* operator new(std::size_t n) {
+  allocations.fetch_add(1, std::memory_order_relaxed);
+  if (void* p = std::malloc(n > 0 ? n : 1)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept {
+  std::free(p);
+}
+void operator delete(void* p, std::size_t) noexcept {
+  std::free(p);
+}
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
 
 namespace lidartag::detector {
 namespace {
@@ -111,6 +139,120 @@ TEST(Detector, TwoSizesAndTwoFamiliesInOneScan) {
       EXPECT_LT((d.position - b.center).norm(), 0.03);
     }
   }
+}
+
+// Two tags of different sizes and families (one a diamond, one turned 20 degrees), a box beside.
+struct TwoTags {
+  test::SyntheticTag a, b;
+  Scan scan;
+  DetectorOptions options;
+  TwoTags() {
+    a.family = &tags::builtin_family("tag16h5");
+    a.id = 4;
+    a.size = 1.2;
+    a.center = Eigen::Vector3d(6, 2.5, 0);
+    a.rotation = facing_sensor(a.center, 45);
+    b.family = &tags::builtin_family("tag25h9");
+    b.id = 17;
+    b.size = 0.8;
+    b.center = Eigen::Vector3d(4, -2.5, -0.2);
+    b.rotation = facing_sensor(b.center, 20, 15);
+    test::SyntheticScene scene;
+    scene.tags = {a, b};
+    scene.boxes = {{Eigen::Vector3d(3, 3, -1.5), Eigen::Vector3d(4, 4, 0.5)}};
+    scene.range_noise_m = 0.005;
+    test::render_scene(scene, test::vlp32c(), scan);
+    options.tag_sizes_m = {0.8, 1.2};
+    options.families = {"tag16h5", "tag25h9"};
+  }
+};
+
+TEST(Detector, TagPointsOnlyWhenAskedFor) {
+  const TwoTags s;
+  Detector det(s.options);
+  ScanResult res;
+  det.detect(s.scan, res);
+  ASSERT_EQ(res.detections.size(), 2u);
+  EXPECT_TRUE(res.tag_points.empty());
+  for (const auto& d : res.detections) {
+    EXPECT_EQ(d.first_point, -1);
+    EXPECT_GT(d.points, 50);
+    EXPECT_TRUE(res.points_of(d).empty());
+  }
+}
+
+TEST(Detector, TagPointsAreEachDetectionsClusterOnItsPlaneInsideItsSquare) {
+  const TwoTags s;
+  DetectorOptions with = s.options;
+  with.keep_tag_points = true;
+  Detector plain(s.options), keeping(with);
+  ScanResult without_points, res;
+  plain.detect(s.scan, without_points);
+  keeping.detect(s.scan, res);
+  ASSERT_EQ(res.detections.size(), 2u);
+  ASSERT_EQ(without_points.detections.size(), 2u);
+  size_t next = 0;
+  for (size_t i = 0; i < res.detections.size(); ++i) {
+    const Detection& d = res.detections[i];
+    SCOPED_TRACE(std::string(d.family) + ":" + std::to_string(d.id));
+    // Keeping the points changes nothing else.
+    EXPECT_EQ(d.position, without_points.detections[i].position);
+    EXPECT_EQ(d.points, without_points.detections[i].points);
+    // One detection after the other, Detection::points of each.
+    EXPECT_EQ(d.first_point, static_cast<int>(next));
+    const auto points = res.points_of(d);
+    ASSERT_EQ(points.size(), static_cast<size_t>(d.points));
+    next += points.size();
+    const test::SyntheticTag& truth = d.family == "tag16h5" ? s.a : s.b;
+    ASSERT_EQ(d.id, truth.id);
+    // In the detected tag's frame: on its plane (x) and inside its square (y, z), with the range
+    // noise and a beam's footprint of slack.
+    const Eigen::Matrix3d r = d.orientation.toRotationMatrix();
+    int black = 0, white = 0;
+    for (const ClusterPoint& p : points) {
+      const Eigen::Vector3d q = r.transpose() * (Eigen::Vector3d(p.x, p.y, p.z) - d.position);
+      EXPECT_LT(std::abs(q.x()), 0.03) << q.transpose();
+      EXPECT_LE(std::abs(q.y()), d.size_m / 2 + 0.03) << q.transpose();
+      EXPECT_LE(std::abs(q.z()), d.size_m / 2 + 0.03) << q.transpose();
+      // Each is a return of the scan, with its ring and intensity.
+      ASSERT_GE(p.ring, 0);
+      ASSERT_LT(p.ring, s.scan.rings);
+      ASSERT_GE(p.col, 0);
+      ASSERT_LT(p.col, s.scan.columns);
+      const size_t cell = s.scan.at(0, p.ring, p.col);
+      EXPECT_EQ(p.x, s.scan.x[cell]);
+      EXPECT_EQ(p.y, s.scan.y[cell]);
+      EXPECT_EQ(p.z, s.scan.z[cell]);
+      EXPECT_EQ(p.intensity, static_cast<float>(s.scan.intensity[cell]));
+      black += p.intensity < 100 ? 1 : 0;
+      white += p.intensity > 150 ? 1 : 0;
+    }
+    EXPECT_GT(black, 10);  // both colours of the marker: the points the code was read from
+    EXPECT_GT(white, 10);
+  }
+  EXPECT_EQ(res.tag_points.size(), next);
+  // The next rotation starts afresh.
+  ScanResult again = res;
+  keeping.detect(Scan{}, again);
+  EXPECT_TRUE(again.tag_points.empty());
+}
+
+TEST(Detector, TagPointsAddNoAllocationOnceGrown) {
+  const TwoTags s;
+  DetectorOptions with = s.options;
+  with.keep_tag_points = true;
+  Detector det(with);
+  ScanResult res;
+  det.detect(s.scan, res);  // grows the buffers and the result
+  ASSERT_EQ(res.detections.size(), 2u);
+  const ClusterPoint* storage = res.tag_points.data();
+  const long before = allocations.load();
+  det.detect(s.scan, res);
+  const long during = allocations.load() - before;
+  EXPECT_EQ(during, 0);
+  ASSERT_EQ(res.detections.size(), 2u);
+  EXPECT_EQ(res.tag_points.data(), storage);
+  EXPECT_EQ(res.points_of(res.detections[1]).size(), static_cast<size_t>(res.detections[1].points));
 }
 
 TEST(Detector, NothingInATaglessClutteredScene) {

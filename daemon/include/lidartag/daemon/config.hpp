@@ -78,6 +78,9 @@ struct LcmChannels {
   std::string detections = "LIDARTAG_DETECTIONS";  // tag_detections_t, every rotation
   std::string status = "LIDARTAG_STATUS";          // status_t, every status period
   std::string raw = "LIDARTAG_RAW";                // raw_packet_t, when publish_raw
+  // tag_points_t, rotations with detections, when lcm.publish_tag_points
+  std::string tag_points = "LIDARTAG_TAG_POINTS";
+  std::string cloud = "LIDARTAG_CLOUD";  // point_cloud_t, every rotation, when cloud_decimation
 };
 
 struct LcmOptions {
@@ -85,6 +88,11 @@ struct LcmOptions {
   std::string url;
   LcmChannels channels;
   bool publish_raw = false;  // every received packet on the raw channel (for lcm-logger)
+  // Every k-th column of each rotation on the cloud channel (for visualisation); 0: none.
+  int cloud_decimation = 0;
+  // lcm.publish_tag_points (each detection's points on the tag_points channel) is not a field
+  // here: it is DaemonOptions::detector.keep_tag_points, so that publishing the points and the
+  // detector keeping them cannot disagree.
 };
 
 struct PipelineOptions {

@@ -9,10 +9,12 @@
 #include "lidartag/daemon/sensor_status.hpp"
 #include "lidartag/detector/detector.hpp"
 #include "lidartag/driver/packet_source.hpp"
+#include "lidartag/point_cloud_t.hpp"
 #include "lidartag/raw_packet_t.hpp"
 #include "lidartag/status_t.hpp"
 #include "lidartag/tag_detection_t.hpp"
 #include "lidartag/tag_detections_t.hpp"
+#include "lidartag/tag_points_t.hpp"
 
 namespace lidartag::daemon {
 
@@ -23,6 +25,14 @@ void fill_detection(const detector::Detection& d, lidartag::tag_detection_t& out
 void fill_detections(const RotationResult& r, const std::string& sensor,
                      const std::string& frame_id, int64_t publish_utime, double latency_ms,
                      int64_t dropped, lidartag::tag_detections_t& out);
+
+// The detections' points (detector::ScanResult::tag_points), detection after detection.
+void fill_tag_points(const RotationResult& r, const std::string& sensor,
+                     const std::string& frame_id, lidartag::tag_points_t& out);
+
+// The rotation's decimated cloud (RotationResult::cloud).
+void fill_point_cloud(const RotationResult& r, const std::string& sensor,
+                      const std::string& frame_id, lidartag::point_cloud_t& out);
 
 void fill_status(const SensorStatus& s, int64_t utime, double uptime_s, lidartag::status_t& out);
 

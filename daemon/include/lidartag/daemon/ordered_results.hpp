@@ -12,6 +12,7 @@
 #include <mutex>
 #include <vector>
 
+#include "lidartag/daemon/scan_copy.hpp"
 #include "lidartag/detector/detector.hpp"
 #include "lidartag/driver/scan.hpp"
 
@@ -29,6 +30,9 @@ struct RotationResult {
   // Steady-clock times (ns): rotation assembled, taken by a worker, detection finished.
   int64_t assembled_ns = 0, taken_ns = 0, detected_ns = 0;
   detector::ScanResult detection;
+  // Every k-th column's returns, when lcm.cloud_decimation = k > 0 (the scan itself goes back to
+  // the buffer before publication).
+  DecimatedCloud cloud;
 };
 
 class OrderedResults {

@@ -26,8 +26,10 @@
 #include "lidartag/detector/detector.hpp"
 #include "lidartag/driver/io/capture_reader.hpp"
 #include "lidartag/driver/scan_buffer.hpp"
+#include "lidartag/point_cloud_t.hpp"
 #include "lidartag/raw_packet_t.hpp"
 #include "lidartag/tag_detections_t.hpp"
+#include "lidartag/tag_points_t.hpp"
 
 namespace lidartag::daemon {
 
@@ -90,7 +92,7 @@ class SensorPipeline {
   int workers_;
   LinePrinter* printer_;
   bool lossless_;
-  std::string detections_channel_, raw_channel_;
+  std::string detections_channel_, raw_channel_, tag_points_channel_, cloud_channel_;
 
   TapSource* tap_ = nullptr;  // owned by reader_
   std::unique_ptr<velodyne::CaptureReader> reader_;
@@ -110,6 +112,8 @@ class SensorPipeline {
   std::atomic<uint64_t> dropped_no_scan_{0};
 
   lidartag::tag_detections_t message_;  // publisher thread
+  lidartag::tag_points_t tag_points_message_;
+  lidartag::point_cloud_t cloud_message_;
   lidartag::raw_packet_t raw_message_;  // receiver thread
 
   // Stage latencies: queue, detect, order, publish, total, then the detector's stages.

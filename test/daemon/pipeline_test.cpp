@@ -1,0 +1,229 @@
+// One sensor's pipeline in process, on an in-process LCM bus (memq://): the demo capture replayed
+// with and without the visualisation messages, checked against the same capture decoded and
+// detected here.
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+#include <tbb/task_arena.h>
+
+#include <Eigen/Geometry>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <set>
+#include <thread>
+
+#include "lidartag/daemon/sensor_pipeline.hpp"
+#include "lidartag/driver/io/capture_reader.hpp"
+
+namespace lidartag::daemon {
+namespace {
+
+using namespace std::chrono_literals;
+
+const std::string kDemoConfig = LIDARTAG_SOURCE_DIR "/config/demo.yaml";
+const std::string kDemo = LIDARTAG_SOURCE_DIR "/pcaps/demo.pcap";
+
+#define REQUIRE_DEMO()                                                                        \
+  if (!std::filesystem::exists(kDemo)) {                                                      \
+    GTEST_SKIP() << "no " << kDemo << ": make it with lidartag sim pcaps/demo.yaml (see the " \
+                 << "README)";                                                                \
+  }
+
+// Every message of every channel, in the order published.
+struct Recorder {
+  std::vector<std::string> channels;
+  std::vector<std::vector<uint8_t>> messages;
+  void handle(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+    const auto* p = static_cast<const uint8_t*>(rbuf->data);
+    channels.push_back(channel);
+    messages.emplace_back(p, p + rbuf->data_size);
+  }
+};
+
+template <class T>
+T decode(const std::vector<uint8_t>& bytes) {
+  T msg;
+  EXPECT_EQ(msg.decode(bytes.data(), 0, static_cast<int>(bytes.size())),
+            static_cast<int>(bytes.size()));
+  return msg;
+}
+
+DaemonOptions demo_options(const std::vector<std::string>& settings) {
+  std::vector<std::string> overrides = {"sensors[0].source.file=" + kDemo,
+                                        "sensors[0].source.rate=0", "lcm.url=memq://"};
+  overrides.insert(overrides.end(), settings.begin(), settings.end());
+  return load_config(kDemoConfig, overrides);
+}
+
+// Replays the demo through a SensorPipeline with two workers; returns what it published.
+Recorder run_pipeline(const DaemonOptions& options) {
+  LcmBus bus(options.lcm.url);
+  Recorder recorder;
+  bus.lcm().subscribe(".*", &Recorder::handle, &recorder);  // memq:// keeps subscribed channels
+  // As the daemon: the arena's threads are all workers.
+  tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 3);
+  tbb::task_arena arena(2, 0);
+  {
+    SensorPipeline pipeline(options.sensors[0], options, bus, arena, 2, nullptr, nullptr);
+    pipeline.start();
+    const auto deadline = std::chrono::steady_clock::now() + 120s;
+    while (!pipeline.finished() && std::chrono::steady_clock::now() < deadline) {
+      std::this_thread::sleep_for(10ms);
+    }
+    EXPECT_TRUE(pipeline.finished());
+    EXPECT_EQ(pipeline.error(), "");
+  }
+  while (bus.lcm().handleTimeout(0) > 0) {
+  }
+  return recorder;
+}
+
+// The demo decoded and detected here, one rotation at a time.
+struct Reference {
+  struct Rotation {
+    uint64_t sequence = 0;
+    int columns = 0;
+    std::vector<float> x, y, z;  // every k-th column's returns, as point_cloud_t orders them
+    std::vector<uint8_t> intensity, ring;
+    detector::ScanResult detection;
+  };
+  std::vector<Rotation> rotations;
+};
+
+Reference reference(const DaemonOptions& options, int k) {
+  const SensorOptions& sensor = options.sensors[0];
+  velodyne::CaptureReaderOptions ro;
+  ro.model = sensor.model;
+  ro.decoder = sensor.decoder;
+  ro.batcher = sensor.batcher;
+  velodyne::CaptureReader reader(kDemo, ro);
+  detector::Detector detector(options.detector);
+  Reference ref;
+  while (const Scan* scan = reader.next()) {
+    auto& r = ref.rotations.emplace_back();
+    r.sequence = scan->sequence;
+    r.columns = scan->columns;
+    for (int c = 0; c < scan->columns; c += k)
+      for (int ret = 0; ret < scan->returns; ++ret)
+        for (int ring = 0; ring < scan->rings; ++ring) {
+          const size_t i = scan->at(ret, ring, c);
+          if (scan->range[i] <= 0) continue;
+          r.x.push_back(scan->x[i]);
+          r.y.push_back(scan->y[i]);
+          r.z.push_back(scan->z[i]);
+          r.intensity.push_back(scan->intensity[i]);
+          r.ring.push_back(static_cast<uint8_t>(ring));
+        }
+    detector.detect(*scan, r.detection);
+  }
+  return ref;
+}
+
+TEST(Pipeline, TagPointsAndCloudFollowEachRotationsDetections) {
+  REQUIRE_DEMO();
+  constexpr int k = 7;
+  const DaemonOptions options =
+      demo_options({"lcm.publish_tag_points=true", "lcm.cloud_decimation=" + std::to_string(k)});
+  ASSERT_TRUE(options.detector.keep_tag_points);
+  const Recorder got = run_pipeline(options);
+  const Reference ref = reference(options, k);
+  ASSERT_GE(ref.rotations.size(), 10u);
+
+  // Per rotation, in rotation order: its detections, its tag points when it has detections, its
+  // cloud. Nothing else.
+  size_t m = 0, with_tags = 0;
+  for (const auto& want : ref.rotations) {
+    SCOPED_TRACE("rotation " + std::to_string(want.sequence));
+    ASSERT_LT(m, got.channels.size());
+    ASSERT_EQ(got.channels[m], "LIDARTAG_DETECTIONS");
+    const auto det = decode<lidartag::tag_detections_t>(got.messages[m++]);
+    ASSERT_EQ(det.sequence, static_cast<int64_t>(want.sequence));
+    ASSERT_EQ(det.ndetections, static_cast<int32_t>(want.detection.detections.size()));
+
+    if (det.ndetections > 0) {
+      ++with_tags;
+      ASSERT_LT(m, got.channels.size());
+      ASSERT_EQ(got.channels[m], "LIDARTAG_TAG_POINTS");
+      const auto pts = decode<lidartag::tag_points_t>(got.messages[m++]);
+      EXPECT_EQ(pts.utime, det.utime);
+      EXPECT_EQ(pts.sequence, det.sequence);
+      EXPECT_EQ(pts.sensor, "demo");
+      EXPECT_EQ(pts.frame_id, "velodyne");
+      ASSERT_EQ(pts.ntags, det.ndetections);
+      int32_t first = 0;
+      for (int32_t i = 0; i < pts.ntags; ++i) {
+        const auto& d = det.detections[static_cast<size_t>(i)];
+        EXPECT_EQ(pts.family[static_cast<size_t>(i)], d.family);
+        EXPECT_EQ(pts.id[static_cast<size_t>(i)], d.id);
+        EXPECT_EQ(pts.first_point[static_cast<size_t>(i)], first);
+        ASSERT_EQ(pts.tag_npoints[static_cast<size_t>(i)], d.points);
+        // The points on the published tag's plane, inside its square: all of them within 5 sigma
+        // of the simulated range noise (1.5 cm) and the beam footprint, 3 in 4 within 2 sigma.
+        const Eigen::Quaterniond q(d.orientation[0], d.orientation[1], d.orientation[2],
+                                   d.orientation[3]);
+        const Eigen::Matrix3d rt = q.toRotationMatrix().transpose();
+        const Eigen::Vector3d centre(d.position[0], d.position[1], d.position[2]);
+        int close = 0;
+        for (int32_t j = first; j < first + d.points; ++j) {
+          const auto u = static_cast<size_t>(j);
+          const Eigen::Vector3d p =
+              rt * (Eigen::Vector3d(pts.x[u], pts.y[u], pts.z[u]).cast<double>() - centre);
+          const double outside = std::max(std::abs(p.y()), std::abs(p.z())) - d.size_m / 2;
+          EXPECT_LT(std::abs(p.x()), 0.075) << p.transpose();
+          EXPECT_LT(outside, 0.075) << p.transpose();
+          close += std::abs(p.x()) < 0.03 && outside < 0.03 ? 1 : 0;
+        }
+        EXPECT_GT(close, d.points * 3 / 4);
+        first += d.points;
+      }
+      ASSERT_EQ(pts.npoints, first);
+      // The very points the detector found them from.
+      const auto& want_points = want.detection.tag_points;
+      ASSERT_EQ(want_points.size(), static_cast<size_t>(pts.npoints));
+      for (size_t j = 0; j < want_points.size(); ++j) {
+        ASSERT_EQ(pts.x[j], want_points[j].x);
+        ASSERT_EQ(pts.y[j], want_points[j].y);
+        ASSERT_EQ(pts.z[j], want_points[j].z);
+        ASSERT_EQ(pts.intensity[j], static_cast<uint8_t>(want_points[j].intensity));
+        ASSERT_EQ(pts.ring[j], want_points[j].ring);
+      }
+    }
+
+    ASSERT_LT(m, got.channels.size());
+    ASSERT_EQ(got.channels[m], "LIDARTAG_CLOUD");
+    const auto cloud = decode<lidartag::point_cloud_t>(got.messages[m++]);
+    EXPECT_EQ(cloud.utime, det.utime);
+    EXPECT_EQ(cloud.sequence, det.sequence);
+    EXPECT_EQ(cloud.sensor, "demo");
+    EXPECT_EQ(cloud.frame_id, "velodyne");
+    EXPECT_EQ(cloud.decimation, k);
+    EXPECT_EQ(det.columns, want.columns);
+    EXPECT_EQ(cloud.columns, (want.columns + k - 1) / k);
+    ASSERT_EQ(cloud.npoints, static_cast<int32_t>(want.x.size()));
+    EXPECT_EQ(cloud.x, want.x);
+    EXPECT_EQ(cloud.y, want.y);
+    EXPECT_EQ(cloud.z, want.z);
+    EXPECT_EQ(cloud.intensity, want.intensity);
+    EXPECT_EQ(cloud.ring, want.ring);
+  }
+  EXPECT_EQ(m, got.channels.size());
+  EXPECT_GE(with_tags, ref.rotations.size() - 2);  // all but the partial first and last
+}
+
+TEST(Pipeline, VisualisationMessagesAreOffByDefault) {
+  REQUIRE_DEMO();
+  const DaemonOptions options = demo_options({});
+  EXPECT_FALSE(options.detector.keep_tag_points);
+  const Recorder got = run_pipeline(options);
+  const size_t rotations = reference(options, 1).rotations.size();
+  ASSERT_GE(rotations, 10u);
+  EXPECT_EQ(got.channels, std::vector<std::string>(rotations, "LIDARTAG_DETECTIONS"));
+  size_t tags = 0;
+  for (const auto& bytes : got.messages) {
+    tags += static_cast<size_t>(decode<lidartag::tag_detections_t>(bytes).ndetections);
+  }
+  EXPECT_GT(tags, 0u);  // there were points to publish, and none were
+}
+
+}  // namespace
+}  // namespace lidartag::daemon
