@@ -6,6 +6,7 @@
 
 #include <Eigen/Geometry>
 
+#include "lcm_bytes.hpp"
 #include "lidartag/daemon/lcm_bus.hpp"
 
 namespace lidartag::daemon {
@@ -20,13 +21,7 @@ struct Capture {
   }
 };
 
-template <class T>
-T decode(const std::vector<uint8_t>& bytes) {
-  T msg;
-  EXPECT_EQ(msg.decode(bytes.data(), 0, static_cast<int>(bytes.size())),
-            static_cast<int>(bytes.size()));
-  return msg;
-}
+using lcm_test::decode;
 
 RotationResult sample_result() {
   RotationResult r;

@@ -12,6 +12,7 @@
 #include <set>
 #include <thread>
 
+#include "lcm_bytes.hpp"
 #include "lidartag/daemon/sensor_pipeline.hpp"
 #include "lidartag/driver/io/capture_reader.hpp"
 
@@ -40,13 +41,7 @@ struct Recorder {
   }
 };
 
-template <class T>
-T decode(const std::vector<uint8_t>& bytes) {
-  T msg;
-  EXPECT_EQ(msg.decode(bytes.data(), 0, static_cast<int>(bytes.size())),
-            static_cast<int>(bytes.size()));
-  return msg;
-}
+using lcm_test::decode;
 
 DaemonOptions demo_options(const std::vector<std::string>& settings) {
   std::vector<std::string> overrides = {"sensors[0].source.file=" + kDemo,
