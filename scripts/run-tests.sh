@@ -25,7 +25,8 @@ if [ "${1:-}" != "--no-sanitizers" ]; then
   cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLIDARTAG_SANITIZE=address \
     -DLIDARTAG_BUILD_BENCHMARKS=OFF
   targets="test_driver_core test_driver_captures test_scan_buffer test_pcap_writer test_pcap_source
-    test_udp_source test_live_source test_calibration_file test_pcd test_capture_reader test_sim"
+    test_udp_source test_live_source test_calibration_file test_pcd test_capture_reader test_sim
+    test_capture_mutation"
   # The detector's unit tests, one target per stage (*_test).
   targets="$targets $(cmake --build build-asan --target help | sed -n 's/^\([a-z_]*_test\):.*/\1/p' | sort -u | tr '\n' ' ')"
   cmake --build build-asan -j "$jobs" --target $targets

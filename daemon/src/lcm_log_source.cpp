@@ -1,6 +1,8 @@
 #include "lidartag/daemon/lcm_log_source.hpp"
 
 #include <algorithm>
+#include <cstdio>
+#include <filesystem>
 #include <lcm/lcm-cpp.hpp>
 #include <stdexcept>
 #include <thread>
@@ -43,6 +45,8 @@ LcmLogSource::LcmLogSource(const std::string& path, LcmLogSourceOptions options)
       log_(std::make_unique<lcm::LogFile>(path, "r")),
       schedule_(options_.rate > 0 ? options_.rate : 1.0) {
   if (!log_->good()) throw velodyne::IoError("cannot open LCM log '" + path + "'");
+  std::error_code ec;
+  file_size_ = static_cast<long>(std::filesystem::file_size(path, ec));
   if (options_.rate < 0) throw velodyne::IoError("LCM log replay rate must be >= 0");
 }
 
@@ -51,7 +55,13 @@ LcmLogSource::~LcmLogSource() = default;
 bool LcmLogSource::read_one() {
   for (;;) {
     const lcm::LogEvent* event = log_->readNextEvent();
-    if (event == nullptr) return false;
+    if (event == nullptr) {
+      // LCM stops at a cut or corrupt event header as at the end of the file: bytes left past
+      // the last whole event mean the log was truncated.
+      if (end_of_events_ < file_size_) ++stats_.truncated;
+      return false;
+    }
+    end_of_events_ = std::ftell(log_->getFilePtr());
     ++events_;
     if (event->channel != options_.channel) {
       ++stats_.ignored;
@@ -67,9 +77,12 @@ bool LcmLogSource::read_one() {
         used = -1;  // LCM's decode throws std::length_error on some corrupt lengths
       }
     }
+    // receive_time_ns is any int64 in a corrupt message: out of range, it would overflow the
+    // time arithmetic of the loop shift, the batcher and the clock.
     if (used < 0 || message_.nbytes < 0 ||
         static_cast<size_t>(message_.nbytes) != message_.data.size() || message_.port <= 0 ||
-        message_.port > 65535) {
+        message_.port > 65535 || message_.receive_time_ns < 0 ||
+        message_.receive_time_ns >= velodyne::kMaxReceiveTimeNs) {
       ++stats_.malformed;
       continue;
     }
@@ -90,10 +103,14 @@ ReadStatus LcmLogSource::next(velodyne::RawPacket& out, std::chrono::millisecond
   if (!pending_) {
     if (!read_one()) {
       if (!options_.loop || !have_first_) return ReadStatus::kEnd;
-      // Next pass: reopen, and shift times so that they keep growing.
-      shift_ns_ += last_ns_ - first_ns_ + last_interval_ns_;
+      // Next pass: reopen, and shift times so that they keep growing (below 2 kMaxReceiveTimeNs:
+      // the loop ends after ~136 years of replay rather than overflow).
+      const int64_t step = last_ns_ - first_ns_ + last_interval_ns_;
+      if (shift_ns_ > velodyne::kMaxReceiveTimeNs - step) return ReadStatus::kEnd;
+      shift_ns_ += step;
       have_first_ = false;
       log_ = std::make_unique<lcm::LogFile>(path_, "r");
+      end_of_events_ = 0;
       if (!log_->good()) {
         ++stats_.errors;
         return ReadStatus::kError;

@@ -246,6 +246,14 @@ void Detector::detect(const Scan& scan, ScanResult& out) noexcept {
   out.rejected.fill(0);
   out.features = out.clusters = 0;
   if (scan.rings <= 0 || scan.columns <= 0) return;
+  // A Scan is a plain struct: sizes that disagree with its storage would make every stage read
+  // past the arrays. Only return 0 is read (cells [0, rings x column_capacity)).
+  const size_t cells = static_cast<size_t>(scan.rings) * static_cast<size_t>(scan.column_capacity);
+  if (scan.returns < 1 || scan.columns > scan.column_capacity || scan.x.size() < cells ||
+      scan.y.size() < cells || scan.z.size() < cells || scan.range.size() < cells ||
+      scan.intensity.size() < cells ||
+      scan.column_azimuth_deg.size() < static_cast<size_t>(scan.columns))
+    return;
   try {
     Buffers& b = *buf_;
     auto t0 = Clock::now();

@@ -17,8 +17,11 @@ std::vector<double> estimate_elevations(std::span<const CloudPoint> cloud, int r
   std::vector<double> e;
   if (rings <= 0) return e;
   e.reserve(cloud.size());
-  for (const auto& p : cloud)
-    if (p.x != 0.0f || p.y != 0.0f || p.z != 0.0f) e.push_back(elevation_deg(p));
+  for (const auto& p : cloud) {
+    // A NaN elevation would break the sort's ordering (and with it the sort's bounds).
+    const double el = elevation_deg(p);
+    if ((p.x != 0.0f || p.y != 0.0f || p.z != 0.0f) && std::isfinite(el)) e.push_back(el);
+  }
   if (e.size() < static_cast<size_t>(rings)) return {};
   std::sort(e.begin(), e.end());
   // The rings - 1 widest gaps between consecutive elevations separate the beams.
@@ -43,6 +46,14 @@ std::vector<double> estimate_elevations(std::span<const CloudPoint> cloud, int r
 }
 
 namespace {
+
+// Columns narrower than this would make scans of millions of columns (and a NaN resolution an
+// undefined conversion to int): refused.
+constexpr double kMinResolutionDeg = 0.001;
+
+bool usable_resolution(double res_deg) {
+  return res_deg >= kMinResolutionDeg && res_deg <= 360.0;
+}
 
 // Sizes `out` for `rings` x 360 / resolution columns and empties it.
 void prepare(int rings, double res_deg, Scan& out) {
@@ -74,7 +85,9 @@ void place(const CloudPoint& p, double range, int ring, double res_deg, Scan& ou
   out.range[i] = static_cast<float>(range);
   out.azimuth_deg[i] = static_cast<float>(az);
   out.time_s[i] = 0.0f;
-  out.intensity[i] = static_cast<uint8_t>(std::clamp(p.intensity, 0.0f, 255.0f));
+  // NaN passes std::clamp, and converting it to an integer is undefined: it reads as 0.
+  out.intensity[i] =
+      static_cast<uint8_t>(p.intensity >= 0.0f ? std::min(p.intensity, 255.0f) : 0.0f);
   out.return_type[i] = ReturnType::kStrongest;
 }
 
@@ -87,7 +100,9 @@ double range_of(const CloudPoint& p) {
 bool regress_rings(std::span<const CloudPoint> cloud, const RingRegressionOptions& opt, Scan& out) {
   std::vector<double> elev = opt.elevations_deg;
   if (elev.empty()) elev = estimate_elevations(cloud, opt.rings);
-  if (elev.empty() || opt.horizontal_resolution_deg <= 0.0) {
+  const bool finite =
+      std::all_of(elev.begin(), elev.end(), [](double e) { return std::isfinite(e); });
+  if (elev.empty() || !finite || !usable_resolution(opt.horizontal_resolution_deg)) {
     out.clear();
     return false;
   }
@@ -111,7 +126,7 @@ bool regress_rings(std::span<const CloudPoint> cloud, const RingRegressionOption
 
 bool organise_rings(std::span<const CloudPoint> cloud, int rings, double horizontal_resolution_deg,
                     Scan& out) {
-  if (rings <= 0 || horizontal_resolution_deg <= 0.0) {
+  if (rings <= 0 || !usable_resolution(horizontal_resolution_deg)) {
     out.clear();
     return false;
   }

@@ -2,10 +2,12 @@
 #include "lidartag/daemon/config.hpp"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
 #include <fstream>
 #include <functional>
+#include <random>
 #include <set>
 #include <sstream>
 
@@ -233,6 +235,51 @@ TEST(Config, BadYamlAndBadOverridesAreConfigErrors) {
   EXPECT_THROW((void)load_config("/nonexistent/lidartagd.yaml"), ConfigError);
 }
 
+TEST(Config, RandomlyDamagedConfigsLoadOrFailWithOneConfigError) {
+  std::ifstream in(kShippedConfig);
+  std::stringstream text;
+  text << in.rdbuf();
+  const std::string shipped = text.str();
+  std::mt19937 rng(31);
+  int loaded = 0, refused = 0;
+  for (int k = 0; k < 200; ++k) {
+    std::string yaml = shipped;
+    const int edits = 1 + static_cast<int>(rng() % 3);
+    for (int e = 0; e < edits; ++e) {
+      // Into the values and structure past the comments' start, not only the comments.
+      const size_t at = rng() % yaml.size();
+      switch (rng() % 5) {
+        case 0:
+          yaml[at] = static_cast<char>('0' + rng() % 10);
+          break;
+        case 1:
+          yaml[at] = "-.e:,{}[]& *!|>'\"\n\t9"[rng() % 20];
+          break;
+        case 2:
+          yaml.insert(at, "1e" + std::to_string(rng() % 400));
+          break;
+        case 3:
+          yaml.insert(at, std::to_string(rng()) + std::to_string(rng()));  // 20 digits
+          break;
+        default:
+          yaml.resize(at);
+      }
+    }
+    try {
+      const DaemonOptions o = parse_config(yaml);
+      ++loaded;
+      EXPECT_NO_THROW(validate(o)) << "mutant " << k;
+      // What loaded prints and parses back to the same options.
+      EXPECT_EQ(print_config(parse_config(print_config(o))), print_config(o)) << "mutant " << k;
+    } catch (const ConfigError& e) {
+      ++refused;
+      EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_GT(loaded, 10);
+  EXPECT_GT(refused, 10);
+}
+
 TEST(Config, ValidateChecksOptionsBuiltInCode) {
   DaemonOptions o;
   EXPECT_NO_THROW(validate(o));
@@ -260,7 +307,8 @@ TEST(Config, ValidateChecksOptionsBuiltInCode) {
 }
 
 TEST(Config, DetectorSectionAloneForTheCli) {
-  const std::string path = ::testing::TempDir() + "/detector_only.yaml";
+  const std::string path =
+      ::testing::TempDir() + "/" + std::to_string(::getpid()) + "_detector_only.yaml";
   {
     std::ofstream out(path);
     out << "sensors: [{name: ignored}]\ndetector:\n  tag_sizes_m: [0.8]\n  corners: "

@@ -180,12 +180,15 @@ TEST(Replay, DemoIntoAnLcmLogEveryRotationInOrderWithTheTruthTags) {
 
 TEST(Replay, FallingBehindDropsTheOldestRotationsAndCountsThem) {
   REQUIRE_DEMO();
-  // One worker, one waiting rotation, no waiting for the detector: decoding at full speed outruns
-  // detection, so rotations must be dropped (and nothing queue).
+  // One worker, one waiting rotation, no waiting for the detector, and a detector made slow on
+  // purpose (20,000 RANSAC hypotheses per plane: tens of ms per rotation): decoding at full speed
+  // outruns detection, so rotations must be dropped (and nothing queue). With the default detector
+  // (about 1 ms per rotation) a fast machine kept up with the decoder in some runs.
   const std::string log = temp("drop.lcmlog");
   Process p({kDaemon, "--config", kDemoConfig, "--replay", kDemo, "--max-speed", "--workers", "1",
              "--set", "pipeline.queue_depth=1", "--set", "pipeline.publish_queue=1", "--set",
-             "pipeline.lossless_replay=false", "--lcm-url", "file://" + log + "?mode=w"},
+             "pipeline.lossless_replay=false", "--set", "detector.plane.iterations=20000",
+             "--lcm-url", "file://" + log + "?mode=w"},
             {}, temp("drop"));
   ASSERT_EQ(p.wait(120s), 0) << p.err();
   const Decoded d = read_log(log);

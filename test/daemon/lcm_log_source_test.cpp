@@ -3,8 +3,12 @@
 #include "lidartag/daemon/lcm_log_source.hpp"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
+#include <filesystem>
 #include <lcm/lcm-cpp.hpp>
+#include <limits>
+#include <random>
 
 #include "lidartag/daemon/messages.hpp"
 
@@ -37,7 +41,8 @@ std::vector<uint8_t> encoded(int64_t time_ns, uint16_t port, std::vector<uint8_t
 }
 
 std::string make_log() {
-  const std::string path = ::testing::TempDir() + "/raw_replay.lcmlog";
+  const std::string path =
+      ::testing::TempDir() + "/" + std::to_string(::getpid()) + "_raw_replay.lcmlog";
   lcm::LogFile log(path, "w");
   EXPECT_TRUE(log.good());
   write_event(log, "LIDARTAG_RAW", encoded(1'000'000'000, 2368, {1, 2, 3}), 1);
@@ -95,6 +100,88 @@ TEST(LcmLogSource, PacedReplayWaits) {
   EXPECT_EQ(source.next(p, 10ms), velodyne::ReadStatus::kTimeout);
   ASSERT_EQ(source.next(p, 1000ms), velodyne::ReadStatus::kPacket);
   EXPECT_EQ(p.destination_port, 8308);
+}
+
+TEST(LcmLogSource, ImpossibleReceiveTimesAreCountedAsMalformed) {
+  // receive_time_ns is any int64 in a corrupt message; downstream time arithmetic must not
+  // overflow on it.
+  const std::string path =
+      ::testing::TempDir() + "/" + std::to_string(::getpid()) + "_raw_times.lcmlog";
+  {
+    lcm::LogFile log(path, "w");
+    write_event(log, "LIDARTAG_RAW", encoded(std::numeric_limits<int64_t>::max(), 2368, {1}), 1);
+    write_event(log, "LIDARTAG_RAW", encoded(std::numeric_limits<int64_t>::min(), 2368, {2}), 2);
+    write_event(log, "LIDARTAG_RAW", encoded(-1, 2368, {3}), 3);
+    write_event(log, "LIDARTAG_RAW", encoded(velodyne::kMaxReceiveTimeNs, 2368, {4}), 4);
+    write_event(log, "LIDARTAG_RAW", encoded(1'700'000'000'000'000'000, 2368, {5}), 5);
+  }
+  LcmLogSourceOptions o;
+  o.loop = true;
+  LcmLogSource source(path, o);
+  velodyne::RawPacket p;
+  for (int pass = 0; pass < 3; ++pass) {
+    ASSERT_EQ(source.next(p, 10ms), velodyne::ReadStatus::kPacket);
+    EXPECT_EQ(p.payload[0], 5);
+    EXPECT_GE(p.receive_time_ns, 1'700'000'000'000'000'000);
+  }
+  EXPECT_EQ(source.stats().malformed, 12u);  // 4 per pass
+}
+
+TEST(LcmLogSource, RandomlyCorruptedMessagesAreCountedNeverFatal) {
+  const std::string path =
+      ::testing::TempDir() + "/" + std::to_string(::getpid()) + "_raw_corrupt.lcmlog";
+  std::mt19937 rng(23);
+  const int events = 300;
+  {
+    lcm::LogFile log(path, "w");
+    for (int k = 0; k < events; ++k) {
+      std::vector<uint8_t> payload(1 + rng() % 1300);
+      for (auto& b : payload) b = static_cast<uint8_t>(rng());
+      auto bytes = encoded(1'000'000'000 + k * 1'000'000, k % 2 ? 2368 : 8308, payload);
+      const int damage = static_cast<int>(rng() % 4);
+      for (int d = 0; d < damage; ++d) {
+        // Mostly the header (hash, times, string length, port, nbytes), sometimes anywhere.
+        const size_t at =
+            rng() % 2 ? rng() % std::min<size_t>(bytes.size(), 48) : rng() % bytes.size();
+        bytes[at] = static_cast<uint8_t>(rng());
+      }
+      if (rng() % 8 == 0) bytes.resize(rng() % bytes.size());
+      write_event(log, "LIDARTAG_RAW", bytes, k);
+    }
+  }
+  LcmLogSource source(path, {});
+  velodyne::RawPacket p;
+  uint64_t delivered = 0;
+  for (int k = 0; k <= events; ++k) {
+    const auto status = source.next(p, 10ms);
+    if (status == velodyne::ReadStatus::kEnd) break;
+    ASSERT_EQ(status, velodyne::ReadStatus::kPacket);
+    ++delivered;
+    EXPECT_TRUE(p.destination_port > 0);
+    EXPECT_TRUE(p.receive_time_ns >= 0 && p.receive_time_ns < velodyne::kMaxReceiveTimeNs);
+  }
+  EXPECT_EQ(source.next(p, 10ms), velodyne::ReadStatus::kEnd);
+  EXPECT_EQ(delivered + source.stats().malformed, static_cast<uint64_t>(events));
+  EXPECT_GT(delivered, 0u);
+  EXPECT_GT(source.stats().malformed, 0u);
+  EXPECT_EQ(source.stats().truncated, 0u);
+}
+
+TEST(LcmLogSource, LogCutInsideAnEventEndsAndIsCountedAsTruncated) {
+  const std::string path = make_log();
+  const auto size = std::filesystem::file_size(path);
+  std::filesystem::resize_file(path, size - 4);  // the last event loses its last bytes
+  LcmLogSource source(path, {});
+  velodyne::RawPacket p;
+  ASSERT_EQ(source.next(p, 10ms), velodyne::ReadStatus::kPacket);
+  EXPECT_EQ(source.next(p, 10ms), velodyne::ReadStatus::kEnd);
+  EXPECT_EQ(source.stats().packets, 1u);
+  EXPECT_EQ(source.stats().truncated, 1u);
+  // A whole log is not truncated.
+  LcmLogSource whole(make_log(), {});
+  while (whole.next(p, 10ms) == velodyne::ReadStatus::kPacket) {
+  }
+  EXPECT_EQ(whole.stats().truncated, 0u);
 }
 
 TEST(LcmLogSource, MissingFileIsASetupError) {

@@ -4,9 +4,14 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <cmath>
 #include <cstdlib>
+#include <functional>
+#include <limits>
 #include <new>
 #include <numbers>
+#include <random>
+#include <string>
 
 #include "synthetic_scene.hpp"
 
@@ -323,6 +328,271 @@ TEST(Detector, EmptyScanGivesNothing) {
   det.detect(scan, res);
   EXPECT_TRUE(res.detections.empty());
   EXPECT_EQ(res.clusters, 0);
+}
+
+// ---- Hostile scans: whatever the cells hold, no crash, no non-finite output, nothing invented.
+
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+// A scan with one tag16h5 (id 3) 5 m ahead, on a wall and a floor.
+Scan tag_scan() {
+  const auto& fam = tags::builtin_family("tag16h5");
+  test::SyntheticScene scene;
+  test::SyntheticTag tag;
+  tag.family = &fam;
+  tag.id = 3;
+  tag.center = Eigen::Vector3d(5, 0.5, 0);
+  tag.rotation = facing_sensor(tag.center, 45);
+  scene.tags.push_back(tag);
+  scene.wall_x = 9.0;
+  Scan scan;
+  test::render_scene(scene, test::vlp32c(), scan);
+  return scan;
+}
+
+// Every number a detection carries is finite, and its ID is the scene's.
+void expect_sane(const ScanResult& res, const std::string& what, int true_id) {
+  EXPECT_GE(res.features, 0) << what;
+  EXPECT_GE(res.clusters, 0) << what;
+  for (double ms : res.timing_ms) EXPECT_TRUE(std::isfinite(ms) && ms >= 0.0) << what;
+  for (const Detection& d : res.detections) {
+    bool finite = d.position.allFinite() && d.orientation.coeffs().allFinite() &&
+                  std::isfinite(d.score) && std::isfinite(d.margin) && std::isfinite(d.fit_cost);
+    for (const auto& c : d.corners) finite = finite && c.allFinite();
+    EXPECT_TRUE(finite) << what << ": a detection with a non-finite value";
+    EXPECT_EQ(d.id, true_id) << what;
+    EXPECT_EQ(d.family, "tag16h5") << what;
+  }
+}
+
+// Cells of the scan's filled columns, return 0.
+template <class F>
+void for_each_cell(Scan& s, F&& f) {
+  for (int ring = 0; ring < s.rings; ++ring)
+    for (int c = 0; c < s.columns; ++c) f(s.at(0, ring, c), ring, c);
+}
+
+TEST(DetectorHostileScans, NonFiniteAndHugeValuesInATagScanAreNeverPassedOn) {
+  const Scan clean = tag_scan();
+  Detector det(DetectorOptions{});
+  ScanResult res;
+  det.detect(clean, res);
+  ASSERT_EQ(res.detections.size(), 1u);
+  ASSERT_EQ(res.detections[0].id, 3);
+
+  struct Damage {
+    std::string name;
+    std::function<void(Scan&, size_t)> apply;
+  };
+  const std::vector<Damage> damages = {
+      {"NaN x", [](Scan& s, size_t i) { s.x[i] = kNaN; }},
+      {"NaN xyz", [](Scan& s, size_t i) { s.x[i] = s.y[i] = s.z[i] = kNaN; }},
+      {"Inf z", [](Scan& s, size_t i) { s.z[i] = kInf; }},
+      {"-Inf y", [](Scan& s, size_t i) { s.y[i] = -kInf; }},
+      {"huge xyz", [](Scan& s, size_t i) { s.x[i] = s.y[i] = s.z[i] = 1e30f; }},
+      {"NaN range", [](Scan& s, size_t i) { s.range[i] = kNaN; }},
+      {"Inf range", [](Scan& s, size_t i) { s.range[i] = kInf; }},
+      {"negative range", [](Scan& s, size_t i) { s.range[i] = -5.0f; }},
+      {"huge range", [](Scan& s, size_t i) { s.range[i] = 3e38f; }},
+      {"NaN azimuth and time", [](Scan& s, size_t i) { s.azimuth_deg[i] = s.time_s[i] = kNaN; }},
+      {"extreme intensity", [](Scan& s, size_t i) { s.intensity[i] = i % 2 ? 255 : 0; }},
+  };
+  std::mt19937 rng(5);
+  for (const Damage& dmg : damages) {
+    for (const int every : {1, 3, 50}) {  // every cell, a third, one in fifty
+      Scan s = clean;
+      for_each_cell(s, [&](size_t i, int, int) {
+        if (rng() % static_cast<unsigned>(every) == 0) dmg.apply(s, i);
+      });
+      const std::string what = dmg.name + " in 1/" + std::to_string(every) + " of the cells";
+      det.detect(s, res);
+      expect_sane(res, what, 3);
+      if (every == 1 && dmg.name != "extreme intensity" && dmg.name != "NaN azimuth and time") {
+        EXPECT_TRUE(res.detections.empty()) << what;
+      }
+    }
+  }
+  // NaN column azimuths (the horizontal resolution and the wrap test read them).
+  Scan s = clean;
+  for (auto& a : s.column_azimuth_deg) a = kNaN;
+  for (auto& t : s.column_time_s) t = std::numeric_limits<double>::quiet_NaN();
+  det.detect(s, res);
+  expect_sane(res, "NaN column azimuths", 3);
+  // The same detector still finds the tag in the clean scan afterwards.
+  det.detect(clean, res);
+  ASSERT_EQ(res.detections.size(), 1u);
+  EXPECT_EQ(res.detections[0].id, 3);
+}
+
+TEST(DetectorHostileScans, DegenerateScansGiveNoDetection) {
+  Detector det(DetectorOptions{});
+  ScanResult res;
+  const Scan clean = tag_scan();
+  struct Shape {
+    std::string name;
+    std::function<Scan()> make;
+  };
+  const std::vector<Shape> shapes = {
+      {"all zero",
+       [] {
+         Scan s;
+         s.reserve(32, 1, 1800);
+         s.columns = 1800;
+         return s;
+       }},
+      {"every point identical",
+       [&] {
+         Scan s = clean;
+         for_each_cell(s, [&](size_t i, int, int) {
+           s.x[i] = 5.0f;
+           s.y[i] = 0.5f;
+           s.z[i] = 0.0f;
+           s.range[i] = std::sqrt(25.25f);
+           s.intensity[i] = static_cast<uint8_t>(i % 2 ? 220 : 20);
+           s.return_type[i] = ReturnType::kStrongest;
+         });
+         return s;
+       }},
+      {"every range identical, points scattered",
+       [&] {
+         Scan s = clean;
+         for_each_cell(s, [&](size_t i, int, int) { s.range[i] = 5.0f; });
+         return s;
+       }},
+      {"one column",
+       [&] {
+         Scan s = clean;
+         s.columns = 1;
+         return s;
+       }},
+      {"two columns",
+       [&] {
+         Scan s = clean;
+         s.columns = 2;
+         return s;
+       }},
+      {"a single ring (through the tag)",
+       [&] {
+         Scan s;
+         s.reserve(1, 1, clean.column_capacity);
+         s.columns = clean.columns;
+         s.column_azimuth_deg = clean.column_azimuth_deg;
+         for (int c = 0; c < clean.columns; ++c) {
+           const size_t from = clean.at(0, 16, c), to = s.at(0, 0, c);
+           s.x[to] = clean.x[from];
+           s.y[to] = clean.y[from];
+           s.z[to] = clean.z[from];
+           s.range[to] = clean.range[from];
+           s.intensity[to] = clean.intensity[from];
+           s.return_type[to] = clean.return_type[from];
+         }
+         return s;
+       }},
+      {"every ring a copy of one ring",
+       [&] {
+         Scan s = clean;
+         for_each_cell(s, [&](size_t i, int, int c) {
+           const size_t from = clean.at(0, 16, c);
+           s.x[i] = clean.x[from];
+           s.y[i] = clean.y[from];
+           s.z[i] = clean.z[from];
+           s.range[i] = clean.range[from];
+           s.intensity[i] = clean.intensity[from];
+         });
+         return s;
+       }},
+      {"uniform random garbage",
+       [&] {
+         Scan s = clean;
+         std::mt19937 rng(9);
+         std::uniform_real_distribution<float> u(-50.0f, 50.0f);
+         for_each_cell(s, [&](size_t i, int, int) {
+           s.x[i] = u(rng);
+           s.y[i] = u(rng);
+           s.z[i] = u(rng);
+           s.range[i] = std::fabs(u(rng));
+           s.intensity[i] = static_cast<uint8_t>(rng());
+         });
+         return s;
+       }},
+      {"all NaN",
+       [&] {
+         Scan s = clean;
+         for_each_cell(s,
+                       [&](size_t i, int, int) { s.x[i] = s.y[i] = s.z[i] = s.range[i] = kNaN; });
+         return s;
+       }},
+      {"a zero-sized tag: every point of the tag at its centre",
+       [&] {
+         Scan s = clean;
+         for_each_cell(s, [&](size_t i, int, int) {
+           if (std::fabs(s.x[i] - 5.0f) < 0.5f && std::fabs(s.y[i] - 0.5f) < 0.8f) {
+             s.x[i] = 5.0f;
+             s.y[i] = 0.5f;
+             s.z[i] = 0.0f;
+           }
+         });
+         return s;
+       }},
+  };
+  for (const Shape& shape : shapes) {
+    const Scan s = shape.make();
+    det.detect(s, res);
+    expect_sane(res, shape.name, 3);
+    EXPECT_TRUE(res.detections.empty()) << shape.name;
+  }
+}
+
+TEST(DetectorHostileScans, DuplicatedPointsFindTheTagOrNothing) {
+  // Every column twice over (a batcher bug or a replayed packet): the same points, half the
+  // azimuth step.
+  const Scan clean = tag_scan();
+  Scan s;
+  s.reserve(clean.rings, 1, 2 * clean.columns);
+  s.columns = 2 * clean.columns;
+  for (int c = 0; c < s.columns; ++c) {
+    s.column_azimuth_deg[static_cast<size_t>(c)] =
+        clean.column_azimuth_deg[static_cast<size_t>(c / 2)];
+    for (int ring = 0; ring < s.rings; ++ring) {
+      const size_t from = clean.at(0, ring, c / 2), to = s.at(0, ring, c);
+      s.x[to] = clean.x[from];
+      s.y[to] = clean.y[from];
+      s.z[to] = clean.z[from];
+      s.range[to] = clean.range[from];
+      s.intensity[to] = clean.intensity[from];
+      s.return_type[to] = clean.return_type[from];
+    }
+  }
+  Detector det(DetectorOptions{});
+  ScanResult res;
+  det.detect(s, res);
+  expect_sane(res, "duplicated columns", 3);
+}
+
+TEST(DetectorHostileScans, ScanWhoseSizesDisagreeWithItsStorageGivesNothing) {
+  // A Scan is a plain struct: a caller can get its sizes wrong. Reading past the storage would be
+  // a crash or garbage; the detector refuses the scan instead.
+  Detector det(DetectorOptions{});
+  ScanResult res;
+  Scan s = tag_scan();
+  s.columns = s.column_capacity + 100;
+  det.detect(s, res);
+  EXPECT_TRUE(res.detections.empty());
+  Scan t = tag_scan();
+  t.rings = 64;  // storage for 32
+  det.detect(t, res);
+  EXPECT_TRUE(res.detections.empty());
+  Scan u;
+  u.rings = 32;
+  u.columns = 1800;  // no storage at all
+  u.column_capacity = 1800;
+  det.detect(u, res);
+  EXPECT_TRUE(res.detections.empty());
+  Scan v = tag_scan();
+  v.returns = 0;
+  det.detect(v, res);
+  EXPECT_TRUE(res.detections.empty());
 }
 
 }  // namespace

@@ -3,6 +3,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <limits>
+
 #include "synthetic_scene.hpp"
 
 namespace lidartag::detector {
@@ -81,6 +84,64 @@ TEST(RingRegression, OrganisesACloudThatCarriesItsRings) {
     }
   EXPECT_FALSE(organise_rings(cloud, 0, 0.2, out));
   EXPECT_FALSE(organise_rings(cloud, 32, 0.0, out));
+}
+
+TEST(RingRegression, NonFinitePointsAreSkippedAndNanIntensityReadsAsZero) {
+  test::SyntheticScene scene;
+  Scan s;
+  test::render_scene(scene, test::vlp32c(), s);
+  auto cloud = cloud_of(s);
+  const size_t clean = cloud.size();
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float inf = std::numeric_limits<float>::infinity();
+  for (size_t k = 0; k < clean; k += 7) cloud[k].intensity = nan;
+  for (size_t k = 0; k < 200; ++k) {
+    cloud.push_back({nan, 1.0f, 0.5f, 10.0f});
+    cloud.push_back({1.0f, inf, 0.5f, 10.0f});
+    cloud.push_back({nan, nan, nan, nan});
+    cloud.push_back({0.0f, 0.0f, 0.0f, 10.0f});
+    cloud.push_back({3.0f, 1.0f, -0.2f, -inf, static_cast<int>(k) - 100});  // ring out of range
+  }
+  // The elevations come from the finite points only.
+  const auto e = estimate_elevations(cloud, 32);
+  ASSERT_EQ(e.size(), 32u);
+  for (double v : e) EXPECT_TRUE(std::isfinite(v));
+  RingRegressionOptions o;
+  o.rings = 32;
+  Scan out;
+  ASSERT_TRUE(regress_rings(cloud, o, out));
+  size_t valid = 0;
+  for (int ring = 0; ring < out.rings; ++ring)
+    for (int col = 0; col < out.columns; ++col) {
+      const size_t i = out.at(0, ring, col);
+      if (!out.valid(i)) continue;
+      ++valid;
+      ASSERT_TRUE(std::isfinite(out.x[i]) && std::isfinite(out.y[i]) && std::isfinite(out.z[i]));
+      ASSERT_TRUE(std::isfinite(out.range[i]));
+    }
+  EXPECT_GE(valid, clean * 9 / 10);
+  // Rings from the points: those outside [0, rings) are dropped, the others placed.
+  ASSERT_TRUE(organise_rings(cloud, 32, 0.2, out));
+  EXPECT_LE(out.point_count(), 100u);
+  // Elevations that are not numbers are refused, not sorted.
+  o.elevations_deg = {-10.0, std::numeric_limits<double>::quiet_NaN(), 5.0};
+  EXPECT_FALSE(regress_rings(cloud, o, out));
+}
+
+TEST(RingRegression, AbsurdResolutionIsRefused) {
+  const std::vector<CloudPoint> cloud = {{5.0f, 0.0f, 0.0f, 10.0f, 0},
+                                         {5.0f, 0.1f, 0.5f, 10.0f, 1}};
+  Scan out;
+  for (double res : {0.0, -1.0, 1e-300, 1e-9, 361.0, std::numeric_limits<double>::quiet_NaN(),
+                     std::numeric_limits<double>::infinity()}) {
+    EXPECT_FALSE(organise_rings(cloud, 2, res, out)) << res;
+    RingRegressionOptions o;
+    o.elevations_deg = {0.0, 5.7};
+    o.horizontal_resolution_deg = res;
+    EXPECT_FALSE(regress_rings(cloud, o, out)) << res;
+  }
+  EXPECT_TRUE(organise_rings(cloud, 2, 0.2, out));
+  EXPECT_EQ(out.point_count(), 2u);
 }
 
 }  // namespace

@@ -7,8 +7,12 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <numbers>
+#include <random>
 #include <sstream>
+
+#include "lidartag/driver/decoder.hpp"
 
 namespace lidartag::velodyne {
 namespace {
@@ -190,6 +194,115 @@ TEST_F(CalibrationFile, DegreesInsteadOfRadiansAreRejected) {
   const size_t value = text.find(':', at) + 2;
   text.replace(value, text.find(',', value) - value, "-15.0");
   EXPECT_EQ(error_for(text).key(), "lasers[0].vert_correction");
+}
+
+// The value of `key` of laser `id` replaced by `value`.
+std::string with_value(std::string text, int id, const std::string& key, const std::string& value) {
+  const size_t line = text.rfind('\n', text.find("laser_id: " + std::to_string(id) + ","));
+  size_t at = text.find(key + ":", line);
+  while (text[at - 1] != ' ' && text[at - 1] != '{') at = text.find(key + ":", at + 1);
+  const size_t from = text.find(':', at) + 2;
+  text.replace(from, text.find_first_of(",}", from) - from, value);
+  return text;
+}
+
+TEST_F(CalibrationFile, ImplausibleCorrectionsAreRejectedNamingTheKey) {
+  const std::string text = yaml_of(Calibration::builtin(Model::kVLP16));
+  struct Case {
+    const char* key;
+    const char* value;
+  };
+  // Finite but absurd: each used to decode into NaN (inf - inf) or kilometre-away points.
+  for (const Case& c : {Case{"rot_correction", "1e300"}, Case{"rot_correction", "-7.0"},
+                        Case{"dist_correction", "1e39"}, Case{"dist_correction", "-120.5"},
+                        Case{"vert_offset_correction", "1e30"},
+                        Case{"horiz_offset_correction", "50"}, Case{"rot_correction", ".nan"},
+                        Case{"dist_correction", ".inf"}, Case{"vert_correction", "-.inf"}}) {
+    SCOPED_TRACE(std::string(c.key) + " = " + c.value);
+    const auto e = error_for(with_value(text, 3, c.key, c.value));
+    EXPECT_EQ(e.key(), std::string("lasers[3].") + c.key);
+  }
+  // The largest plausible values still load.
+  std::string edge = with_value(text, 3, "rot_correction", "3.14");
+  edge = with_value(edge, 3, "dist_correction", "9.5");
+  edge = with_value(edge, 3, "horiz_offset_correction", "-9.5");
+  EXPECT_NO_THROW(load_calibration_file(write(edge), Model::kVLP16));
+}
+
+// A VLP-16 strongest-return packet with every distance `raw` and azimuths from `az0`.
+std::vector<uint8_t> vlp16_packet(uint16_t raw, uint16_t az0) {
+  std::vector<uint8_t> p(kDataPacketSize, 0);
+  for (size_t b = 0; b < 12; ++b) {
+    uint8_t* blk = p.data() + b * kBlockSize;
+    write_u16(blk, kBankFlags[0]);
+    write_u16(blk + 2, static_cast<uint16_t>((az0 + 40 * b) % 36000));
+    for (size_t ch = 0; ch < 32; ++ch) {
+      write_u16(blk + 4 + 3 * ch, static_cast<uint16_t>(raw + 97 * ch));
+      blk[4 + 3 * ch + 2] = 100;
+    }
+  }
+  p[kReturnModeOffset] = 0x37;
+  p[kProductIdOffset] = 0x22;
+  return p;
+}
+
+TEST_F(CalibrationFile, RandomlyDamagedFilesLoadSaneOrFailWithCalibrationError) {
+  const std::string good = yaml_of(Calibration::builtin(Model::kVLP16));
+  std::mt19937 rng(21);
+  int loaded = 0, refused = 0;
+  for (int k = 0; k < 300; ++k) {
+    std::string text = good;
+    const int edits = 1 + static_cast<int>(rng() % 3);
+    for (int e = 0; e < edits; ++e) {
+      const size_t at = rng() % text.size();
+      switch (rng() % 4) {
+        case 0:
+          text[at] = static_cast<char>('0' + rng() % 10);
+          break;
+        case 1:
+          text[at] = "-.e:,{}[] \n9"[rng() % 12];
+          break;
+        case 2:  // a value replaced by a number of any magnitude
+          if (const size_t colon = text.find(": ", at); colon != std::string::npos) {
+            const size_t from = colon + 2, to = text.find_first_of(",}\n", from);
+            text.replace(from, to == std::string::npos ? std::string::npos : to - from,
+                         (rng() % 2 ? "-" : "") + std::to_string(rng() % 10) + "e" +
+                             std::to_string(static_cast<int>(rng() % 80) - 20));
+          }
+          break;
+        default:
+          text.resize(at);
+      }
+    }
+    Calibration c;
+    try {
+      c = load_calibration_file(write(text), Model::kVLP16);
+    } catch (const CalibrationError& e) {
+      ++refused;
+      EXPECT_NE(std::string(e.what()).find(path_), std::string::npos) << e.what();
+      continue;
+    }
+    ++loaded;
+    // Whatever loaded decodes into finite points, azimuths in [0, 360).
+    Decoder d(c);
+    SensorClock clock;
+    DecodedPacket out;
+    for (uint16_t raw : {uint16_t{1}, uint16_t{500}, uint16_t{40000}, uint16_t{65535}}) {
+      ASSERT_EQ(d.decode(vlp16_packet(raw, static_cast<uint16_t>(rng() % 36000)), clock, 0, out),
+                DecodeStatus::kOk);
+      for (int col = 0; col < out.columns; ++col)
+        for (int ring = 0; ring < out.rings; ++ring) {
+          const auto i = static_cast<size_t>(out.at(0, col, ring));
+          ASSERT_TRUE(std::isfinite(out.x[i]) && std::isfinite(out.y[i]) &&
+                      std::isfinite(out.z[i]) && std::isfinite(out.range[i]))
+              << "mutant " << k;
+          ASSERT_TRUE(out.azimuth_deg[i] >= 0.0f && out.azimuth_deg[i] < 360.0f)
+              << "mutant " << k << ": " << out.azimuth_deg[i];
+        }
+    }
+  }
+  EXPECT_GT(loaded, 10);
+  EXPECT_GT(refused, 10);
 }
 
 }  // namespace

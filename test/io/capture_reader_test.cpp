@@ -132,6 +132,56 @@ TEST(CaptureReader, CutAngleMovesTheRotationBoundary) {
   }
 }
 
+// `n` payloads of `size` bytes to `port`, then the end; notes what the reader watching it had
+// counted when the last one went out.
+class ScriptedSource final : public PacketSource {
+ public:
+  ScriptedSource(size_t n, uint16_t port, size_t size) : n_(n), port_(port), size_(size) {}
+  ReadStatus next(RawPacket& out, std::chrono::milliseconds) override {
+    if (sent_ == n_) return ReadStatus::kEnd;
+    if (sent_ + 1 == n_ && reader != nullptr) {
+      counted_before_end = reader->counts().data_packets + reader->counts().position_packets;
+    }
+    payload_.assign(size_, static_cast<uint8_t>(sent_));
+    out.payload = payload_;
+    out.receive_time_ns = 1'700'000'000'000'000'000 + static_cast<int64_t>(sent_) * 1'000'000;
+    out.destination_port = port_;
+    ++sent_;
+    ++stats_.packets;
+    return ReadStatus::kPacket;
+  }
+  SourceStats stats() const override { return stats_; }
+  const CaptureReader* reader = nullptr;
+  uint64_t counted_before_end = 0;
+
+ private:
+  size_t n_, sent_ = 0;
+  uint16_t port_;
+  size_t size_;
+  std::vector<uint8_t> payload_;
+  SourceStats stats_{};
+};
+
+TEST(CaptureReader, TrafficThatNeverCompletesTheProbeIsNotHeldWithoutBound) {
+  // Position packets only, or datagrams of another size on the data port: no model can be
+  // decided, and holding them all back for it would grow without bound on a live source.
+  for (const auto& [port, size] : {std::pair<uint16_t, size_t>{kDefaultPositionPort, 512},
+                                   std::pair<uint16_t, size_t>{kDefaultDataPort, 1000}}) {
+    SCOPED_TRACE(port);
+    const size_t n = 20000;
+    auto source = std::make_unique<ScriptedSource>(n, port, size);
+    ScriptedSource* watch = source.get();
+    CaptureReader reader(std::move(source), {});
+    watch->reader = &reader;
+    EXPECT_EQ(reader.next(), nullptr);
+    EXPECT_GE(watch->counted_before_end, n - 1100) << "held back instead of counted";
+    const CaptureCounts& c = reader.counts();
+    EXPECT_EQ(c.data_packets + c.position_packets, n);
+    EXPECT_EQ(c.undecodable, c.data_packets);
+    EXPECT_FALSE(reader.model());
+  }
+}
+
 TEST(CaptureReader, CalibrationFileErrorsSurfaceAtSetup) {
   const std::string path = kCaptures + "vlp16_rlu.pcap";
   if (!std::filesystem::exists(path)) GTEST_SKIP() << "capture not available: " << path;

@@ -334,6 +334,58 @@ TEST(PcapSource, ReadsPcapng) {
   }
 }
 
+TEST(PcapSource, ImpossibleTimestampsAreCountedAsMalformedAndSkipped) {
+  // pcapng timestamps are 64-bit ticks: a corrupt one is 2^64 us, beyond any int64 of ns.
+  const Bytes payload = test::payload_bytes(1206, 10);
+  const Bytes frame = test::ethernet(test::ipv4_udp(payload, 2368));
+  Bytes file = test::pcapng(1, {{frame, kT0}, {frame, kT0 + 1000}, {frame, kT0 + 2000}});
+  // Section header 28 bytes, interface 20; the first packet block's timestamp (high word) at
+  // 12 bytes into it, the second block 1280 bytes further.
+  const size_t first_epb = 28 + 20;
+  ASSERT_EQ(file[first_epb], 6);
+  for (size_t i = 0; i < 4; ++i) file[first_epb + 12 + i] = 0xFF;
+  const size_t second_epb = first_epb + 32 + ((frame.size() + 3) / 4) * 4;
+  ASSERT_EQ(file[second_epb], 6);
+  file[second_epb + 12 + 3] = 0x80;  // 2^63 us
+  TempFile tmp("times.pcapng");
+  test::write_file(tmp.path(), file);
+  PcapSource source(tmp.path());
+  const auto packets = read_all(source);
+  ASSERT_EQ(packets.size(), 1u);
+  EXPECT_EQ(packets[0].time_ns, kT0 + 2000);
+  EXPECT_EQ(source.stats().malformed, 2u);
+  EXPECT_NE(source.last_error().find("impossible timestamp"), std::string::npos)
+      << source.last_error();
+
+  // A classic record whose microseconds are not below a second is corrupt too.
+  Bytes classic = test::classic_pcap(kLinktypeEthernet, {{frame, kT0}, {frame, kT0 + 1000}});
+  classic[24 + 4 + 3] = 0xFF;  // ts_usec of the first record >= 2^24 * 255
+  SourceStats stats;
+  const auto kept = read_file("usec.pcap", classic, &stats);
+  ASSERT_EQ(kept.size(), 1u);
+  EXPECT_EQ(kept[0].time_ns, kT0 + 1000);
+  EXPECT_EQ(stats.malformed, 1u);
+}
+
+TEST(PcapSource, ZeroLengthAndHugeLengthRecordsAreCounted) {
+  const Bytes payload = test::payload_bytes(1206, 13);
+  const Bytes frame = test::ethernet(test::ipv4_udp(payload, 2368));
+  // A record with no data at all, between two good ones.
+  Bytes file =
+      test::classic_pcap(kLinktypeEthernet, {{frame, kT0}, {{}, kT0 + 1}, {frame, kT0 + 2}});
+  SourceStats stats;
+  auto packets = read_file("zero.pcap", file, &stats);
+  EXPECT_EQ(packets.size(), 2u);
+  EXPECT_EQ(stats.truncated, 1u);
+  // A record claiming 4 GB: libpcap refuses it, the pass ends there, counted.
+  file = test::classic_pcap(kLinktypeEthernet, {{frame, kT0}, {frame, kT0 + 1}});
+  const size_t second = 24 + 16 + frame.size();
+  for (size_t i = 0; i < 4; ++i) file[second + 8 + i] = 0xFF;
+  packets = read_file("huge.pcap", file, &stats);
+  EXPECT_EQ(packets.size(), 1u);
+  EXPECT_EQ(stats.malformed + stats.truncated, 1u);
+}
+
 TEST(PcapSource, LoopRestartsWithMonotonicTime) {
   const Bytes payload = test::payload_bytes(1206, 12);
   const Bytes frame = test::ethernet(test::ipv4_udp(payload, 2368));

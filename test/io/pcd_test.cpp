@@ -3,8 +3,11 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <random>
+#include <sstream>
 
 namespace lidartag::velodyne {
 namespace {
@@ -121,6 +124,112 @@ TEST(Pcd, BadFilesAreIoErrorsNamingTheProblem) {
   expect_error(header + "POINTS 2\n", "header ends");
   EXPECT_THROW(read_pcd("/nonexistent-lidartag/x.pcd"), IoError);
   std::filesystem::remove(path);
+}
+
+TEST(Pcd, AbsurdSizesAreIoErrorsNotWrapsOrHugeAllocations) {
+  const std::string path = temp_path("absurd.pcd");
+  auto expect_error = [&](const std::string& text, const std::string& words) {
+    std::ofstream(path, std::ios::binary | std::ios::trunc) << text;
+    try {
+      const PcdCloud cloud = read_pcd(path);
+      ADD_FAILURE() << "accepted " << cloud.size() << " points for: " << words;
+    } catch (const IoError& e) {
+      EXPECT_NE(std::string(e.what()).find(words), std::string::npos) << e.what();
+    }
+  };
+  const std::string fields = "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\n";
+  const std::string data = "DATA binary\n" + std::string(24, '\0');
+  // 2^32 x 2^32 wraps to 0 points: an empty cloud from a file that claims 2^64.
+  expect_error(fields + "WIDTH 4294967296\nHEIGHT 4294967296\n" + data, "out of range");
+  expect_error(fields + "WIDTH 4294967296\nHEIGHT 4294967296\nPOINTS 0\n" + data, "out of range");
+  expect_error(fields + "WIDTH 9223372036854775809\nHEIGHT 2\nPOINTS 2\n" + data, "out of range");
+  expect_error(fields + "WIDTH 18446744073709551615\nHEIGHT 1\n" + data, "cannot fit");
+  expect_error(fields + "WIDTH -2\nHEIGHT 1\n" + data, "PCD file");
+  expect_error(fields + "WIDTH 2\nHEIGHT 1\nPOINTS 3\n" + data, "POINTS is not WIDTH x HEIGHT");
+  expect_error(fields + "WIDTH 3\nHEIGHT 1\n" + data, "binary data holds");
+  expect_error(fields + "WIDTH 99999\nHEIGHT 99999\nDATA ascii\n1 2 3\n", "cannot fit");
+  expect_error("FIELDS x y z\nSIZE 4 4\n", "header ends");
+  expect_error("FIELDS\nSIZE\nTYPE\nWIDTH 1\nDATA ascii\n", "no FIELDS");
+  expect_error("FIELDS x y z\nSIZE 4 4 4\nTYPE F F\nWIDTH 1\nDATA ascii\n1 2 3\n", "disagree");
+  expect_error("FIELDS x\nSIZE 18446744073709551615\nTYPE F\nWIDTH 1\nDATA binary\n", "type");
+  expect_error(fields + "WIDTH 1\nDATA ascii\n1 x 3\n", "'x'");
+  expect_error(fields + "WIDTH 1\nDATA ascii\n1 2 1e999\n", "not a number");
+  std::filesystem::remove(path);
+}
+
+TEST(Pcd, AsciiNanAndInfAsPclWritesThemAreRead) {
+  // PCL writes "nan" for the invalid points of organised clouds; they are values, not the end.
+  const std::string path = temp_path("nan.pcd");
+  std::ofstream(path) << "FIELDS x y z intensity\nSIZE 4 4 4 4\nTYPE F F F F\nWIDTH 4\nHEIGHT "
+                         "1\nDATA ascii\n1 2 3 4\nnan nan nan 0\n-inf inf +5 NaN\n5 6 7 8\n";
+  const PcdCloud cloud = read_pcd(path);
+  ASSERT_EQ(cloud.size(), 4u);
+  EXPECT_EQ(cloud.field("x")[0], 1.0);
+  EXPECT_TRUE(std::isnan(cloud.field("x")[1]));
+  EXPECT_TRUE(std::isinf(cloud.field("x")[2]) && cloud.field("x")[2] < 0);
+  EXPECT_EQ(cloud.field("z")[2], 5.0);
+  EXPECT_TRUE(std::isnan(cloud.field("intensity")[2]));
+  EXPECT_EQ(cloud.field("intensity")[3], 8.0);
+  std::filesystem::remove(path);
+}
+
+TEST(Pcd, RandomlyDamagedFilesAreReadConsistentlyOrRefused) {
+  const std::string good = temp_path("good.pcd");
+  write_pcd(good, make_scan());
+  std::ifstream in(good, std::ios::binary);
+  std::ostringstream file;
+  file << in.rdbuf();
+  const std::string binary = file.str();
+  std::ostringstream ascii;
+  ascii << "VERSION 0.7\nFIELDS x y z intensity ring\nSIZE 4 4 4 4 2\nTYPE F F F F U\n"
+           "COUNT 1 1 1 1 1\nWIDTH 6\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 6\nDATA ascii\n";
+  for (int k = 0; k < 6; ++k) ascii << k << ".5 -" << k << " 0.25 " << 10 * k << " " << k << "\n";
+  const std::string path = temp_path("damaged.pcd");
+  std::mt19937 rng(3);
+  int read = 0, refused = 0;
+  for (int k = 0; k < 400; ++k) {
+    std::string text = k % 2 ? binary : ascii.str();
+    const int flips = 1 + static_cast<int>(rng() % 4);
+    for (int f = 0; f < flips; ++f) {
+      const size_t at = rng() % text.size();
+      switch (rng() % 4) {
+        case 0:  // a random byte
+          text[at] = static_cast<char>(rng());
+          break;
+        case 1:  // a digit, so that numbers in the header change
+          text[at] = static_cast<char>('0' + rng() % 10);
+          break;
+        case 2:  // cut
+          text.resize(at);
+          break;
+        default:  // a line dropped or doubled
+          if (const size_t nl = text.find('\n', at); nl != std::string::npos) {
+            const size_t start = text.rfind('\n', at);
+            const size_t from = start == std::string::npos ? 0 : start + 1;
+            if (rng() % 2)
+              text.erase(from, nl + 1 - from);
+            else
+              text.insert(from, text.substr(from, nl + 1 - from));
+          }
+      }
+      if (text.empty()) text = "x";
+    }
+    std::ofstream(path, std::ios::binary | std::ios::trunc) << text;
+    try {
+      const PcdCloud cloud = read_pcd(path);
+      ++read;
+      ASSERT_EQ(cloud.columns.size(), cloud.fields.size());
+      for (const auto& column : cloud.columns) ASSERT_EQ(column.size(), cloud.size());
+      ASSERT_LE(cloud.size() * cloud.fields.size(), text.size());
+    } catch (const IoError& e) {
+      ++refused;
+      EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_GT(read, 0);
+  EXPECT_GT(refused, 0);
+  std::filesystem::remove(path);
+  std::filesystem::remove(good);
 }
 
 TEST(Pcd, ReadsTheReferenceScanOfAnotherDecoder) {

@@ -1,5 +1,6 @@
 // Scene YAML: defaults, every section mapped, and typed errors naming the bad key.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <fstream>
 
@@ -181,7 +182,8 @@ TEST(SceneYaml, FamilyAndIdAreCheckedWhenTheSimulatorIsBuilt) {
 
 TEST(SceneYaml, LoadSceneReadsFilesAndReportsMissingOnes) {
   EXPECT_THROW(load_scene("/nonexistent/scene.yaml"), SceneError);
-  const std::string path = ::testing::TempDir() + "/sim_scene_test.yaml";
+  const std::string path =
+      ::testing::TempDir() + "/" + std::to_string(::getpid()) + "_sim_scene_test.yaml";
   {
     std::ofstream out(path);
     out << "sensor: {model: hdl32e}\nrotations: 2\n";

@@ -3,12 +3,14 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <random>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -178,6 +180,113 @@ TEST(CliDetect, PcdWithRingsAndWithout) {
   r = run_tool("detect " + no_rings);
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.out.find("no ring field; give --model"), std::string::npos) << r.out;
+}
+
+// A small ascii cloud with rings: 4 rings of 300 points on a cylinder of 5 m, then `extra` lines.
+std::string small_cloud(const std::string& extra = "", size_t extra_points = 0) {
+  std::ostringstream o;
+  o << "VERSION 0.7\nFIELDS x y z intensity ring\nSIZE 4 4 4 4 2\nTYPE F F F F U\n"
+    << "COUNT 1 1 1 1 1\nWIDTH " << 1200 + extra_points << "\nHEIGHT 1\nPOINTS "
+    << 1200 + extra_points << "\nDATA ascii\n";
+  for (int ring = 0; ring < 4; ++ring)
+    for (int k = 0; k < 300; ++k) {
+      const double a = 2 * M_PI * k / 300;
+      o << 5 * std::cos(a) << " " << 5 * std::sin(a) << " " << -0.5 + 0.25 * ring << " 40 " << ring
+        << "\n";
+    }
+  o << extra;
+  return o.str();
+}
+
+// One "lidartag: error:" line naming the problem, exit code 1.
+void expect_one_error(const Result& r, const std::string& words, const std::string& what) {
+  EXPECT_EQ(r.exit_code, 1) << what << ": " << r.out;
+  EXPECT_EQ(r.out.rfind("lidartag: error: ", 0), 0u) << what << ": " << r.out;
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << what << ": " << r.out;
+  EXPECT_NE(r.out.find(words), std::string::npos) << what << ": " << r.out;
+}
+
+TEST(CliDetect, HostilePcdFilesGiveOneErrorLineOrSkipTheBadPoints) {
+  TempDir dir;
+  const std::string path = (dir / "hostile.pcd").string();
+  auto detect = [&](const std::string& text, const std::string& options = "") {
+    std::ofstream(path, std::ios::binary | std::ios::trunc) << text;
+    return run_tool("detect " + path + " " + options);
+  };
+  const std::string xyz = "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\n";
+  expect_one_error(detect("FIELDS x y z\nSIZE 4 4"), "header ends", "truncated header");
+  expect_one_error(detect(xyz + "COUNT 1 1\nWIDTH 1\nDATA ascii\n1 2 3\n"), "COUNT", "counts");
+  expect_one_error(detect("FIELDS x y z\nSIZE 4 4\nTYPE F F F\nWIDTH 1\nDATA ascii\n1 2 3\n"),
+                   "disagree", "fields");
+  expect_one_error(detect(xyz + "WIDTH 5\nDATA binary\n" + std::string(50, '\1')),
+                   "binary data holds", "short binary");
+  expect_one_error(detect(xyz + "WIDTH 4294967296\nHEIGHT 4294967296\nDATA binary\n"),
+                   "out of range", "WIDTH x HEIGHT wrapping to 0");
+  expect_one_error(detect(xyz + "WIDTH 1000000000000\nHEIGHT 1\nPOINTS 1000000000000\nDATA "
+                                "ascii\n1 2 3\n"),
+                   "cannot fit", "absurd POINTS");
+  expect_one_error(detect(xyz + "WIDTH 0\nPOINTS 0\nDATA ascii\n", "--rings 16"),
+                   "cannot regress rings", "empty cloud");
+  expect_one_error(detect(std::string("\x89PNG\r\n\x1a\n\0\0garbage", 17)), "unknown header line",
+                   "not a PCD");
+
+  // Bad points among good ones: skipped with a warning, the rest detected.
+  Result r = detect(small_cloud("nan nan nan 0 0\n1e39 0 0 1 1\ninf 1 1 1 1\n", 3));
+  EXPECT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("3 points with non-finite coordinates skipped"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("0 detections"), std::string::npos) << r.out;
+  r =
+      detect(small_cloud("5 0 0 1 nan\n5 0 0 1 -1\n5 0 0 1 1e12\n5 0 0 1 2.5\n5 0 0 1 300\n"
+                         "5 0 0 1 2000000000\n",
+                         6));
+  EXPECT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("6 points with a ring that is not a whole number in 0..255 skipped"),
+            std::string::npos)
+      << r.out;
+  r = detect(small_cloud("5 0 0 nan 1\n5 0.1 0 -1e300 1\n5 0.2 0 1e300 2\n", 3));
+  EXPECT_EQ(r.exit_code, 0) << r.out;
+  // Every ring garbage: nothing left to organise.
+  r = detect(xyz.substr(0, 12) +
+             " ring\nSIZE 4 4 4 4\nTYPE F F F F\nWIDTH 2\nDATA ascii\n"
+             "1 2 3 nan\n1 2 3 4294967296\n");
+  EXPECT_EQ(r.exit_code, 1) << r.out;
+  EXPECT_NE(r.out.find("no points with a ring number"), std::string::npos) << r.out;
+  // Doubles beyond a float in a binary file.
+  {
+    std::string text = "FIELDS x y z ring\nSIZE 8 8 8 2\nTYPE F F F U\nWIDTH 2\nDATA binary\n";
+    for (double v : {1e300, 2.0, 0.5}) text.append(reinterpret_cast<const char*>(&v), 8);
+    text.append(2, '\0');
+    for (double v : {5.0, 0.0, 0.5}) text.append(reinterpret_cast<const char*>(&v), 8);
+    text.append(2, '\0');
+    r = detect(text);
+    EXPECT_EQ(r.exit_code, 0) << r.out;
+    EXPECT_NE(r.out.find("1 points with non-finite coordinates skipped"), std::string::npos)
+        << r.out;
+  }
+}
+
+TEST(CliDetect, RandomlyDamagedPcdFilesNeverCrashTheTool) {
+  TempDir dir;
+  const std::string path = (dir / "damaged.pcd").string();
+  const std::string base = small_cloud();
+  std::mt19937 rng(17);
+  for (int k = 0; k < 25; ++k) {
+    std::string text = base;
+    for (int f = 0; f < 1 + static_cast<int>(rng() % 4); ++f) {
+      const size_t at = rng() % std::min<size_t>(text.size(), k % 2 ? text.size() : 200);
+      if (rng() % 5 == 0)
+        text.resize(at);
+      else
+        text[at] = static_cast<char>(rng() % 3 == 0 ? rng() : '0' + rng() % 10);
+      if (text.empty()) text = "\n";
+    }
+    std::ofstream(path, std::ios::binary | std::ios::trunc) << text;
+    const Result r = run_tool("detect " + path);
+    ASSERT_TRUE(r.exit_code == 0 || r.exit_code == 1) << "mutant " << k << ": " << r.out;
+    if (r.exit_code == 1) {
+      EXPECT_NE(r.out.find("lidartag: error: "), std::string::npos) << "mutant " << k << r.out;
+    }
+  }
 }
 
 TEST(CliDetect, BadArgumentsAreUsageErrors) {

@@ -2,12 +2,14 @@
 // the LiDARTag detector on every rotation of a pcap, or on one PCD file, and prints what it found:
 // a table by default, one JSON object per rotation with --json.
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -65,6 +67,9 @@ bool is_pcd(const std::string& path) {
   return ext == ".pcd";
 }
 
+// Rings of a PCD's `ring` field (the largest spinning sensors have 128).
+constexpr int kMaxPcdRings = 256;
+
 // A PCD file as one scan: its own rings when it has a `ring` field, else rings regressed from
 // the elevations (the --model's beam table, or --rings beams estimated from the cloud).
 void load_pcd_scan(const DetectArgs& args, Scan& scan) {
@@ -77,19 +82,38 @@ void load_pcd_scan(const DetectArgs& args, Scan& scan) {
   std::vector<det::CloudPoint> cloud;
   cloud.reserve(pcd.size());
   int max_ring = -1;
+  size_t bad_points = 0, bad_rings = 0;
+  // Beyond a float, or a ring that is not a small whole number: converting it is undefined, and
+  // one ring of 2^31 would size a scan of 2^31 rings.
+  auto is_float = [](double v) { return std::fabs(v) <= std::numeric_limits<float>::max(); };
   for (size_t i = 0; i < pcd.size(); ++i) {
+    if (!is_float(x[i]) || !is_float(y[i]) || !is_float(z[i])) {
+      ++bad_points;
+      continue;
+    }
     det::CloudPoint p;
     p.x = static_cast<float>(x[i]);
     p.y = static_cast<float>(y[i]);
     p.z = static_cast<float>(z[i]);
-    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) continue;
-    p.intensity = intensity ? static_cast<float>((*intensity)[i]) : 0.0f;
+    // NaN stays NaN (read as 0 when the scan is built).
+    p.intensity = intensity ? static_cast<float>(std::clamp((*intensity)[i], 0.0, 255.0)) : 0.0f;
     if (ring) {
-      p.ring = static_cast<int>((*ring)[i]);
+      const double r = (*ring)[i];
+      if (!(r >= 0 && r < kMaxPcdRings) || r != std::floor(r)) {
+        ++bad_rings;
+        continue;
+      }
+      p.ring = static_cast<int>(r);
       max_ring = std::max(max_ring, p.ring);
     }
     cloud.push_back(p);
   }
+  if (bad_points > 0)
+    spdlog::warn("{}: {} points with non-finite coordinates skipped", args.capture.capture,
+                 bad_points);
+  if (bad_rings > 0)
+    spdlog::warn("{}: {} points with a ring that is not a whole number in 0..{} skipped",
+                 args.capture.capture, bad_rings, kMaxPcdRings - 1);
   const auto model =
       args.capture.model.empty() ? std::nullopt : velodyne::model_from_name(args.capture.model);
   if (ring) {

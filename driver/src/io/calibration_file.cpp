@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <numbers>
 #include <optional>
+#include <utility>
 #include <vector>
 
 namespace lidartag::velodyne {
@@ -49,6 +50,7 @@ int integer(const YAML::Node& node, const std::string& key, const std::string& w
 }
 
 constexpr double kDegPerRad = 180.0 / std::numbers::pi;
+constexpr double kMaxOffsetM = 10.0;  // distance, vertical and horizontal offsets
 
 }  // namespace
 
@@ -119,6 +121,23 @@ Calibration load_calibration_file(const std::string& path, Model model) {
     if (std::fabs(c.elevation_deg) > 90.0) {
       throw CalibrationError(path, where + "vert_correction",
                              "elevation beyond +-90 degrees (radians expected)");
+    }
+    // Finite is not enough: 1e300 turns into inf (and inf - inf = NaN) in the decoder's floats,
+    // and large offsets into points kilometres away. Real files hold centimetres to a metre.
+    if (std::fabs(c.azimuth_offset_deg) > 180.0) {
+      throw CalibrationError(path, where + "rot_correction",
+                             "azimuth offset beyond +-180 degrees (radians expected)");
+    }
+    const std::pair<const char*, double> offsets[] = {
+        {"dist_correction", c.distance_offset_m},
+        {"vert_offset_correction", c.vertical_offset_m},
+        {"horiz_offset_correction", c.horizontal_offset_m}};
+    for (const auto& [key, value] : offsets) {
+      if (std::fabs(value) > kMaxOffsetM) {
+        throw CalibrationError(path, where + key,
+                               "offset beyond +-" + std::to_string(static_cast<int>(kMaxOffsetM)) +
+                                   " m (metres expected)");
+      }
     }
   }
   // n entries with distinct ids in 0..n-1: every laser is present.

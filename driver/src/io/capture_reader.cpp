@@ -1,10 +1,17 @@
 #include "lidartag/driver/io/capture_reader.hpp"
 
+#include <algorithm>
+
 #include "lidartag/driver/io/calibration_file.hpp"
 
 namespace lidartag::velodyne {
 
 using namespace std::chrono_literals;
+
+namespace {
+// Packets held back while probing: this many, or 4 x probe_packets when that is more.
+constexpr size_t kMinHeld = 1024;
+}  // namespace
 
 // A fixed set of scans: the batcher fills one at a time and publishes it into a queue that
 // next() drains. Scans are sized for the current return mode when handed to the batcher.
@@ -91,7 +98,20 @@ void CaptureReader::take(const RawPacket& p) {
     handle(p.payload, p.receive_time_ns, p.destination_port);
     return;
   }
-  held_.push_back({{p.payload.begin(), p.payload.end()}, p.receive_time_ns, p.destination_port});
+  // Traffic that never completes the probe (position packets only, datagrams of another size on
+  // the data port) must not be held without bound: past the limit the oldest goes on undecoded
+  // (position packets as usual, data packets counted as undecodable), its buffer reused.
+  if (held_.size() >= std::max<size_t>(kMinHeld, 4 * options_.probe_packets)) {
+    Held oldest = std::move(held_.front());
+    held_.erase(held_.begin());
+    handle(oldest.payload, oldest.time_ns, oldest.port);
+    oldest.payload.assign(p.payload.begin(), p.payload.end());
+    oldest.time_ns = p.receive_time_ns;
+    oldest.port = p.destination_port;
+    held_.push_back(std::move(oldest));
+  } else {
+    held_.push_back({{p.payload.begin(), p.payload.end()}, p.receive_time_ns, p.destination_port});
+  }
   if (check_.packets() >= options_.probe_packets) decide();
 }
 

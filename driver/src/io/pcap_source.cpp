@@ -82,6 +82,15 @@ bool PcapSource::read_packet() {
       return false;
     }
     ++records_;
+    // A corrupt pcapng timestamp (64-bit ticks) can be 2^64 seconds: the product would overflow.
+    if (header->ts.tv_sec < 0 || header->ts.tv_sec >= kMaxReceiveTimeNs / 1'000'000'000 ||
+        header->ts.tv_usec < 0 || header->ts.tv_usec >= 1'000'000'000) {
+      ++stats_.malformed;
+      last_error_ = "record " + std::to_string(records_) + " has an impossible timestamp (" +
+                    std::to_string(header->ts.tv_sec) + " s " + std::to_string(header->ts.tv_usec) +
+                    " ns)";
+      continue;
+    }
     const int64_t stamp_ns = static_cast<int64_t>(header->ts.tv_sec) * 1'000'000'000 +
                              static_cast<int64_t>(header->ts.tv_usec);  // ns precision
     if (have_first_) {
@@ -111,9 +120,12 @@ bool PcapSource::read_packet() {
 bool PcapSource::restart() {
   // A pass that delivered nothing would loop forever without progress.
   if (!options_.loop || delivered_this_pass_ == 0) return false;
+  // Receive times stay below 2 kMaxReceiveTimeNs (no overflow): the loop ends after ~136 years.
+  const int64_t step = (last_ns_ - first_ns_) + std::max(last_interval_ns_, kMinLoopGapNs);
+  if (shift_ns_ > kMaxReceiveTimeNs - step) return false;
   close();
   open();
-  shift_ns_ += (last_ns_ - first_ns_) + std::max(last_interval_ns_, kMinLoopGapNs);
+  shift_ns_ += step;
   have_first_ = false;
   delivered_this_pass_ = 0;
   return true;

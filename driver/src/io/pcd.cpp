@@ -1,9 +1,11 @@
 #include "lidartag/driver/io/pcd.hpp"
 
 #include <algorithm>
+#include <charconv>
 #include <cstdint>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 namespace lidartag::velodyne {
@@ -127,6 +129,11 @@ PcdCloud read_pcd(const std::string& path) {
   if (counts.empty()) counts.assign(n_fields, 1);
   if (counts.size() != n_fields) throw pcd_error(path, "COUNT disagrees with FIELDS in length");
   if (cloud.height == 0) cloud.height = 1;
+  // WIDTH x HEIGHT must not wrap around: 2^32 x 2^32 would read as an empty cloud.
+  if (cloud.width > std::numeric_limits<size_t>::max() / cloud.height) {
+    throw pcd_error(path, "WIDTH x HEIGHT (" + std::to_string(cloud.width) + " x " +
+                              std::to_string(cloud.height) + ") is out of range");
+  }
   if (!have_points) points = cloud.width * cloud.height;
   if (points != cloud.width * cloud.height) throw pcd_error(path, "POINTS is not WIDTH x HEIGHT");
   size_t point_size = 0;
@@ -158,10 +165,19 @@ PcdCloud read_pcd(const std::string& path) {
   cloud.columns.assign(n_fields, std::vector<double>(points));
 
   if (data_kind == "ascii") {
+    // Word by word with from_chars: istream's >> refuses the "nan" that PCL writes for
+    // invalid points, and would call that the end of the data.
+    std::string word;
     for (size_t i = 0; i < points; ++i) {
       for (size_t f = 0; f < n_fields; ++f) {
-        if (!(in >> cloud.columns[f][i])) {
-          throw pcd_error(path, "ascii data ends at point " + std::to_string(i));
+        if (!(in >> word)) throw pcd_error(path, "ascii data ends at point " + std::to_string(i));
+        double& v = cloud.columns[f][i];
+        const char* end = word.data() + word.size();
+        const char* begin = word.data() + (word.size() > 1 && word[0] == '+' ? 1 : 0);
+        const auto [p, ec] = std::from_chars(begin, end, v);
+        if (ec != std::errc() || p != end) {
+          throw pcd_error(path, "ascii value '" + word + "' of field '" + cloud.fields[f] +
+                                    "' at point " + std::to_string(i) + " is not a number");
         }
       }
     }

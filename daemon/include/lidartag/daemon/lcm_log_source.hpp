@@ -1,6 +1,7 @@
 // Replays the raw packets of an LCM log (raw_packet_t on one channel, as recorded by lcm-logger
 // from lidartagd's raw channel) as a PacketSource. Messages that do not decode are counted as
-// malformed and skipped, never fatal (LCM's generated decode() throws on some bad input).
+// malformed and skipped, never fatal (LCM's generated decode() throws on some bad input); a log
+// that ends inside an event (cut short, corrupt event header) counts as truncated.
 #pragma once
 
 #include <chrono>
@@ -47,6 +48,7 @@ class LcmLogSource final : public velodyne::PacketSource {
   int64_t time_ns_ = 0;  // receive time of message_, shifted for loops
   int64_t first_ns_ = 0, last_ns_ = 0, last_interval_ns_ = 0, shift_ns_ = 0;
   bool have_first_ = false;
+  long file_size_ = 0, end_of_events_ = 0;  // bytes; past the last whole event read
 };
 
 }  // namespace lidartag::daemon

@@ -34,12 +34,14 @@ std::vector<double> estimate_elevations(std::span<const CloudPoint> cloud, int r
 // of the horizontal resolution in azimuth (azimuth
 // clockwise from +x, as the sensor's). A cell hit twice keeps the nearer point. `out` is resized
 // when its dimensions differ. Returns false (and leaves `out` empty) when no elevations are given
-// or can be estimated.
+// or can be estimated, or the resolution is outside [0.001, 360] degrees. Points with a
+// non-finite or zero range are skipped; a NaN intensity reads as 0.
 bool regress_rings(std::span<const CloudPoint> cloud, const RingRegressionOptions& opt, Scan& out);
 
 // A cloud whose points carry their ring (CloudPoint::ring, e.g. a PCD with a `ring` field) as a
 // `rings` x columns scan, columns as in regress_rings. Points whose ring is outside [0, rings) are
-// dropped. Returns false (and leaves `out` empty) when rings <= 0 or the resolution is not > 0.
+// dropped. Returns false (and leaves `out` empty) when rings <= 0 or the resolution is outside
+// [0.001, 360] degrees.
 bool organise_rings(std::span<const CloudPoint> cloud, int rings, double horizontal_resolution_deg,
                     Scan& out);
 

@@ -15,6 +15,11 @@ struct RawPacket {
   uint16_t destination_port = 0;
 };
 
+// Receive times a replay source accepts: [0, 2^32 s), what classic pcap's 32-bit seconds can hold
+// (until 2106). Later or negative times come from corrupt timestamps (pcapng and LCM carry 64 bits)
+// and are counted as malformed, so that arithmetic on packet times never overflows.
+inline constexpr int64_t kMaxReceiveTimeNs = 4'294'967'296LL * 1'000'000'000LL;
+
 enum class ReadStatus : uint8_t { kPacket, kTimeout, kEnd, kError };
 
 struct SourceStats {

@@ -31,7 +31,8 @@ class CalibrationError : public std::runtime_error {
 // The distance unit stays the model's own: it is fixed by the packet format, and files in
 // circulation carry wrong values (velodyne.md: VLS-128 files say 0.007 where the unit is 0.004).
 // Angles become degrees; rings are recomputed from the elevations. Laser ids must be exactly
-// 0..n-1 with n the model's laser count. Throws CalibrationError.
+// 0..n-1 with n the model's laser count. Limits: elevations within +-90 degrees, azimuth offsets
+// within +-180 degrees, offsets within +-10 m. Throws CalibrationError.
 Calibration load_calibration_file(const std::string& path, Model model);
 
 }  // namespace lidartag::velodyne

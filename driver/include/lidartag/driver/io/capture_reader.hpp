@@ -35,7 +35,8 @@ struct CaptureReaderOptions {
   DecoderOptions decoder;
   BatcherOptions batcher;
   // Data packets examined before the model is decided when it is not given (held back, then
-  // decoded in order). ModelCheck needs about ten for the timing.
+  // decoded in order). ModelCheck needs about ten for the timing. At most max(1024, 4 x this)
+  // packets are held; traffic that never completes the probe goes on undecoded past that.
   size_t probe_packets = 32;
   // Scans allocated for rotations in flight: one being filled, the one handed out, and a queue.
   size_t scan_pool = 4;
