@@ -3,42 +3,16 @@
 
 #include <gtest/gtest.h>
 
-#include <atomic>
 #include <cmath>
 #include <cstdlib>
 #include <functional>
 #include <limits>
-#include <new>
 #include <numbers>
 #include <random>
 #include <string>
 
+#include "count_allocations.hpp"
 #include "synthetic_scene.hpp"
-
-namespace {
-std::atomic<long> allocations{0};
-}  // namespace
-
-// Counts the test program's heap allocations (TagPointsAddNoAllocationOnceGrown).
-// GCC pairs the free() in the replaced operator delete with the library's operator new.
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
-#endif
-void* operator new(std::size_t n) {
-  allocations.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(n > 0 ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept {
-  std::free(p);
-}
-void operator delete(void* p, std::size_t) noexcept {
-  std::free(p);
-}
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic pop
-#endif
 
 namespace lidartag::detector {
 namespace {
@@ -251,9 +225,9 @@ TEST(Detector, TagPointsAddNoAllocationOnceGrown) {
   det.detect(s.scan, res);  // grows the buffers and the result
   ASSERT_EQ(res.detections.size(), 2u);
   const ClusterPoint* storage = res.tag_points.data();
-  const long before = allocations.load();
+  const long before = testing::heap_allocations();
   det.detect(s.scan, res);
-  const long during = allocations.load() - before;
+  const long during = testing::heap_allocations() - before;
   EXPECT_EQ(during, 0);
   ASSERT_EQ(res.detections.size(), 2u);
   EXPECT_EQ(res.tag_points.data(), storage);

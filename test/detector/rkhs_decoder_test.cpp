@@ -5,37 +5,12 @@
 
 #include <algorithm>
 #include <array>
-#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <new>
 #include <random>
 
-namespace {
-std::atomic<long> allocations{0};
-}  // namespace
-
-// Counts the test program's heap allocations (DecodingDoesNotAllocateOnceTheWorkspaceHasGrown).
-// GCC pairs the free() in the replaced operator delete with the library's operator new.
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
-#endif
-void* operator new(std::size_t n) {
-  allocations.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(n > 0 ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept {
-  std::free(p);
-}
-void operator delete(void* p, std::size_t) noexcept {
-  std::free(p);
-}
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic pop
-#endif
+#include "count_allocations.hpp"
 
 namespace lidartag::detector {
 namespace {
@@ -340,10 +315,10 @@ TEST(RkhsDecoder, DecodingDoesNotAllocateOnceTheWorkspaceHasGrown) {
   for (size_t k = 0; k < dicts.size(); ++k)
     ASSERT_EQ(decode_tag(pts[k], 1.0, dicts[k], DecodeOptions{}, ws).rejection, Rejection::kNone);
   std::array<DecodeResult, 9> results;
-  const long before = allocations.load();
+  const long before = testing::heap_allocations();
   for (size_t i = 0; i < results.size(); ++i)
     results[i] = decode_tag(pts[i % 3], 1.0, dicts[i % 3], DecodeOptions{}, ws);
-  const long during = allocations.load() - before;
+  const long during = testing::heap_allocations() - before;
   EXPECT_EQ(during, 0);
   for (const auto& r : results) {
     EXPECT_EQ(r.code_index, 1);
