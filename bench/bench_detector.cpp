@@ -8,7 +8,8 @@
 // Counters: the median over the iterations of each stage's time (ms, from ScanResult::timing_ms),
 // the median total, and `period_pct`: the median total as a percentage of the 100 ms rotation
 // period of a sensor at 600 rpm (the target is <= 2 %). The *_no_polish variants skip the pose's
-// polish on every point. BM_EdgeFeatures and BM_Clustering time the first two stages alone.
+// polish on every point, the *_no_family_check ones the decoding against the families not
+// configured. BM_EdgeFeatures and BM_Clustering time the first two stages alone.
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -63,14 +64,18 @@ double median(std::vector<double> v) {
   return v[v.size() / 2];
 }
 
-void BM_Detect(benchmark::State& state, const std::string& name, bool polish) {
+// What a variant changes in the scene's options.
+enum class Variant { kDefault, kNoPolish, kNoFamilyCheck };
+
+void BM_Detect(benchmark::State& state, const std::string& name, Variant variant) {
   const Capture& c = capture(name);
   if (c.rotations.empty()) {
     state.SkipWithError("no complete rotations in the capture");
     return;
   }
   detector::DetectorOptions options = c.options;
-  if (!polish) options.pose.polish_evaluations = 0;
+  if (variant == Variant::kNoPolish) options.pose.polish_evaluations = 0;
+  if (variant == Variant::kNoFamilyCheck) options.decode.reject_other_families = false;
   detector::Detector det(options);
   detector::ScanResult result;
   std::array<std::vector<double>, detector::kStageCount> stage_ms;
@@ -123,13 +128,22 @@ void BM_Clustering(benchmark::State& state, const std::string& name) {
   }
 }
 
-BENCHMARK_CAPTURE(BM_Detect, demo, std::string("demo"), true)->Unit(benchmark::kMillisecond);
-BENCHMARK_CAPTURE(BM_Detect, outdoor, std::string("outdoor"), true)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Detect, demo, std::string("demo"), Variant::kDefault)
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Detect, outdoor, std::string("outdoor"), Variant::kDefault)
+    ->Unit(benchmark::kMillisecond);
 // Without the pose's polish on every point (pose.polish_evaluations = 0): faster, and about twice
 // the rotation error (docs/detector.md).
-BENCHMARK_CAPTURE(BM_Detect, demo_no_polish, std::string("demo"), false)
+BENCHMARK_CAPTURE(BM_Detect, demo_no_polish, std::string("demo"), Variant::kNoPolish)
     ->Unit(benchmark::kMillisecond);
-BENCHMARK_CAPTURE(BM_Detect, outdoor_no_polish, std::string("outdoor"), false)
+BENCHMARK_CAPTURE(BM_Detect, outdoor_no_polish, std::string("outdoor"), Variant::kNoPolish)
+    ->Unit(benchmark::kMillisecond);
+// Without decoding against the families that are not configured
+// (decode.reject_other_families = false): what that check costs.
+BENCHMARK_CAPTURE(BM_Detect, demo_no_family_check, std::string("demo"), Variant::kNoFamilyCheck)
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Detect, outdoor_no_family_check, std::string("outdoor"),
+                  Variant::kNoFamilyCheck)
     ->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_EdgeFeatures, demo, std::string("demo"))->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_EdgeFeatures, outdoor, std::string("outdoor"))->Unit(benchmark::kMillisecond);

@@ -10,8 +10,11 @@ if(LIDARTAG_SANITIZE STREQUAL "")
 endif()
 
 if(LIDARTAG_SANITIZE STREQUAL "address")
-  add_compile_options(-fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=all)
-  add_link_options(-fsanitize=address,undefined)
+  # float-cast-overflow is not part of `undefined`: it catches a NaN or huge float cast to an
+  # integer (ring numbers, intensities, cell indices from corrupt input).
+  add_compile_options(-fsanitize=address,undefined,float-cast-overflow -fno-omit-frame-pointer
+                      -fno-sanitize-recover=all)
+  add_link_options(-fsanitize=address,undefined,float-cast-overflow)
 elseif(LIDARTAG_SANITIZE STREQUAL "thread")
   add_compile_options(-fsanitize=thread -fno-omit-frame-pointer)
   add_link_options(-fsanitize=thread)

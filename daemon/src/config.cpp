@@ -519,6 +519,7 @@ void visit_detector(V& v, detector::DetectorOptions& o) {
     s.field("min_margin_bits", o.decode.min_margin_bits, at_least(0.0));
     s.field("parallel_min_functions", o.decode.parallel_min_functions, at_least(1));
     s.field("max_points", o.decode.max_points, at_least(16));
+    s.field("reject_other_families", o.decode.reject_other_families);
   });
 }
 

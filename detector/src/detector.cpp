@@ -38,6 +38,8 @@ std::string_view rejection_name(Rejection r) {
       return "low_score";
     case Rejection::kAmbiguous:
       return "ambiguous";
+    case Rejection::kOtherFamily:
+      return "other_family";
     case Rejection::kCount:
       break;
   }
@@ -179,6 +181,13 @@ Detector::Detector(DetectorOptions options) : opt_(std::move(options)) {
   validate_options(opt_);
   try {
     for (const auto& f : opt_.families) dicts_.emplace_back(tags::resolve_family(f));
+    if (opt_.decode.reject_other_families) {
+      for (const auto& name : tags::builtin_family_names()) {
+        const bool configured = std::any_of(dicts_.begin(), dicts_.end(),
+                                            [&](const auto& d) { return d.family().name == name; });
+        if (!configured) decoys_.emplace_back(tags::builtin_family(name));
+      }
+    }
   } catch (const tags::FamilyError& e) {
     throw OptionsError(std::string("detector options: ") + e.what());
   }
@@ -437,12 +446,7 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
   b.shifts.clear();
   double applied = 0.0;
   const IntensityLevels levels = intensity_levels(b.pulled, b.decode);
-  auto try_shift = [&](double shift) {
-    // The refinement's steps are clamped to [s0, s1]: a shift tried before would only add the
-    // same hypotheses again.
-    for (double s : b.shifts)
-      if (std::abs(s - shift) < 1e-9 * t) return;
-    b.shifts.push_back(shift);
+  auto move_to = [&](double shift) {
     for (auto& q : b.pulled) {  // move the points by -(shift - applied) along the axis
       q.x -= static_cast<float>((shift - applied) * axis.x());
       q.y -= static_cast<float>((shift - applied) * axis.y());
@@ -450,6 +454,14 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
     }
     applied = shift;
     prepare_decode(b.pulled, levels, t, b.decode);  // the same for every family
+  };
+  auto try_shift = [&](double shift) {
+    // The refinement's steps are clamped to [s0, s1]: a shift tried before would only add the
+    // same hypotheses again.
+    for (double s : b.shifts)
+      if (std::abs(s - shift) < 1e-9 * t) return;
+    b.shifts.push_back(shift);
+    move_to(shift);
     for (size_t f = 0; f < dicts_.size(); ++f) {
       const DecodeResult d = decode_prepared(dicts_[f], opt_.decode, b.decode);
       if (d.function >= 0) b.hypotheses.push_back({d, static_cast<int>(f), shift});
@@ -490,6 +502,21 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
     best.rejection = best.score < opt_.decode.min_score               ? Rejection::kLowScore
                      : best.margin_bits < opt_.decode.min_margin_bits ? Rejection::kAmbiguous
                                                                       : Rejection::kNone;
+  }
+  // A tag of a family that is not configured still has a best code in the configured ones (the
+  // margin only compares codes of one family): the built-in families left out are decoded at the
+  // same shifts, and one that fits strictly better makes it another family's tag. Identical
+  // patterns tie and stay with the configured family.
+  for (size_t si = 0; si < b.shifts.size() && best.rejection == Rejection::kNone; ++si) {
+    if (decoys_.empty()) break;
+    move_to(b.shifts[si]);
+    for (const auto& decoy : decoys_) {
+      const DecodeResult d = decode_prepared(decoy, opt_.decode, b.decode);
+      if (d.function >= 0 && d.score > best.score) {
+        best.rejection = Rejection::kOtherFamily;
+        break;
+      }
+    }
   }
   lap(Stage::kDecode);
   diag.score = best.score;

@@ -4,6 +4,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 
 namespace lidartag::detector {
@@ -32,10 +33,12 @@ RkhsDictionary::RkhsDictionary(const tags::TagFamily& family)
     for (int f = 1; f < nf && same; ++f) same = signs(f)[i] == signs(0)[i];
     if (!same) varying_.push_back(static_cast<int>(i));
   }
-  varying_signs_.resize(nf, static_cast<Eigen::Index>(varying_.size()));
+  chunks_.assign(static_cast<size_t>(nf) * chunk_count(), 0);
   for (int f = 0; f < nf; ++f)
     for (size_t k = 0; k < varying_.size(); ++k)
-      varying_signs_(f, static_cast<Eigen::Index>(k)) = signs(f)[varying_[k]];
+      if (signs(f)[varying_[k]] > 0)
+        chunks_[static_cast<size_t>(f) * chunk_count() + k / 8] |=
+            static_cast<uint8_t>(1U << (k % 8));
 }
 
 namespace {
@@ -84,6 +87,7 @@ DecodeResult decode_tag(std::span<const ClusterPoint> points, double t, const Rk
 void prepare_decode(std::span<const ClusterPoint> points, const IntensityLevels& levels, double t,
                     DecodeWorkspace& ws) {
   ws.prepared.clear();
+  ws.widths = 0;
   ws.levels = levels;
   ws.prepared_ok = points.size() >= 4 && t > 0 && levels.valid;
   if (!ws.prepared_ok) return;
@@ -102,13 +106,14 @@ DecodeResult decode_tag(std::span<const ClusterPoint> points, const IntensityLev
   return decode_prepared(dict, opt, ws);
 }
 
-DecodeResult decode_prepared(const RkhsDictionary& dict, const DecodeOptions& opt,
-                             DecodeWorkspace& ws) {
-  DecodeResult res;
-  if (!ws.prepared_ok) return res;
-  if (ws.levels.white - ws.levels.black < opt.min_contrast) return res;
+namespace {
 
-  const int W = dict.width();
+// eq. (InnerProduct) against a template function is a sum over its sample points; per cell of a
+// W x W template, the white-minus-black kernel sums of the prepared points make every code's inner
+// product a signed sum over cells. Fills `evidence` (W x W, row-major) and returns the sum of its
+// magnitudes.
+double accumulate_evidence(int W, const DecodeOptions& opt, DecodeWorkspace& ws,
+                           std::vector<float>& evidence) {
   const int S = std::max(opt.samples_per_cell, 1);
   const int N = W * S;  // template sample points per axis
   const auto cells_w = static_cast<size_t>(W);
@@ -175,14 +180,37 @@ DecodeResult decode_prepared(const RkhsDictionary& dict, const DecodeOptions& op
       for (size_t c = 0; c < ncol; ++c) out[c] += kr * ws.ex[c];
     }
   }
-  // eq. (InnerProduct) against a template function is a sum over its sample points; per cell,
-  // the white-minus-black evidence makes every code's inner product a signed sum over cells.
-  ws.evidence.resize(cells);
+  evidence.resize(cells);
   double total = 0.0;
   for (size_t i = 0; i < cells; ++i) {
-    ws.evidence[i] = static_cast<float>(ws.acc[i]);
-    total += std::fabs(ws.evidence[i]);
+    evidence[i] = static_cast<float>(ws.acc[i]);
+    total += std::fabs(evidence[i]);
   }
+  return total;
+}
+
+}  // namespace
+
+DecodeResult decode_prepared(const RkhsDictionary& dict, const DecodeOptions& opt,
+                             DecodeWorkspace& ws) {
+  DecodeResult res;
+  if (!ws.prepared_ok) return res;
+  if (ws.levels.white - ws.levels.black < opt.min_contrast) return res;
+
+  const int W = dict.width();
+  const auto cells = static_cast<size_t>(W) * static_cast<size_t>(W);
+  // The evidence of this width, computed once per prepare_decode.
+  DecodeWorkspace::Evidence* ev = nullptr;
+  for (size_t i = 0; i < ws.widths; ++i)
+    if (ws.by_width[i].width == W) ev = &ws.by_width[i];
+  if (ev == nullptr) {
+    ev = &ws.by_width[ws.widths < ws.by_width.size() ? ws.widths++ : ws.by_width.size() - 1];
+    ev->width = W;
+    ev->cells.reserve(256);  // any width up to 16: a slot that changes width never reallocates
+    ev->total = accumulate_evidence(W, opt, ws, ev->cells);
+  }
+  ws.evidence.assign(ev->cells.begin(), ev->cells.end());
+  const double total = ev->total;
   // Mean evidence of a payload cell: the unit of the margin.
   double payload = 0.0;
   const int b0 = dict.family().border_start() + 1, pw = dict.family().payload_width();
@@ -192,10 +220,9 @@ DecodeResult decode_prepared(const RkhsDictionary& dict, const DecodeOptions& op
   payload /= pw * pw;
   if (total <= 0.0 || payload <= 0.0) return res;
 
-  // eq. (InnerProduct) of every function: the cells common to all functions add `common`, the
-  // varying cells a matrix-vector product.
+  // eq. (InnerProduct) of every function: the cells common to all functions add `common`; the
+  // varying cells, in groups of 8, add one entry per group of a table of the 256 sign patterns.
   const auto& vary = dict.varying_cells();
-  const auto nv = static_cast<Eigen::Index>(vary.size());
   ws.varying.resize(vary.size());
   for (size_t k = 0; k < vary.size(); ++k)
     ws.varying[k] = ws.evidence[static_cast<size_t>(vary[k])];
@@ -210,19 +237,33 @@ DecodeResult decode_prepared(const RkhsDictionary& dict, const DecodeOptions& op
         common += s0[i] * ws.evidence[i];
     }
   }
+  const size_t groups = dict.chunk_count();
+  ws.tables.resize(groups * 256);
+  for (size_t g = 0; g < groups; ++g) {
+    float* table = ws.tables.data() + g * 256;
+    const size_t n = std::min<size_t>(8, vary.size() - 8 * g);
+    table[0] = 0.0f;  // every cell black
+    for (size_t i = 0; i < n; ++i) table[0] -= ws.varying[8 * g + i];
+    for (unsigned m = 1; m < 256; ++m) {  // one more white cell than m without its lowest bit
+      const unsigned low = static_cast<unsigned>(std::countr_zero(m));
+      table[m] = low < n ? table[m & (m - 1)] + 2.0f * ws.varying[8 * g + low] : 0.0f;
+    }
+  }
   const int nf = dict.functions();
-  const auto& signs = dict.varying_signs();
-  // Plain vectors mapped, not Eigen vectors: those reallocate on every change of size.
   ws.scores.resize(static_cast<size_t>(nf));
-  const Eigen::Map<const Eigen::VectorXf> evidence(ws.varying.data(), nv);
-  Eigen::Map<Eigen::VectorXf> scores(ws.scores.data(), nf);
+  auto score_range = [&](int f0, int f1) {
+    for (int f = f0; f < f1; ++f) {
+      const uint8_t* idx = dict.chunks(f);
+      float sum = 0.0f;
+      for (size_t g = 0; g < groups; ++g) sum += ws.tables[g * 256 + idx[g]];
+      ws.scores[static_cast<size_t>(f)] = sum;
+    }
+  };
   if (nf >= opt.parallel_min_functions) {
-    tbb::parallel_for(tbb::blocked_range<int>(0, nf, 1024), [&](const tbb::blocked_range<int>& r) {
-      const auto n = r.end() - r.begin();
-      scores.segment(r.begin(), n).noalias() = signs.middleRows(r.begin(), n) * evidence;
-    });
+    tbb::parallel_for(tbb::blocked_range<int>(0, nf, 1024),
+                      [&](const tbb::blocked_range<int>& r) { score_range(r.begin(), r.end()); });
   } else {
-    scores.noalias() = signs * evidence;
+    score_range(0, nf);
   }
   // Best and runner-up; of equal scores the first function.
   int best = 0, second = -1;

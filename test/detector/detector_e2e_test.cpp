@@ -233,5 +233,48 @@ TEST(DetectorEndToEnd, Vlp16At8mFaceOnIsDecodedOrRejectedAsAmbiguousNeverMisread
   for (const auto& why : c.misses) EXPECT_NE(why.find("ambiguous"), std::string::npos) << why;
 }
 
+// A tag of a family that is not configured: with only the configured dictionary its pattern still
+// has a best code there, which the margin (codes of one family) cannot rule out. Decoding against
+// the other built-in families too rejects it; without that check the same scenes are misread.
+TEST(DetectorEndToEnd, ATagOfAnotherFamilyIsNeverReadAsTheConfiguredFamily) {
+  const std::vector<std::string> families = {"tag16h5", "tag25h9", "tag36h11", "tag36h10"};
+  int misread_without_check = 0;
+  uint32_t other_family = 0;
+  for (const auto& printed : families) {
+    for (double d : {3.0, 8.0}) {
+      for (int angle : {0, 45}) {
+        auto scene = eval::accuracy_scene(velodyne::Model::kVLP32C, d, angle, 3);
+        scene.tags[0].family = printed;
+        const sim::Simulator simulator(scene);
+        eval::SimScans scans(simulator);
+        for (const auto& configured : families) {
+          DetectorOptions with, without;
+          with.families = without.families = {configured};
+          without.decode.reject_other_families = false;
+          Detector det(with), unchecked(without);
+          ScanResult result;
+          scans.run(1, 7, [&](const Scan& scan, size_t k) {
+            if (k != 0) return;
+            det.detect(scan, result);
+            if (configured == printed) {
+              ASSERT_EQ(result.detections.size(), 1u) << printed << " " << d << " m " << angle;
+              EXPECT_EQ(result.detections[0].id, 3);
+            } else {
+              EXPECT_TRUE(result.detections.empty())
+                  << printed << " read as " << configured << " at " << d << " m " << angle;
+              EXPECT_GT(result.rejected_at(Stage::kDecode), 0u);  // other_family, or never close
+              other_family += result.rejected[static_cast<size_t>(Rejection::kOtherFamily)];
+              unchecked.detect(scan, result);
+              misread_without_check += static_cast<int>(result.detections.size());
+            }
+          });
+        }
+      }
+    }
+  }
+  EXPECT_GT(other_family, 0u);
+  EXPECT_GT(misread_without_check, 0) << "the scenes no longer tell the check's worth";
+}
+
 }  // namespace
 }  // namespace lidartag::detector

@@ -144,6 +144,9 @@ class Detector {
 
   DetectorOptions opt_;
   std::vector<RkhsDictionary> dicts_;
+  // The built-in families not configured (decode.reject_other_families): a cluster that one of
+  // them fits better is a tag of another family.
+  std::vector<RkhsDictionary> decoys_;
   double t_max_ = 0.0;
   int min_points_ = 0;
   int min_boundary_ = 0;

@@ -4,6 +4,8 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <array>
+#include <cstdint>
 #include <span>
 #include <vector>
 
@@ -42,6 +44,11 @@ struct DecodeOptions {
   // Most points decoded (evenly spaced over the cluster): about 8 per cell of a 16-bit family.
   // Default 512.
   int max_points = 512;
+  // Also decode against every built-in family that is not configured, and reject a cluster that
+  // one of them fits better (Rejection::kOtherFamily). Default true: a tag of another family
+  // otherwise reads as some code of the configured one (a tag16h5 as tag25h9 in 29 of 36 rotations
+  // at 2-12 m, scores up to 0.94), since the margin compares codes of one family only.
+  bool reject_other_families = true;
 };
 
 // The function dictionary of one family: for code k and quarter turn q (clockwise, seen from the
@@ -60,15 +67,24 @@ class RkhsDictionary {
   }
   // Cells (row-major indices) whose sign is not the same in every function, ascending.
   const std::vector<int>& varying_cells() const { return varying_; }
-  // Row f: the signs of function f on the varying cells.
-  const Eigen::MatrixXf& varying_signs() const { return varying_signs_; }
+  // The sign of function f on varying cell k (+1 white, -1 black).
+  float varying_sign(int f, size_t k) const {
+    const uint8_t byte = chunks_[static_cast<size_t>(f) * chunk_count() + k / 8];
+    return (byte >> (k % 8)) & 1U ? 1.0f : -1.0f;
+  }
+  // The varying cells in groups of 8, a byte per group and function (bit i: cell 8 g + i is
+  // white): a function's score is a sum of one table entry per group (decode_prepared).
+  size_t chunk_count() const { return (varying_.size() + 7) / 8; }
+  const uint8_t* chunks(int f) const {
+    return chunks_.data() + static_cast<size_t>(f) * chunk_count();
+  }
 
  private:
   tags::TagFamily family_;
   int width_ = 0;
   std::vector<float> signs_;
   std::vector<int> varying_;
-  Eigen::MatrixXf varying_signs_;  // functions x varying cells, column-major
+  std::vector<uint8_t> chunks_;  // functions x chunk_count()
 };
 
 // The black and the white intensity level of a cluster: the points split around their mean
@@ -96,7 +112,17 @@ struct DecodeWorkspace {
   std::vector<double> ex, ez;   // per point: kernel factors of the sample columns and rows
   std::vector<float> sorted;    // intensity medians
   std::vector<float> varying;   // the evidence on the dictionary's varying cells
+  std::vector<float> tables;    // per group of 8 varying cells: the sum for each sign pattern
   std::vector<float> scores;    // per function, without the cells common to all functions
+  // The cell evidence depends on the points and the family's width only: kept per width until
+  // the next prepare_decode, so families of the same width share it.
+  struct Evidence {
+    int width = 0;
+    std::vector<float> cells;
+    double total = 0.0;  // sum of |evidence|
+  };
+  std::array<Evidence, 4> by_width;
+  size_t widths = 0;  // entries of by_width in use
 };
 
 struct DecodeResult {

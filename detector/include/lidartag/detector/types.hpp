@@ -22,6 +22,7 @@ enum class Rejection : uint8_t {
   kLowContrast,        // no two intensity levels to decode
   kLowScore,           // RKHS decoding: best score below the threshold
   kAmbiguous,          // RKHS decoding: best and second best too close
+  kOtherFamily,        // RKHS decoding: a built-in family that is not configured fits better
   kCount
 };
 inline constexpr int kRejectionCount = static_cast<int>(Rejection::kCount);
