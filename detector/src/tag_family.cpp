@@ -1,6 +1,7 @@
 #include "lidartag/detector/tag_family.hpp"
 
 #include <bit>
+#include <cstdlib>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
@@ -30,6 +31,45 @@ const std::vector<TagFamily>& builtins() {
     return v;
   }();
   return all;
+}
+
+// nlohmann's get<int>() of a float or an out-of-range number is an unchecked cast: a family file
+// must give whole numbers in range.
+int int_field(const nlohmann::json& v, const char* key) {
+  const bool whole = v.is_number_integer();
+  const bool in_range =
+      whole && (v.is_number_unsigned() ? v.get<uint64_t>() <= 1'000'000u
+                                       : std::llabs(v.get<int64_t>()) <= 1'000'000);
+  if (!in_range)
+    throw FamilyError(std::string(key) + ": '" + v.dump() + "' is not a whole number in range");
+  return static_cast<int>(v.get<int64_t>());
+}
+
+std::vector<int> int_list(const nlohmann::json& v, const char* key) {
+  if (!v.is_array()) throw FamilyError(std::string(key) + ": expected a list of whole numbers");
+  std::vector<int> out;
+  for (const auto& e : v) out.push_back(int_field(e, key));
+  return out;
+}
+
+uint64_t code_word(const nlohmann::json& c) {
+  if (c.is_number_unsigned()) return c.get<uint64_t>();
+  if (c.is_number_integer() && c.get<int64_t>() >= 0)
+    return static_cast<uint64_t>(c.get<int64_t>());
+  if (c.is_string()) {
+    const std::string text = c.get<std::string>();
+    size_t used = 0;
+    uint64_t value = 0;
+    try {
+      value = std::stoull(text, &used, 0);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used == text.size() && !text.empty() && text[0] != '-') return value;
+  }
+  throw FamilyError("codes: '" + c.dump() +
+                    "' is not a code word (an unsigned integer or a string "
+                    "such as \"0x27c8\")");
 }
 
 void validate(const TagFamily& f, const std::string& where) {
@@ -146,20 +186,19 @@ TagFamily load_family_file(const std::string& path, std::string_view name) {
   TagFamily f;
   f.name = key;
   try {
-    f.nbits = o.at("nbits").get<int>();
-    f.min_hamming =
-        o.contains("min_hamming") && o["min_hamming"].is_number() ? o["min_hamming"].get<int>() : 0;
-    f.total_width = o.at("total_width").get<int>();
-    f.width_at_border = o.at("width_at_border").get<int>();
+    if (!o.is_object()) throw FamilyError("expected an object with nbits, codes, ...");
+    f.nbits = int_field(o.at("nbits"), "nbits");
+    // Unknown (null or absent) for some published sets.
+    f.min_hamming = o.contains("min_hamming") && !o["min_hamming"].is_null()
+                        ? int_field(o["min_hamming"], "min_hamming")
+                        : 0;
+    f.total_width = int_field(o.at("total_width"), "total_width");
+    f.width_at_border = int_field(o.at("width_at_border"), "width_at_border");
     f.reversed_border = o.value("reversed_border", false);
-    f.bit_x = o.at("bit_x").get<std::vector<int>>();
-    f.bit_y = o.at("bit_y").get<std::vector<int>>();
-    for (const auto& c : o.at("codes")) {
-      if (c.is_string())
-        f.codes.push_back(std::stoull(c.get<std::string>(), nullptr, 0));
-      else
-        f.codes.push_back(c.get<uint64_t>());
-    }
+    f.bit_x = int_list(o.at("bit_x"), "bit_x");
+    f.bit_y = int_list(o.at("bit_y"), "bit_y");
+    if (!o.at("codes").is_array()) throw FamilyError("codes: expected a list");
+    for (const auto& c : o.at("codes")) f.codes.push_back(code_word(c));
   } catch (const std::exception& e) {
     throw FamilyError("tag family '" + key + "' in '" + path + "': " + e.what());
   }
