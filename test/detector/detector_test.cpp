@@ -347,6 +347,16 @@ void for_each_cell(Scan& s, F&& f) {
     for (int c = 0; c < s.columns; ++c) f(s.at(0, ring, c), ring, c);
 }
 
+// One cell of `from` written over cell `to` of `into` (position, range, intensity, return).
+void copy_cell(const Scan& from, size_t at, Scan& into, size_t to) {
+  into.x[to] = from.x[at];
+  into.y[to] = from.y[at];
+  into.z[to] = from.z[at];
+  into.range[to] = from.range[at];
+  into.intensity[to] = from.intensity[at];
+  into.return_type[to] = from.return_type[at];
+}
+
 TEST(DetectorHostileScans, NonFiniteAndHugeValuesInATagScanAreNeverPassedOn) {
   const Scan clean = tag_scan();
   Detector det(DetectorOptions{});
@@ -453,27 +463,15 @@ TEST(DetectorHostileScans, DegenerateScansGiveNoDetection) {
          s.columns = clean.columns;
          s.column_azimuth_deg = clean.column_azimuth_deg;
          for (int c = 0; c < clean.columns; ++c) {
-           const size_t from = clean.at(0, 16, c), to = s.at(0, 0, c);
-           s.x[to] = clean.x[from];
-           s.y[to] = clean.y[from];
-           s.z[to] = clean.z[from];
-           s.range[to] = clean.range[from];
-           s.intensity[to] = clean.intensity[from];
-           s.return_type[to] = clean.return_type[from];
+           copy_cell(clean, clean.at(0, 16, c), s, s.at(0, 0, c));
          }
          return s;
        }},
       {"every ring a copy of one ring",
        [&] {
          Scan s = clean;
-         for_each_cell(s, [&](size_t i, int, int c) {
-           const size_t from = clean.at(0, 16, c);
-           s.x[i] = clean.x[from];
-           s.y[i] = clean.y[from];
-           s.z[i] = clean.z[from];
-           s.range[i] = clean.range[from];
-           s.intensity[i] = clean.intensity[from];
-         });
+         for_each_cell(s,
+                       [&](size_t i, int, int c) { copy_cell(clean, clean.at(0, 16, c), s, i); });
          return s;
        }},
       {"uniform random garbage",
