@@ -507,8 +507,8 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
   // margin only compares codes of one family): the built-in families left out are decoded at the
   // same shifts, and one that fits strictly better makes it another family's tag. Identical
   // patterns tie and stay with the configured family.
-  for (size_t si = 0; si < b.shifts.size() && best.rejection == Rejection::kNone; ++si) {
-    if (decoys_.empty()) break;
+  for (size_t si = 0;
+       !decoys_.empty() && si < b.shifts.size() && best.rejection == Rejection::kNone; ++si) {
     move_to(b.shifts[si]);
     for (const auto& decoy : decoys_) {
       const DecodeResult d = decode_prepared(decoy, opt_.decode, b.decode);

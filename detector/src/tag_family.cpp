@@ -1,7 +1,6 @@
 #include "lidartag/detector/tag_family.hpp"
 
 #include <bit>
-#include <cstdlib>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
@@ -36,10 +35,11 @@ const std::vector<TagFamily>& builtins() {
 // nlohmann's get<int>() of a float or an out-of-range number is an unchecked cast: a family file
 // must give whole numbers in range.
 int int_field(const nlohmann::json& v, const char* key) {
-  const bool whole = v.is_number_integer();
+  constexpr int64_t kLimit = 1'000'000;
   const bool in_range =
-      whole && (v.is_number_unsigned() ? v.get<uint64_t>() <= 1'000'000u
-                                       : std::llabs(v.get<int64_t>()) <= 1'000'000);
+      v.is_number_integer() &&
+      (v.is_number_unsigned() ? v.get<uint64_t>() <= static_cast<uint64_t>(kLimit)
+                              : v.get<int64_t>() >= -kLimit && v.get<int64_t>() <= kLimit);
   if (!in_range)
     throw FamilyError(std::string(key) + ": '" + v.dump() + "' is not a whole number in range");
   return static_cast<int>(v.get<int64_t>());

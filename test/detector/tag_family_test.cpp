@@ -7,6 +7,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -135,6 +136,7 @@ TEST(TagFamily, EachBadFileGivesOneErrorNamingTheProblem) {
       {with("nbits", 1e30), "nbits"},
       {with("nbits", 2.5), "nbits"},
       {with("nbits", -16), "nbits"},
+      {with("nbits", std::numeric_limits<int64_t>::min()), "nbits"},
       {with("nbits", 17), "square payload"},
       {with("total_width", 99999999999LL), "total_width"},
       {with("bit_x", nlohmann::json::array({1, 2, 3})), "bit_x and bit_y"},

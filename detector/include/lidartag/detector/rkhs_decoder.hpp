@@ -3,7 +3,6 @@
 // code x 4 rotations built from the family's code words.
 #pragma once
 
-#include <Eigen/Core>
 #include <array>
 #include <cstdint>
 #include <span>
