@@ -68,7 +68,8 @@ struct SensorOptions {
   std::string channel_prefix;         // prepended to every channel of this sensor; unique
   // Model to decode as; empty ("auto"): the product byte, checked against the packets' timing.
   std::optional<velodyne::Model> model;
-  std::string calibration;  // ros-drivers calibration file; empty: the model's built-in table
+  // Calibration file (ros-drivers YAML or VeloView XML); empty: the model's built-in table.
+  std::string calibration;
   velodyne::BatcherOptions batcher;  // cut azimuth, flush timeout, jump threshold
   velodyne::DecoderOptions decoder;  // range limits
   SourceOptions source;
