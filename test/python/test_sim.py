@@ -63,3 +63,22 @@ def test_bad_scenes_raise_scene_error(tmp_path):
         lidartag.simulate(DEMO_SCENE, rotations=0)
     with pytest.raises(lidartag.IoError):
         lidartag.simulate(DEMO_SCENE, out=tmp_path / "no" / "such" / "dir.pcap", rotations=1)
+
+
+def test_simulating_runs_without_the_gil():
+    # A long C++ call in a thread: the main thread gets to run again while it is still inside
+    # (with the GIL held, sleep() could only return after the call).
+    import threading
+    import time
+    done = {}
+
+    def work():
+        lidartag.simulate(DEMO_SCENE, rotations=12)
+        done["at"] = time.perf_counter()
+
+    thread = threading.Thread(target=work)
+    thread.start()
+    time.sleep(0.2)
+    resumed = time.perf_counter()
+    thread.join()
+    assert done["at"] - resumed > 0.5, "the main thread waited for the simulation"
