@@ -275,6 +275,22 @@ TEST(Pcd, BinaryCompressedOfPclsLayoutCompressedInTheTestIsRead) {
   std::filesystem::remove(path);
 }
 
+TEST(Pcd, AnOrganisedCloudOfNoReturnsCompressesFarAndReadsBack) {
+  // 32 x 2000 cells without a return: LZF packs the NaNs about 60-fold.
+  Scan scan;
+  scan.reserve(32, 1, 2000);
+  scan.columns = 2000;
+  const std::string path = temp_path("empty_organized.pcd");
+  write_pcd(path, scan, {PcdFormat::kBinaryCompressed, true});
+  const size_t file_size = std::filesystem::file_size(path);
+  EXPECT_LT(file_size * 20, 32u * 2000u * 25u);
+  const PcdCloud cloud = read_pcd(path);
+  ASSERT_EQ(cloud.size(), 64000u);
+  EXPECT_TRUE(std::isnan(cloud.field("x")[63999]));
+  EXPECT_EQ(cloud.field("ring")[63999], 31.0);
+  std::filesystem::remove(path);
+}
+
 // A binary_compressed file made by hand, byte by byte: x = 1, 1, 1 and y = 2, 2, 2 as an LZF
 // stream of two literal runs and two back references (so the real decompressor is exercised).
 TEST(Pcd, HandMadeBinaryCompressedBytesDecodeToKnownValues) {

@@ -411,12 +411,13 @@ PcdCloud read_pcd(const std::string& path) {
   size_t values_per_point = 0;
   for (size_t c : layout.counts) values_per_point += c;
   // ascii: at least a digit and a separator per value; binary: the point's bytes; compressed:
-  // LZF expands at most 264 bytes out of 3, so the data's bytes bound the points too.
-  const size_t min_bytes_per_point = cloud.format == PcdFormat::kAscii ? 2 * values_per_point
-                                     : cloud.format == PcdFormat::kBinary
-                                         ? layout.point_size
-                                         : std::max<size_t>(1, layout.point_size / 88);
-  if (points > remaining / min_bytes_per_point + 1) {
+  // an LZF back reference of 3 bytes unpacks to at most 264, so the data unpacks to at most 88
+  // times its size (and zero-size points are bounded by the uncompressed size check below).
+  const size_t capacity = cloud.format == PcdFormat::kAscii ? remaining / (2 * values_per_point)
+                          : cloud.format == PcdFormat::kBinary
+                              ? remaining / layout.point_size
+                              : (remaining / layout.point_size + 1) * 88;
+  if (points > capacity + 1) {
     throw pcd_error(path, std::to_string(points) + " points cannot fit in the " +
                               std::to_string(remaining) + " bytes of data");
   }
