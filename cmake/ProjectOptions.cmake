@@ -23,10 +23,15 @@ elseif(NOT LIDARTAG_SANITIZE STREQUAL "")
 endif()
 
 # lidartag_add_library(name SOURCES ... PUBLIC_LINK ... PRIVATE_LINK ...)
+# Installed as lidartag::<name without "lidartag_"> (packaging/CMakeLists.txt): the include
+# directory and the warnings are the build tree's only.
 function(lidartag_add_library name)
   cmake_parse_arguments(ARG "" "" "SOURCES;PUBLIC_LINK;PRIVATE_LINK" ${ARGN})
   add_library(${name} STATIC ${ARG_SOURCES})
-  target_include_directories(${name} PUBLIC ${CMAKE_CURRENT_SOURCE_DIR}/include)
-  target_link_libraries(${name} PUBLIC ${ARG_PUBLIC_LINK} PRIVATE ${ARG_PRIVATE_LINK} lidartag_warnings)
-  set_target_properties(${name} PROPERTIES POSITION_INDEPENDENT_CODE ON)
+  target_include_directories(${name} PUBLIC $<BUILD_INTERFACE:${CMAKE_CURRENT_SOURCE_DIR}/include>
+                                            $<INSTALL_INTERFACE:include>)
+  target_link_libraries(${name} PUBLIC ${ARG_PUBLIC_LINK}
+                        PRIVATE ${ARG_PRIVATE_LINK} $<BUILD_INTERFACE:lidartag_warnings>)
+  string(REGEX REPLACE "^lidartag_" "" export_name ${name})
+  set_target_properties(${name} PROPERTIES POSITION_INDEPENDENT_CODE ON EXPORT_NAME ${export_name})
 endfunction()

@@ -6,6 +6,10 @@ packages=(
   libeigen3-dev libnlopt-dev libnlopt-cxx-dev libtbb-dev libboost-dev libboost-system-dev
   libpcap-dev liblcm-dev liblcm-bin liblcm-java libglib2.0-dev libsystemd-dev
   libspdlog-dev libfmt-dev libyaml-cpp-dev libcli11-dev nlohmann-json3-dev
+  # VeloView XML calibration files; PCD binary_compressed (LZF)
+  libtinyxml2-dev liblzf-dev
+  # the Python module (for /usr/bin/python3) and its tests
+  python3-dev pybind11-dev python3-numpy python3-pytest
   libgtest-dev libgmock-dev libbenchmark-dev
   iproute2 util-linux
   # bench_accuracy: the plot docs/accuracy.png

@@ -743,7 +743,11 @@ DaemonOptions load_config(const std::string& path, const std::vector<std::string
 }
 
 detector::DetectorOptions load_detector_config(const std::string& path) {
-  const YAML::Node root = load_yaml(read_file(path), "config " + path);
+  return parse_detector_config(read_file(path), "config " + path);
+}
+
+detector::DetectorOptions parse_detector_config(std::string_view yaml, const std::string& origin) {
+  const YAML::Node root = load_yaml(yaml, origin);
   if (root.IsDefined() && !root.IsNull() && !root.IsMap()) {
     throw ConfigError("config", node_text(root), "expected a map of keys");
   }

@@ -84,7 +84,7 @@ void place(const CloudPoint& p, double range, int ring, double res_deg, Scan& ou
   out.z[i] = p.z;
   out.range[i] = static_cast<float>(range);
   out.azimuth_deg[i] = static_cast<float>(az);
-  out.time_s[i] = 0.0f;
+  out.time_s[i] = p.time_s;
   // NaN passes std::clamp, and converting it to an integer is undefined: it reads as 0.
   out.intensity[i] =
       static_cast<uint8_t>(p.intensity >= 0.0f ? std::min(p.intensity, 255.0f) : 0.0f);

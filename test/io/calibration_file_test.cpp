@@ -1,6 +1,7 @@
 #include "lidartag/driver/io/calibration_file.hpp"
 
 #include <gtest/gtest.h>
+#include <tinyxml2.h>
 #include <unistd.h>
 
 #include <cmath>
@@ -19,9 +20,10 @@ namespace {
 
 class CalibrationFile : public ::testing::Test {
  protected:
-  std::string write(const std::string& text) {
+  std::string write(const std::string& text, const std::string& extension = ".yaml") {
+    if (!path_.empty()) std::filesystem::remove(path_);
     path_ = (std::filesystem::temp_directory_path() /
-             ("lidartag_calib_" + std::to_string(::getpid()) + ".yaml"))
+             ("lidartag_calib_" + std::to_string(::getpid()) + extension))
                 .string();
     std::ofstream(path_) << text;
     return path_;
@@ -32,7 +34,7 @@ class CalibrationFile : public ::testing::Test {
   // The error for `text` loaded as `model`; fails the test when none is thrown.
   CalibrationError error_for(const std::string& text, Model model = Model::kVLP16) {
     try {
-      load_calibration_file(write(text), model);
+      load_calibration_file(write(text, text.starts_with("<") ? ".xml" : ".yaml"), model);
     } catch (const CalibrationError& e) {
       return e;
     }
@@ -66,6 +68,76 @@ std::string yaml_of(const Calibration& c, int skip_laser = -1, int duplicate_id 
   return out.str();
 }
 
+// `c` with zero-filled lasers appended up to `total` entries (the 64-entry files of 32-laser
+// sensors).
+Calibration padded(Calibration c, int total) {
+  c.lasers.resize(static_cast<size_t>(total), LaserCorrection{});
+  return c;
+}
+
+// A VeloView db.xml of `c` as VeloView writes it (a boost::serialization archive: angles in
+// degrees, lengths in centimetres, with the elements a reader must skip), written with tinyxml2.
+std::string xml_of(const Calibration& c, int count = -1) {
+  const auto n = static_cast<int>(c.lasers.size());
+  tinyxml2::XMLPrinter out;
+  out.PushHeader(false, true);
+  out.PushUnknown("DOCTYPE boost_serialization");
+  out.OpenElement("boost_serialization");
+  out.PushAttribute("signature", "serialization::archive");
+  out.PushAttribute("version", "4");
+  out.OpenElement("DB");
+  out.PushAttribute("class_id", "0");
+  auto value = [&](const char* name, double v) {
+    out.OpenElement(name, true);
+    out.PushText(v);
+    out.CloseElement(true);
+  };
+  auto list = [&](const char* name, int items, double v) {
+    out.OpenElement(name);
+    value("count", items);
+    value("item_version", 0);
+    for (int i = 0; i < items; ++i) value("item", v);
+    out.CloseElement();
+  };
+  value("distLSB_", c.distance_unit_m * 100.0);
+  out.OpenElement("position_");
+  out.OpenElement("xyz");
+  value("count", 3);
+  for (int k = 0; k < 3; ++k) value("item", 0);
+  out.CloseElement();
+  out.CloseElement();
+  list("enabled_", n, 1);
+  list("intensity_", n, 1);
+  list("minIntensity_", n, 0);
+  list("maxIntensity_", n, 255);
+  out.OpenElement("points_");
+  out.PushAttribute("class_id", "7");
+  value("count", count < 0 ? n : count);
+  value("item_version", 1);
+  for (int i = 0; i < n; ++i) {
+    const LaserCorrection& l = c.lasers[static_cast<size_t>(i)];
+    out.OpenElement("item");
+    out.OpenElement("px");
+    out.PushAttribute("class_id_reference", "9");
+    value("id_", i);
+    value("rotCorrection_", l.azimuth_offset_deg);
+    value("vertCorrection_", l.elevation_deg);
+    value("distCorrection_", l.distance_offset_m * 100.0);
+    value("distCorrectionX_", 0);
+    value("distCorrectionY_", 0);
+    value("vertOffsetCorrection_", l.vertical_offset_m * 100.0);
+    value("horizOffsetCorrection_", l.horizontal_offset_m * 100.0);
+    value("focalDistance_", 0);
+    value("focalSlope_", 0);
+    out.CloseElement();
+    out.CloseElement();
+  }
+  out.CloseElement();
+  out.CloseElement();
+  out.CloseElement();
+  return out.CStr();
+}
+
 void expect_same(const Calibration& a, const Calibration& b) {
   EXPECT_EQ(a.model, b.model);
   EXPECT_DOUBLE_EQ(a.distance_unit_m, b.distance_unit_m);
@@ -87,6 +159,144 @@ TEST_F(CalibrationFile, FullFilesOfTheBuiltinTablesLoadBackEqual) {
     const Calibration builtin = Calibration::builtin(model);
     expect_same(load_calibration_file(write(yaml_of(builtin)), model), builtin);
   }
+}
+
+TEST_F(CalibrationFile, VeloViewXmlFilesOfTheBuiltinTablesLoadBackEqual) {
+  for (Model model : all_models()) {
+    SCOPED_TRACE(std::string(model_spec(model).name));
+    Calibration builtin = Calibration::builtin(model);
+    // Offsets of every kind, so that the centimetre conversion is exercised.
+    builtin.lasers[1].horizontal_offset_m = 0.0259;
+    builtin.lasers[2].distance_offset_m = 1.3670362;
+    const std::string text = xml_of(builtin);
+    EXPECT_EQ(calibration_format(write(text, ".xml")), CalibrationFormat::kVeloViewXml);
+    expect_same(load_calibration_file(path_, model), builtin);
+    // The format comes from the contents, not the name.
+    expect_same(load_calibration_file(write(text, ".yaml"), model), builtin);
+    EXPECT_EQ(calibration_format(write(yaml_of(builtin), ".xml")), CalibrationFormat::kRosYaml);
+    expect_same(load_calibration_file(path_, model), builtin);
+  }
+}
+
+TEST_F(CalibrationFile, SixtyFourEntryFilesOfThirtyTwoLaserSensorsLoad) {
+  for (Model model : {Model::kVLP32C, Model::kHDL32E}) {
+    SCOPED_TRACE(std::string(model_spec(model).name));
+    const Calibration builtin = Calibration::builtin(model);
+    const Calibration file = padded(builtin, 64);
+    // ros-drivers/Autoware: num_lasers 32 with 64 entries; the Apollo variant says 64.
+    std::string text = yaml_of(file);
+    ASSERT_NE(text.find("num_lasers: 64"), std::string::npos);
+    expect_same(load_calibration_file(write(text), model), builtin);
+    text.replace(text.find("num_lasers: 64"), 14, "num_lasers: 32");
+    expect_same(load_calibration_file(write(text), model), builtin);
+    text.replace(text.find("num_lasers: 32"), 14, "");
+    expect_same(load_calibration_file(write(text), model), builtin);
+    // VeloView: 64 points, 32 zero-filled, count 64 (or 32).
+    expect_same(load_calibration_file(write(xml_of(file), ".xml"), model), builtin);
+    expect_same(load_calibration_file(write(xml_of(file, 32), ".xml"), model), builtin);
+  }
+  // The same for a 16-laser file padded to 32 entries.
+  const Calibration vlp16 = Calibration::builtin(Model::kVLP16);
+  expect_same(load_calibration_file(write(yaml_of(padded(vlp16, 32))), Model::kVLP16), vlp16);
+}
+
+TEST_F(CalibrationFile, ANonZeroEntryBeyondTheModelsLasersIsNamed) {
+  const Calibration file = padded(Calibration::builtin(Model::kVLP32C), 64);
+  for (const bool xml : {false, true}) {
+    SCOPED_TRACE(xml ? "xml" : "yaml");
+    // Lasers 45 and 40 non-zero (40 listed first): the error names laser 40's first value.
+    Calibration bad = file;
+    bad.lasers[45].azimuth_offset_deg = 2.0;
+    bad.lasers[40].vertical_offset_m = 0.25;
+    bad.lasers[40].elevation_deg = 3.0;
+    const auto e = error_for(xml ? xml_of(bad) : yaml_of(bad), Model::kVLP32C);
+    // In file order: the YAML writer lists vert_offset_correction last, the XML writer lists
+    // vertCorrection_ before vertOffsetCorrection_.
+    EXPECT_EQ(e.key(), xml ? "points_[40].vertCorrection_" : "lasers[40].vert_correction");
+    EXPECT_NE(std::string(e.what()).find("beyond the 32 lasers"), std::string::npos) << e.what();
+    // The value as written: degrees in XML, radians in YAML.
+    EXPECT_NE(std::string(e.what()).find(xml ? "must be all zero, found 3"
+                                             : "must be all zero, found 0.05235"),
+              std::string::npos)
+        << e.what();
+  }
+  // A true 64-laser file (HDL-64E style, every entry calibrated) is refused for a 32-laser model.
+  Calibration hdl64 = padded(Calibration::builtin(Model::kVLP32C), 64);
+  for (size_t i = 32; i < 64; ++i)
+    hdl64.lasers[i].elevation_deg = -24.0 + 0.5 * (static_cast<double>(i) - 32.0);
+  EXPECT_EQ(error_for(yaml_of(hdl64), Model::kVLP32C).key(), "lasers[32].vert_correction");
+  // A declared count that is neither the model's nor the number listed.
+  std::string text = yaml_of(file);
+  text.replace(text.find("num_lasers: 64"), 14, "num_lasers: 48");
+  EXPECT_EQ(error_for(text, Model::kVLP32C).key(), "num_lasers");
+  EXPECT_EQ(error_for(xml_of(file, 40), Model::kVLP32C).key(), "points_.count");
+}
+
+// The text of `xml` with the first `from` after `after` replaced by `to`.
+std::string edited(std::string xml, const std::string& after, const std::string& from,
+                   const std::string& to) {
+  const size_t at = xml.find(from, xml.find(after));
+  EXPECT_NE(at, std::string::npos) << from;
+  return at == std::string::npos ? xml : xml.replace(at, from.size(), to);
+}
+
+// `xml` with the first element `from` after `after` renamed `to` (both of its tags).
+std::string renamed(const std::string& xml, const std::string& after, const std::string& from,
+                    const std::string& to) {
+  return edited(edited(xml, after, "<" + from, "<" + to), "<" + to, "</" + from + ">",
+                "</" + to + ">");
+}
+
+TEST_F(CalibrationFile, BadVeloViewFilesNameTheKey) {
+  const std::string good = xml_of(Calibration::builtin(Model::kVLP16));
+  ASSERT_NO_THROW(load_calibration_file(write(good, ".xml"), Model::kVLP16));
+  struct Case {
+    std::string text, key, words;
+  };
+  const std::string laser3 = "<id_>3</id_>";
+  const std::vector<Case> cases = {
+      {good.substr(0, good.size() / 2), "", "not valid XML"},
+      {"<?xml version=\"1.0\"?><boost_serialization><nothing/></boost_serialization>", "DB",
+       "not a VeloView calibration"},
+      {renamed(good, "<DB", "points_", "pointz_"), "points_", "missing"},
+      {renamed(good, laser3, "vertCorrection_", "vertCorrectio_"), "points_[3].vertCorrection_",
+       "missing"},
+      {edited(good, laser3, "<rotCorrection_>0", "<rotCorrection_>abc"),
+       "points_[3].rotCorrection_", "not a number"},
+      {edited(good, laser3, "</distCorrection_>", "x</distCorrection_>"),
+       "points_[3].distCorrection_", "not a number"},
+      {edited(good, laser3, "<focalSlope_>0", "<focalSlope_>nan"), "points_[3].focalSlope_",
+       "not a number"},
+      {edited(good, laser3, "<vertCorrection_>", "<vertCorrection_>10"),
+       "points_[3].vertCorrection_", "degrees expected"},  // 3 degrees -> 103
+      {edited(good, laser3, "<horizOffsetCorrection_>0", "<horizOffsetCorrection_>2500"),
+       "points_[3].horizOffsetCorrection_", "centimetres expected"},
+      {edited(good, laser3, "<id_>3</id_>", "<id_>2</id_>"), "points_[3].id_", "duplicate"},
+      {edited(good, laser3, "<id_>3</id_>", "<id_>16</id_>"), "points_[3].id_", "outside 0..15"},
+      {edited(good, laser3, "<id_>3</id_>", "<id_>3.5</id_>"), "points_[3].id_", "integer"},
+      {edited(good, "<points_", "<count>16</count>", "<count>15</count>"), "points_.count",
+       "15 declared but 16"},
+      {edited(good, "<DB", "<distLSB_>", "<distLSB_>two"), "distLSB_", "not a number"},
+      {renamed(good, "<id_>2</id_>", "px", "qx"), "points_[3].px", "missing"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.key + ": " + c.words);
+    const auto e = error_for(c.text);
+    EXPECT_EQ(e.key(), c.key);
+    EXPECT_NE(std::string(e.what()).find(c.words), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find(path_), std::string::npos) << e.what();
+  }
+  // Too few points for the model.
+  EXPECT_EQ(error_for(good, Model::kVLP32C).key(), "points_");
+}
+
+TEST_F(CalibrationFile, WhiteSpaceAroundXmlNumbersIsAccepted) {
+  // VeloView's own files hold values such as "<vertCorrection_>0.000 </vertCorrection_>".
+  Calibration c = Calibration::builtin(Model::kVLP16);
+  std::string text = xml_of(c);
+  text = edited(text, "<id_>5</id_>", "</vertCorrection_>", " \n\t</vertCorrection_>");
+  text = edited(text, "<id_>6</id_>", "<rotCorrection_>", "<rotCorrection_> +");
+  expect_same(load_calibration_file(write(text, ".xml"), Model::kVLP16), c);
 }
 
 TEST_F(CalibrationFile, ConvertsRadiansAndReadsOffsets) {
@@ -247,62 +457,67 @@ std::vector<uint8_t> vlp16_packet(uint16_t raw, uint16_t az0) {
 }
 
 TEST_F(CalibrationFile, RandomlyDamagedFilesLoadSaneOrFailWithCalibrationError) {
-  const std::string good = yaml_of(Calibration::builtin(Model::kVLP16));
-  std::mt19937 rng(21);
-  int loaded = 0, refused = 0;
-  for (int k = 0; k < 300; ++k) {
-    std::string text = good;
-    const int edits = 1 + static_cast<int>(rng() % 3);
-    for (int e = 0; e < edits; ++e) {
-      const size_t at = rng() % text.size();
-      switch (rng() % 4) {
-        case 0:
-          text[at] = static_cast<char>('0' + rng() % 10);
-          break;
-        case 1:
-          text[at] = "-.e:,{}[] \n9"[rng() % 12];
-          break;
-        case 2:  // a value replaced by a number of any magnitude
-          if (const size_t colon = text.find(": ", at); colon != std::string::npos) {
-            const size_t from = colon + 2, to = text.find_first_of(",}\n", from);
-            text.replace(from, to == std::string::npos ? std::string::npos : to - from,
-                         (rng() % 2 ? "-" : "") + std::to_string(rng() % 10) + "e" +
-                             std::to_string(static_cast<int>(rng() % 80) - 20));
+  for (const bool xml : {false, true}) {
+    SCOPED_TRACE(xml ? "xml" : "yaml");
+    const Calibration builtin = Calibration::builtin(Model::kVLP16);
+    const std::string good = xml ? xml_of(builtin) : yaml_of(builtin);
+    std::mt19937 rng(21);
+    int loaded = 0, refused = 0;
+    for (int k = 0; k < 300; ++k) {
+      std::string text = good;
+      const int edits = 1 + static_cast<int>(rng() % 3);
+      for (int e = 0; e < edits; ++e) {
+        const size_t at = rng() % text.size();
+        switch (rng() % 4) {
+          case 0:
+            text[at] = static_cast<char>('0' + rng() % 10);
+            break;
+          case 1:
+            text[at] = (xml ? "-.e<>/_ \n9x0" : "-.e:,{}[] \n9")[rng() % 12];
+            break;
+          case 2:  // a value replaced by a number of any magnitude
+            if (const size_t colon = text.find(xml ? ">" : ": ", at); colon != std::string::npos) {
+              const size_t from = colon + (xml ? 1 : 2),
+                           to = text.find_first_of(xml ? "<" : ",}\n", from);
+              text.replace(from, to == std::string::npos ? std::string::npos : to - from,
+                           (rng() % 2 ? "-" : "") + std::to_string(rng() % 10) + "e" +
+                               std::to_string(static_cast<int>(rng() % 80) - 20));
+            }
+            break;
+          default:
+            text.resize(at);
+        }
+      }
+      Calibration c;
+      try {
+        c = load_calibration_file(write(text, xml ? ".xml" : ".yaml"), Model::kVLP16);
+      } catch (const CalibrationError& e) {
+        ++refused;
+        EXPECT_NE(std::string(e.what()).find(path_), std::string::npos) << e.what();
+        continue;
+      }
+      ++loaded;
+      // Whatever loaded decodes into finite points, azimuths in [0, 360).
+      Decoder d(c);
+      SensorClock clock;
+      DecodedPacket out;
+      for (uint16_t raw : {uint16_t{1}, uint16_t{500}, uint16_t{40000}, uint16_t{65535}}) {
+        ASSERT_EQ(d.decode(vlp16_packet(raw, static_cast<uint16_t>(rng() % 36000)), clock, 0, out),
+                  DecodeStatus::kOk);
+        for (int col = 0; col < out.columns; ++col)
+          for (int ring = 0; ring < out.rings; ++ring) {
+            const auto i = static_cast<size_t>(out.at(0, col, ring));
+            ASSERT_TRUE(std::isfinite(out.x[i]) && std::isfinite(out.y[i]) &&
+                        std::isfinite(out.z[i]) && std::isfinite(out.range[i]))
+                << "mutant " << k;
+            ASSERT_TRUE(out.azimuth_deg[i] >= 0.0f && out.azimuth_deg[i] < 360.0f)
+                << "mutant " << k << ": " << out.azimuth_deg[i];
           }
-          break;
-        default:
-          text.resize(at);
       }
     }
-    Calibration c;
-    try {
-      c = load_calibration_file(write(text), Model::kVLP16);
-    } catch (const CalibrationError& e) {
-      ++refused;
-      EXPECT_NE(std::string(e.what()).find(path_), std::string::npos) << e.what();
-      continue;
-    }
-    ++loaded;
-    // Whatever loaded decodes into finite points, azimuths in [0, 360).
-    Decoder d(c);
-    SensorClock clock;
-    DecodedPacket out;
-    for (uint16_t raw : {uint16_t{1}, uint16_t{500}, uint16_t{40000}, uint16_t{65535}}) {
-      ASSERT_EQ(d.decode(vlp16_packet(raw, static_cast<uint16_t>(rng() % 36000)), clock, 0, out),
-                DecodeStatus::kOk);
-      for (int col = 0; col < out.columns; ++col)
-        for (int ring = 0; ring < out.rings; ++ring) {
-          const auto i = static_cast<size_t>(out.at(0, col, ring));
-          ASSERT_TRUE(std::isfinite(out.x[i]) && std::isfinite(out.y[i]) &&
-                      std::isfinite(out.z[i]) && std::isfinite(out.range[i]))
-              << "mutant " << k;
-          ASSERT_TRUE(out.azimuth_deg[i] >= 0.0f && out.azimuth_deg[i] < 360.0f)
-              << "mutant " << k << ": " << out.azimuth_deg[i];
-        }
-    }
+    EXPECT_GT(loaded, 10);
+    EXPECT_GT(refused, 10);
   }
-  EXPECT_GT(loaded, 10);
-  EXPECT_GT(refused, 10);
 }
 
 }  // namespace

@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "lidartag/driver/io/capture_reader.hpp"
 #include "lidartag/driver/io/pcd.hpp"
 #include "run_tool.hpp"
 
@@ -179,7 +180,67 @@ TEST(CliDetect, PcdWithRingsAndWithout) {
 
   r = run_tool("detect " + no_rings);
   EXPECT_EQ(r.exit_code, 1);
-  EXPECT_NE(r.out.find("no ring field; give --model"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("no ring field: give the sensor model"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("(--model or --rings N)"), std::string::npos) << r.out;
+}
+
+// The first complete rotation of the demo capture, as `lidartag dump` sees it.
+lidartag::Scan first_demo_rotation() {
+  lidartag::velodyne::CaptureReader reader(kDemo, {});
+  while (const lidartag::Scan* scan = reader.next())
+    if (scan->complete) return *scan;
+  ADD_FAILURE() << "no complete rotation in " << kDemo;
+  return {};
+}
+
+TEST(CliDetect, PcdsOfEveryFormatAndLayoutKeepTheStampAndTheTags) {
+  TempDir dir;
+  const auto truth = demo_truth();
+  const std::string sizes = " --tag-size 0.8 --tag-size 0.6 --json";
+  // The stamp `detect` reports for the capture's first complete rotation.
+  Result r = run_tool("detect " + kDemo + sizes, false);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const double stamp = nlohmann::json::parse(r.out.substr(0, r.out.find('\n')))["stamp"];
+  ASSERT_GT(stamp, 1.6e9);
+
+  std::vector<std::string> files;
+  for (const bool organized : {false, true}) {
+    const std::string out = (dir / (organized ? "organized" : "flat")).string();
+    r = run_tool("dump " + kDemo + " --out " + out + (organized ? " --organized" : ""));
+    ASSERT_EQ(r.exit_code, 0) << r.out;
+    files.push_back(out + "/scan_000000.pcd");
+  }
+  const lidartag::Scan scan = first_demo_rotation();
+  const auto organized = lidartag::velodyne::read_pcd(files[1]);
+  EXPECT_EQ(organized.height, 32u);  // the VLP-32C's rings
+  EXPECT_EQ(organized.width, static_cast<size_t>(scan.columns));
+  // The formats `dump` does not write, from the library.
+  for (const auto format :
+       {lidartag::velodyne::PcdFormat::kAscii, lidartag::velodyne::PcdFormat::kBinaryCompressed}) {
+    for (const bool org : {false, true}) {
+      files.push_back((dir / (std::string(lidartag::velodyne::pcd_format_name(format)) +
+                              (org ? "_organized.pcd" : ".pcd")))
+                          .string());
+      lidartag::velodyne::write_pcd(files.back(), scan, {format, org});
+    }
+  }
+  for (const std::string& file : files) {
+    SCOPED_TRACE(file);
+    r = run_tool("detect " + file + sizes, false);
+    ASSERT_EQ(r.exit_code, 0) << r.out;
+    const auto j = nlohmann::json::parse(r.out);
+    EXPECT_EQ(j["stamp"].get<double>(), stamp);
+    // Organised clouds keep every cell; others are binned by azimuth (0.2 degree columns), where
+    // a few neighbours of one ring share a column and the nearer is kept.
+    const auto points = j["points"].get<size_t>();
+    if (file.find("organized") != std::string::npos) {
+      EXPECT_EQ(points, scan.point_count());
+    } else {
+      EXPECT_LE(points, scan.point_count());
+      EXPECT_GT(points, scan.point_count() * 98 / 100);
+    }
+    expect_matches_truth(j["detections"], truth["rotations"][0], file);
+  }
 }
 
 // A small ascii cloud with rings: 4 rings of 300 points on a cylinder of 5 m, then `extra` lines.
@@ -225,42 +286,54 @@ TEST(CliDetect, HostilePcdFilesGiveOneErrorLineOrSkipTheBadPoints) {
   expect_one_error(detect(xyz + "WIDTH 1000000000000\nHEIGHT 1\nPOINTS 1000000000000\nDATA "
                                 "ascii\n1 2 3\n"),
                    "cannot fit", "absurd POINTS");
-  expect_one_error(detect(xyz + "WIDTH 0\nPOINTS 0\nDATA ascii\n", "--rings 16"),
+  const std::string xyzi = "FIELDS x y z intensity\nSIZE 4 4 4 4\nTYPE F F F F\n";
+  expect_one_error(detect(xyzi + "WIDTH 0\nPOINTS 0\nDATA ascii\n", "--rings 16"),
                    "cannot regress rings", "empty cloud");
+  // x, y, z alone: tags cannot be decoded without intensity; said, not 0 tags.
+  expect_one_error(detect(xyz + "WIDTH 1\nDATA ascii\n1 2 3\n", "--rings 16"), "no intensity field",
+                   "xyz only");
   expect_one_error(detect(std::string("\x89PNG\r\n\x1a\n\0\0garbage", 17)), "unknown header line",
                    "not a PCD");
 
   // Bad points among good ones: skipped with a warning, the rest detected.
   Result r = detect(small_cloud("nan nan nan 0 0\n1e39 0 0 1 1\ninf 1 1 1 1\n", 3));
   EXPECT_EQ(r.exit_code, 0) << r.out;
-  EXPECT_NE(r.out.find("3 points with non-finite coordinates skipped"), std::string::npos) << r.out;
+  // NaN is "no return" (PCL's convention), not a bad point.
+  EXPECT_NE(r.out.find("2 points with infinite or out-of-range coordinates skipped"),
+            std::string::npos)
+      << r.out;
   EXPECT_NE(r.out.find("0 detections"), std::string::npos) << r.out;
   r =
       detect(small_cloud("5 0 0 1 nan\n5 0 0 1 -1\n5 0 0 1 1e12\n5 0 0 1 2.5\n5 0 0 1 300\n"
                          "5 0 0 1 2000000000\n",
                          6));
   EXPECT_EQ(r.exit_code, 0) << r.out;
-  EXPECT_NE(r.out.find("6 points with a ring that is not a whole number in 0..255 skipped"),
+  EXPECT_NE(r.out.find("6 points with a ring that is not a whole number in 0..3 skipped"),
             std::string::npos)
       << r.out;
   r = detect(small_cloud("5 0 0 nan 1\n5 0.1 0 -1e300 1\n5 0.2 0 1e300 2\n", 3));
   EXPECT_EQ(r.exit_code, 0) << r.out;
   // Every ring garbage: nothing left to organise.
-  r = detect(xyz.substr(0, 12) +
-             " ring\nSIZE 4 4 4 4\nTYPE F F F F\nWIDTH 2\nDATA ascii\n"
-             "1 2 3 nan\n1 2 3 4294967296\n");
+  r = detect(
+      "FIELDS x y z intensity ring\nSIZE 4 4 4 4 4\nTYPE F F F F F\nWIDTH 2\nDATA ascii\n"
+      "1 2 3 9 nan\n1 2 3 9 4294967296\n");
   EXPECT_EQ(r.exit_code, 1) << r.out;
-  EXPECT_NE(r.out.find("no points with a ring number"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("no point has a ring number"), std::string::npos) << r.out;
   // Doubles beyond a float in a binary file.
   {
-    std::string text = "FIELDS x y z ring\nSIZE 8 8 8 2\nTYPE F F F U\nWIDTH 2\nDATA binary\n";
+    std::string text =
+        "FIELDS x y z intensity ring\nSIZE 8 8 8 4 2\nTYPE F F F F U\nWIDTH 2\nDATA binary\n";
+    const float intensity = 40.0f;
     for (double v : {1e300, 2.0, 0.5}) text.append(reinterpret_cast<const char*>(&v), 8);
+    text.append(reinterpret_cast<const char*>(&intensity), 4);
     text.append(2, '\0');
     for (double v : {5.0, 0.0, 0.5}) text.append(reinterpret_cast<const char*>(&v), 8);
+    text.append(reinterpret_cast<const char*>(&intensity), 4);
     text.append(2, '\0');
     r = detect(text);
     EXPECT_EQ(r.exit_code, 0) << r.out;
-    EXPECT_NE(r.out.find("1 points with non-finite coordinates skipped"), std::string::npos)
+    EXPECT_NE(r.out.find("1 points with infinite or out-of-range coordinates skipped"),
+              std::string::npos)
         << r.out;
   }
 }

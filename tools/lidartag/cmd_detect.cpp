@@ -14,13 +14,14 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
 #include "lidartag/commands.hpp"
 #include "lidartag/common.hpp"
+#include "lidartag/detector/cloud_scan.hpp"
 #include "lidartag/detector/detector.hpp"
-#include "lidartag/detector/ring_regression.hpp"
 #include "lidartag/driver/io/capture_reader.hpp"
 #include "lidartag/driver/io/errors.hpp"
 #include "lidartag/driver/io/pcd.hpp"
@@ -67,75 +68,57 @@ bool is_pcd(const std::string& path) {
   return ext == ".pcd";
 }
 
-// Rings of a PCD's `ring` field (the largest spinning sensors have 128).
-constexpr int kMaxPcdRings = 256;
-
-// A PCD file as one scan: its own rings when it has a `ring` field, else rings regressed from
-// the elevations (the --model's beam table, or --rings beams estimated from the cloud).
+// A PCD file as one scan (detector/cloud_scan.hpp): organised dumps keep their cells, other clouds
+// are binned by azimuth, rings come from a `ring` field or are regressed from the elevations (the
+// --model's beam table, or --rings beams estimated from the cloud). The stamp and the rotation's
+// other fields come from the header comments `lidartag dump` writes.
 void load_pcd_scan(const DetectArgs& args, Scan& scan) {
-  const velodyne::PcdCloud pcd = velodyne::read_pcd(args.capture.capture);
-  const auto& x = pcd.field("x");
-  const auto& y = pcd.field("y");
-  const auto& z = pcd.field("z");
-  const std::vector<double>* intensity = pcd.has("intensity") ? &pcd.field("intensity") : nullptr;
-  const std::vector<double>* ring = pcd.has("ring") ? &pcd.field("ring") : nullptr;
-  std::vector<det::CloudPoint> cloud;
-  cloud.reserve(pcd.size());
-  int max_ring = -1;
-  size_t bad_points = 0, bad_rings = 0;
-  // Beyond a float, or a ring that is not a small whole number: converting it is undefined, and
-  // one ring of 2^31 would size a scan of 2^31 rings.
-  auto is_float = [](double v) { return std::fabs(v) <= std::numeric_limits<float>::max(); };
-  for (size_t i = 0; i < pcd.size(); ++i) {
-    if (!is_float(x[i]) || !is_float(y[i]) || !is_float(z[i])) {
-      ++bad_points;
-      continue;
-    }
-    det::CloudPoint p;
-    p.x = static_cast<float>(x[i]);
-    p.y = static_cast<float>(y[i]);
-    p.z = static_cast<float>(z[i]);
-    // NaN stays NaN (read as 0 when the scan is built).
-    p.intensity = intensity ? static_cast<float>(std::clamp((*intensity)[i], 0.0, 255.0)) : 0.0f;
-    if (ring) {
-      const double r = (*ring)[i];
-      if (!(r >= 0 && r < kMaxPcdRings) || r != std::floor(r)) {
-        ++bad_rings;
-        continue;
-      }
-      p.ring = static_cast<int>(r);
-      max_ring = std::max(max_ring, p.ring);
-    }
-    cloud.push_back(p);
-  }
-  if (bad_points > 0)
-    spdlog::warn("{}: {} points with non-finite coordinates skipped", args.capture.capture,
-                 bad_points);
-  if (bad_rings > 0)
-    spdlog::warn("{}: {} points with a ring that is not a whole number in 0..{} skipped",
-                 args.capture.capture, bad_rings, kMaxPcdRings - 1);
+  const std::string& path = args.capture.capture;
+  const velodyne::PcdCloud pcd = velodyne::read_pcd(path);
+  auto column = [&](const char* name) {
+    return pcd.has(name) ? std::span<const double>(pcd.field(name)) : std::span<const double>();
+  };
+  det::CloudFields fields;
+  for (const char* axis : {"x", "y", "z"})
+    if (!pcd.has(axis)) throw velodyne::IoError(path + ": no '" + axis + "' field");
+  fields.x = column("x");
+  fields.y = column("y");
+  fields.z = column("z");
+  fields.intensity = column("intensity");
+  fields.ring = column("ring");
+  fields.azimuth_deg = column("azimuth");
+  fields.time_s = column("time");
+  fields.return_type = column("return_type");
+  fields.width = pcd.width;
+  fields.height = pcd.height;
+  det::CloudScanOptions options;
+  options.resolution_deg = args.resolution_deg;
   const auto model =
       args.capture.model.empty() ? std::nullopt : velodyne::model_from_name(args.capture.model);
-  if (ring) {
-    const int rings = model ? velodyne::model_spec(*model).lasers : max_ring + 1;
-    if (!det::organise_rings(cloud, rings, args.resolution_deg, scan))
-      throw velodyne::IoError(args.capture.capture + ": no points with a ring number");
-    return;
-  }
-  det::RingRegressionOptions ro;
-  ro.horizontal_resolution_deg = args.resolution_deg;
   if (model) {
+    options.rings = velodyne::model_spec(*model).lasers;
     for (const auto& laser : velodyne::model_spec(*model).laser_table)
-      ro.elevations_deg.push_back(laser.elevation_deg);
-  } else if (args.rings > 0) {
-    ro.rings = args.rings;
-  } else {
-    throw velodyne::IoError(args.capture.capture +
-                            ": no ring field; give --model (its beam elevations) or --rings N");
+      options.elevations_deg.push_back(laser.elevation_deg);
+  } else if (fields.ring.empty()) {
+    options.rings = args.rings;
   }
-  if (!det::regress_rings(cloud, ro, scan))
-    throw velodyne::IoError(args.capture.capture + ": cannot regress rings (fewer than " +
-                            std::to_string(ro.rings) + " distinct elevations)");
+  det::CloudScanReport report;
+  try {
+    report = det::cloud_to_scan(fields, options, scan);
+  } catch (const det::CloudError& e) {
+    std::string hint;
+    if (fields.ring.empty() && !model && args.rings == 0) hint = " (--model or --rings N)";
+    throw velodyne::IoError(path + ": " + e.what() + hint);
+  }
+  velodyne::apply_pcd_rotation(pcd.rotation, scan);
+  if (report.skipped_coordinates > 0)
+    spdlog::warn("{}: {} points with infinite or out-of-range coordinates skipped", path,
+                 report.skipped_coordinates);
+  if (report.skipped_rings > 0)
+    spdlog::warn("{}: {} points with a ring that is not a whole number in 0..{} skipped", path,
+                 report.skipped_rings, scan.rings - 1);
+  if (report.intensity_scaled)
+    spdlog::warn("{}: every intensity is within [0, 1]: read as 0..1 and scaled to 0..255", path);
 }
 
 // "[#####.....]  45%" on stderr, redrawn in place; only when stderr is a terminal.

@@ -1,4 +1,5 @@
-// `lidartag dump CAPTURE --out DIR`: one binary PCD per rotation.
+// `lidartag dump CAPTURE --out DIR [--organized]`: one binary PCD per rotation, its stamp in the
+// header (pcd.hpp).
 #include <fmt/format.h>
 
 #include <filesystem>
@@ -18,6 +19,7 @@ struct DumpArgs {
   CaptureArgs capture;
   std::string out;
   bool partial = false;
+  bool organized = false;
 };
 
 int run_dump(const DumpArgs& args) {
@@ -36,7 +38,7 @@ int run_dump(const DumpArgs& args) {
     }
     const std::string path =
         (std::filesystem::path(args.out) / fmt::format("scan_{:06d}.pcd", written)).string();
-    points += velodyne::write_pcd(path, *scan);
+    points += velodyne::write_pcd(path, *scan, {velodyne::PcdFormat::kBinary, args.organized});
     ++written;
   }
   warn_model_mismatch(reader, args.capture);
@@ -54,6 +56,9 @@ const Registrar kDump(
       app.add_option("--out", args->out, "Output directory (created)")->required();
       app.add_flag("--partial", args->partial,
                    "Also write incomplete rotations (first, last, lossy)");
+      app.add_flag("--organized", args->organized,
+                   "Organised clouds as PCL expects: WIDTH = columns, HEIGHT = rings (x returns), "
+                   "NaN where a laser had no return");
       return [args] { return run_dump(*args); };
     });
 

@@ -18,7 +18,8 @@ void add_capture_options(CLI::App& app, CaptureArgs& args) {
                                                    : "unknown model '" + name + "' (" + names + ")";
           },
           "MODEL"));
-  app.add_option("--calibration", args.calibration, "ros-drivers calibration file (YAML)")
+  app.add_option("--calibration", args.calibration,
+                 "Calibration file (ros-drivers YAML or VeloView XML)")
       ->check(CLI::ExistingFile);
   app.add_option("--cut", args.cut_deg, "Azimuth where rotations are cut, degrees")
       ->check(CLI::Range(0.0, 360.0));

@@ -1,13 +1,13 @@
 #include "lidartag/driver/io/calibration_file.hpp"
 
-#include <yaml-cpp/yaml.h>
-
 #include <cmath>
 #include <filesystem>
-#include <numbers>
-#include <optional>
+#include <fstream>
+#include <sstream>
 #include <utility>
 #include <vector>
+
+#include "calibration_entries.hpp"
 
 namespace lidartag::velodyne {
 namespace {
@@ -18,39 +18,104 @@ std::string describe(const std::string& path, const std::string& key, const std:
   return message + ": " + problem;
 }
 
-// Reads `node[key]` as a finite number; empty when the key is absent.
-std::optional<double> number(const YAML::Node& node, const std::string& key,
-                             const std::string& where, const std::string& path) {
-  const YAML::Node value = node[key];
-  if (!value) return std::nullopt;
-  double result = 0;
-  if (!value.IsScalar() || !YAML::convert<double>::decode(value, result) ||
-      !std::isfinite(result)) {
-    throw CalibrationError(
-        path, where + key,
-        "not a number" + (value.IsScalar() ? " ('" + value.Scalar() + "')" : std::string()));
-  }
-  return result;
-}
-
-double required_number(const YAML::Node& node, const std::string& key, const std::string& where,
-                       const std::string& path) {
-  const auto value = number(node, key, where, path);
-  if (!value) throw CalibrationError(path, where + key, "missing");
-  return *value;
-}
-
-int integer(const YAML::Node& node, const std::string& key, const std::string& where,
-            const std::string& path) {
-  const double value = required_number(node, key, where, path);
-  if (value != std::floor(value) || std::fabs(value) > 1e6) {
-    throw CalibrationError(path, where + key, "not an integer");
-  }
-  return static_cast<int>(value);
-}
-
-constexpr double kDegPerRad = 180.0 / std::numbers::pi;
 constexpr double kMaxOffsetM = 10.0;  // distance, vertical and horizontal offsets
+
+std::string number_text(double value) {
+  std::ostringstream out;
+  out << value;
+  return out.str();
+}
+
+// XML when the first character that is not white space (or a UTF-8 byte order mark) is '<'.
+bool looks_like_xml(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  char c = 0;
+  while (in.get(c)) {
+    if (c == ' ' || c == '\t' || c == '\r' || c == '\n') continue;
+    if (c == '\xEF' || c == '\xBB' || c == '\xBF') continue;
+    return c == '<';
+  }
+  return false;
+}
+
+// The rules of both formats. Entries beyond the model's lasers are accepted only all-zero: files
+// for 32-laser sensors circulate with 64 entries, 32 of them zero-filled.
+Calibration assemble(const detail::CalibrationEntries& file, Model model, const std::string& path) {
+  const ModelSpec& spec = model_spec(model);
+  const auto listed = static_cast<int>(file.lasers.size());
+  const std::string model_has =
+      "a " + std::string(spec.display_name) + " has " + std::to_string(spec.lasers);
+  if (file.declared && *file.declared != listed && *file.declared != spec.lasers) {
+    throw CalibrationError(path, file.declared_key,
+                           std::to_string(*file.declared) + " declared but " +
+                               std::to_string(listed) + " lasers listed");
+  }
+  if (listed < spec.lasers) {
+    throw CalibrationError(path, file.list_key,
+                           std::to_string(listed) + " lasers, but " + model_has);
+  }
+
+  Calibration calibration;
+  calibration.model = model;
+  calibration.distance_unit_m = spec.distance_unit_m;
+  calibration.lasers.assign(static_cast<size_t>(spec.lasers), LaserCorrection{});
+  std::vector<bool> seen(static_cast<size_t>(listed), false);
+  for (const detail::LaserEntry& e : file.lasers) {
+    if (e.id != std::floor(e.id) || std::fabs(e.id) > 1e6)
+      throw CalibrationError(path, e.id_key, "not an integer");
+    const int id = static_cast<int>(e.id);
+    if (id < 0 || id >= listed) {
+      throw CalibrationError(
+          path, e.id_key,
+          "laser id " + std::to_string(id) + " outside 0.." + std::to_string(listed - 1));
+    }
+    if (seen[static_cast<size_t>(id)]) {
+      throw CalibrationError(path, e.id_key, "duplicate laser id " + std::to_string(id));
+    }
+    seen[static_cast<size_t>(id)] = true;
+    if (id >= spec.lasers) {
+      for (const detail::EntryValue& v : e.numbers) {
+        if (v.value != 0.0) {
+          throw CalibrationError(
+              path, v.key,
+              "laser " + std::to_string(id) + " is beyond the " + std::to_string(spec.lasers) +
+                  " lasers of a " + std::string(spec.display_name) +
+                  ": such an entry must be all zero, found " + number_text(v.value));
+        }
+      }
+      continue;
+    }
+    LaserCorrection& c = calibration.lasers[static_cast<size_t>(id)];
+    c.elevation_deg = e.elevation_deg.value;
+    c.azimuth_offset_deg = e.azimuth_offset_deg.value;
+    c.distance_offset_m = e.distance_offset_m.value;
+    c.vertical_offset_m = e.vertical_offset_m.value;
+    c.horizontal_offset_m = e.horizontal_offset_m.value;
+    if (std::fabs(c.elevation_deg) > 90.0) {
+      throw CalibrationError(
+          path, e.elevation_deg.key,
+          "elevation beyond +-90 degrees (" + std::string(file.angle_unit) + " expected)");
+    }
+    // Finite is not enough: 1e300 turns into inf (and inf - inf = NaN) in the decoder's floats,
+    // and large offsets into points kilometres away. Real files hold centimetres to a metre.
+    if (std::fabs(c.azimuth_offset_deg) > 180.0) {
+      throw CalibrationError(
+          path, e.azimuth_offset_deg.key,
+          "azimuth offset beyond +-180 degrees (" + std::string(file.angle_unit) + " expected)");
+    }
+    for (const detail::EntryValue* v :
+         {&e.distance_offset_m, &e.vertical_offset_m, &e.horizontal_offset_m}) {
+      if (std::fabs(v->value) > kMaxOffsetM) {
+        throw CalibrationError(path, v->key,
+                               "offset beyond +-" + std::to_string(static_cast<int>(kMaxOffsetM)) +
+                                   " m (" + std::string(file.length_unit) + " expected)");
+      }
+    }
+  }
+  // `listed` entries with distinct ids in 0..listed-1: every laser of the model is present.
+  calibration.update_rings();
+  return calibration;
+}
 
 }  // namespace
 
@@ -58,91 +123,18 @@ CalibrationError::CalibrationError(const std::string& path, const std::string& k
                                    const std::string& problem)
     : std::runtime_error(describe(path, key, problem)), path_(path), key_(key) {}
 
+CalibrationFormat calibration_format(const std::string& path) {
+  return looks_like_xml(path) ? CalibrationFormat::kVeloViewXml : CalibrationFormat::kRosYaml;
+}
+
 Calibration load_calibration_file(const std::string& path, Model model) {
-  const ModelSpec& spec = model_spec(model);
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) throw CalibrationError(path, "", "no such file");
-  YAML::Node root;
-  try {
-    root = YAML::LoadFile(path);
-  } catch (const YAML::Exception& e) {
-    throw CalibrationError(path, "", std::string("not valid YAML: ") + e.what());
-  }
-  if (!root.IsMap()) throw CalibrationError(path, "", "expected a mapping at the top level");
-  number(root, "distance_resolution", "", path);  // validated only; see the header
-  const YAML::Node lasers = root["lasers"];
-  if (!lasers) throw CalibrationError(path, "lasers", "missing");
-  if (!lasers.IsSequence()) throw CalibrationError(path, "lasers", "expected a list of lasers");
-  if (root["num_lasers"]) {
-    const int declared = integer(root, "num_lasers", "", path);
-    if (declared != static_cast<int>(lasers.size())) {
-      throw CalibrationError(path, "num_lasers",
-                             std::to_string(declared) + " declared but " +
-                                 std::to_string(lasers.size()) + " lasers listed");
-    }
-  }
-  if (static_cast<int>(lasers.size()) != spec.lasers) {
-    throw CalibrationError(path, "lasers",
-                           std::to_string(lasers.size()) + " lasers, but a " +
-                               std::string(spec.display_name) + " has " +
-                               std::to_string(spec.lasers));
-  }
-
-  Calibration calibration;
-  calibration.model = model;
-  calibration.distance_unit_m = spec.distance_unit_m;
-  calibration.lasers.assign(static_cast<size_t>(spec.lasers), LaserCorrection{});
-  std::vector<bool> seen(static_cast<size_t>(spec.lasers), false);
-  for (size_t i = 0; i < lasers.size(); ++i) {
-    const YAML::Node laser = lasers[i];
-    const std::string where = "lasers[" + std::to_string(i) + "].";
-    if (!laser.IsMap())
-      throw CalibrationError(path, "lasers[" + std::to_string(i) + "]", "expected a mapping");
-    const int id = integer(laser, "laser_id", where, path);
-    if (id < 0 || id >= spec.lasers) {
-      throw CalibrationError(
-          path, where + "laser_id",
-          "laser id " + std::to_string(id) + " outside 0.." + std::to_string(spec.lasers - 1));
-    }
-    if (seen[static_cast<size_t>(id)]) {
-      throw CalibrationError(path, where + "laser_id", "duplicate laser id " + std::to_string(id));
-    }
-    seen[static_cast<size_t>(id)] = true;
-    LaserCorrection& c = calibration.lasers[static_cast<size_t>(id)];
-    c.elevation_deg = required_number(laser, "vert_correction", where, path) * kDegPerRad;
-    c.azimuth_offset_deg = required_number(laser, "rot_correction", where, path) * kDegPerRad;
-    c.distance_offset_m = number(laser, "dist_correction", where, path).value_or(0.0);
-    c.vertical_offset_m = number(laser, "vert_offset_correction", where, path).value_or(0.0);
-    c.horizontal_offset_m = number(laser, "horiz_offset_correction", where, path).value_or(0.0);
-    for (const char* key : {"dist_correction_x", "dist_correction_y", "focal_distance",
-                            "focal_slope", "min_intensity", "max_intensity"}) {
-      number(laser, key, where, path);
-    }
-    if (std::fabs(c.elevation_deg) > 90.0) {
-      throw CalibrationError(path, where + "vert_correction",
-                             "elevation beyond +-90 degrees (radians expected)");
-    }
-    // Finite is not enough: 1e300 turns into inf (and inf - inf = NaN) in the decoder's floats,
-    // and large offsets into points kilometres away. Real files hold centimetres to a metre.
-    if (std::fabs(c.azimuth_offset_deg) > 180.0) {
-      throw CalibrationError(path, where + "rot_correction",
-                             "azimuth offset beyond +-180 degrees (radians expected)");
-    }
-    const std::pair<const char*, double> offsets[] = {
-        {"dist_correction", c.distance_offset_m},
-        {"vert_offset_correction", c.vertical_offset_m},
-        {"horiz_offset_correction", c.horizontal_offset_m}};
-    for (const auto& [key, value] : offsets) {
-      if (std::fabs(value) > kMaxOffsetM) {
-        throw CalibrationError(path, where + key,
-                               "offset beyond +-" + std::to_string(static_cast<int>(kMaxOffsetM)) +
-                                   " m (metres expected)");
-      }
-    }
-  }
-  // n entries with distinct ids in 0..n-1: every laser is present.
-  calibration.update_rings();
-  return calibration;
+  const detail::CalibrationEntries entries =
+      calibration_format(path) == CalibrationFormat::kVeloViewXml
+          ? detail::parse_calibration_xml(path)
+          : detail::parse_calibration_yaml(path);
+  return assemble(entries, model, path);
 }
 
 }  // namespace lidartag::velodyne

@@ -68,7 +68,8 @@ struct SensorOptions {
   std::string channel_prefix;         // prepended to every channel of this sensor; unique
   // Model to decode as; empty ("auto"): the product byte, checked against the packets' timing.
   std::optional<velodyne::Model> model;
-  std::string calibration;  // ros-drivers calibration file; empty: the model's built-in table
+  // Calibration file (ros-drivers YAML or VeloView XML); empty: the model's built-in table.
+  std::string calibration;
   velodyne::BatcherOptions batcher;  // cut azimuth, flush timeout, jump threshold
   velodyne::DecoderOptions decoder;  // range limits
   SourceOptions source;
@@ -159,6 +160,9 @@ DaemonOptions load_config(const std::string& path, const std::vector<std::string
 // The `detector:` section of a config file alone (for `lidartag detect --config`); other sections
 // are not checked. Throws ConfigError.
 detector::DetectorOptions load_detector_config(const std::string& path);
+// The same from a YAML document (`origin` names it in messages), e.g. for the Python module.
+detector::DetectorOptions parse_detector_config(std::string_view yaml,
+                                                const std::string& origin = "config");
 
 // Re-checks options built in code (what parse_config checks after mapping). Throws ConfigError.
 void validate(const DaemonOptions& options);

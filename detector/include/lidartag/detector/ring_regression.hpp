@@ -13,6 +13,7 @@ struct CloudPoint {
   float x = 0, y = 0, z = 0;  // metres, sensor frame
   float intensity = 0;        // 0..255
   int ring = -1;              // the point's ring when the file has one (0 = lowest), else -1
+  float time_s = 0;           // seconds from the rotation start (kept in the scan's cell)
 };
 
 struct RingRegressionOptions {

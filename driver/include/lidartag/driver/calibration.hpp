@@ -1,5 +1,5 @@
 // Per-laser corrections the decoder applies, built in for every model or read from a
-// ros-drivers/velodyne calibration file (see calibration_file.hpp).
+// ros-drivers/velodyne YAML or VeloView XML calibration file (see calibration_file.hpp).
 #pragma once
 
 #include <vector>

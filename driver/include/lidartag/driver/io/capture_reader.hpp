@@ -29,7 +29,7 @@ struct CaptureReaderOptions {
   // Model to decode as. Empty: the product byte of the data packets, checked against their timing
   // by ModelCheck (see model_mismatch()); the timing's model when the byte names none.
   std::optional<Model> model;
-  // ros-drivers calibration file; empty: the model's built-in table.
+  // Calibration file (ros-drivers YAML or VeloView XML); empty: the model's built-in table.
   std::string calibration_file;
   // Range limits.
   DecoderOptions decoder;

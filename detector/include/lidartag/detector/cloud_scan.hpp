@@ -1,0 +1,61 @@
+// A point cloud read from a file (a PCD written by `lidartag dump`, or by another tool) as the
+// ring-major Scan the detector takes. Used by `lidartag detect` and the Python module alike.
+#pragma once
+
+#include <cstddef>
+#include <span>
+#include <stdexcept>
+#include <vector>
+
+#include "lidartag/driver/scan.hpp"
+
+namespace lidartag::detector {
+
+// The cloud cannot become a scan (no intensity, no way to tell the rings, sizes that disagree).
+class CloudError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// The cloud's fields, one value per point (e.g. a PCD file's columns); an empty span: the cloud
+// has no such field.
+struct CloudFields {
+  std::span<const double> x, y, z;      // metres, sensor frame; required. NaN: no return
+  std::span<const double> intensity;    // 0..255 reflectivity; required (tags are read from it)
+  std::span<const double> ring;         // optional: 0 = the lowest beam
+  std::span<const double> azimuth_deg;  // optional: clockwise from +x, as the sensor's
+  std::span<const double> time_s;       // optional: seconds from the rotation start
+  std::span<const double> return_type;  // optional: lidartag::ReturnType values
+  size_t width = 0, height = 1;         // height > 1: organised, row-major, width columns
+};
+
+struct CloudScanOptions {
+  // With ring numbers: the scan's rings (0: the largest ring in the cloud + 1). Without: the
+  // number of beams to estimate from the cloud when no elevations are given.
+  int rings = 0;
+  // Beam elevations, degrees, for a cloud without ring numbers (a model's table). Empty: estimated.
+  std::vector<double> elevations_deg;
+  // Column width, degrees of azimuth, when columns are made by binning azimuths (every cloud
+  // that is not organised with ring numbers). Default 0.2: a Velodyne at 10 Hz.
+  double resolution_deg = 0.2;
+};
+
+struct CloudScanReport {
+  size_t points = 0;               // points with a return placed in the scan
+  size_t skipped_coordinates = 0;  // x, y or z infinite or beyond a float (NaN is "no return")
+  size_t skipped_rings = 0;        // ring not a whole number in 0..255 (or >= options.rings)
+  // Organised with ring numbers: each point kept its column and return (rows: the rings of return
+  // 0, then of return 1, as `lidartag dump --organized` writes).
+  bool grid = false;
+  bool regressed = false;         // no ring numbers: rings from elevations (ring_regression.hpp)
+  bool intensity_scaled = false;  // every intensity within [0, 1]: read as 0..1, scaled by 255
+};
+
+// Fills `out` (resized as needed) with the cloud; its per-rotation fields (stamp, sequence, ...)
+// are left cleared for the caller. Throws CloudError: points without intensity (the detector
+// decodes tags from intensity; an xyz-only cloud would silently give no tags), fields of different
+// sizes, width x height not the size, no ring numbers with neither elevations nor a ring count,
+// rings that cannot be regressed, no usable point with a ring number.
+CloudScanReport cloud_to_scan(const CloudFields& cloud, const CloudScanOptions& options, Scan& out);
+
+}  // namespace lidartag::detector

@@ -1,0 +1,215 @@
+#include "lidartag/detector/cloud_scan.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <string>
+
+#include "lidartag/detector/ring_regression.hpp"
+
+namespace lidartag::detector {
+namespace {
+
+// Rings of a ring field (the largest spinning sensors have 128).
+constexpr int kMaxRings = 256;
+
+bool is_float(double v) {
+  return std::fabs(v) <= std::numeric_limits<float>::max();
+}
+
+double at_or(std::span<const double> field, size_t k, double fallback) {
+  return field.empty() ? fallback : field[k];
+}
+
+double azimuth_of(double x, double y) {
+  double az = std::atan2(-y, x) * 180.0 / std::numbers::pi;
+  return az < 0 ? az + 360.0 : az;
+}
+
+// A ring number, or -1 when it is not a whole number in [0, limit).
+int ring_of(double r, int limit) {
+  if (!(r >= 0 && r < limit) || r != std::floor(r)) return -1;
+  return static_cast<int>(r);
+}
+
+uint8_t intensity_of(double v, double scale) {
+  const double s = v * scale;
+  // NaN fails the comparison and reads as 0 (converting it to an integer is undefined).
+  return static_cast<uint8_t>(s >= 0.0 ? std::min(s, 255.0) : 0.0);
+}
+
+ReturnType return_type_of(double v) {
+  return v >= 1 && v <= 4 && v == std::floor(v) ? static_cast<ReturnType>(static_cast<int>(v))
+                                                : ReturnType::kStrongest;
+}
+
+// Columns without any azimuth (or time) take their neighbour's.
+template <typename T>
+void fill_gaps(std::vector<T>& values, const std::vector<bool>& known, int columns) {
+  int last = -1;
+  for (int c = 0; c < columns; ++c) {
+    const auto uc = static_cast<size_t>(c);
+    if (known[uc]) {
+      if (last < 0)
+        for (int b = 0; b < c; ++b) values[static_cast<size_t>(b)] = values[uc];
+      last = c;
+    } else if (last >= 0) {
+      values[uc] = values[static_cast<size_t>(last)];
+    }
+  }
+}
+
+// Organised with ring numbers: point k is row k / width, column k % width; rows are the rings of
+// return 0, then those of return 1.
+void to_grid(const CloudFields& f, int rings, int returns, double scale, CloudScanReport& report,
+             Scan& out) {
+  const int columns = static_cast<int>(f.width);
+  if (out.rings != rings || out.returns != returns || out.column_capacity != columns)
+    out.reserve(rings, returns, columns);
+  out.clear();
+  std::fill(out.range.begin(), out.range.end(), 0.0f);
+  std::fill(out.return_type.begin(), out.return_type.end(), ReturnType::kNone);
+  std::fill(out.azimuth_deg.begin(), out.azimuth_deg.end(), 0.0f);
+  std::fill(out.time_s.begin(), out.time_s.end(), 0.0f);
+  out.columns = columns;
+  std::vector<bool> az_known(f.width, false), time_known(f.width, false);
+  for (size_t k = 0; k < f.x.size(); ++k) {
+    const auto row = static_cast<int>(k / f.width);
+    const auto col = static_cast<int>(k % f.width);
+    const auto ucol = static_cast<size_t>(col);
+    const int ring = ring_of(f.ring[k], rings);
+    const bool no_return = std::isnan(f.x[k]) || std::isnan(f.y[k]) || std::isnan(f.z[k]);
+    const bool coordinates = is_float(f.x[k]) && is_float(f.y[k]) && is_float(f.z[k]);
+    if (!no_return && !coordinates) ++report.skipped_coordinates;
+    if (ring < 0) {
+      if (!no_return && coordinates) ++report.skipped_rings;
+      continue;
+    }
+    const size_t i = out.at(row / rings, ring, col);
+    const double az = at_or(f.azimuth_deg, k,
+                            no_return || !coordinates ? std::numeric_limits<double>::quiet_NaN()
+                                                      : azimuth_of(f.x[k], f.y[k]));
+    const double t = at_or(f.time_s, k, std::numeric_limits<double>::quiet_NaN());
+    if (std::isfinite(az) && std::fabs(az) <= 720.0) {
+      out.azimuth_deg[i] = static_cast<float>(az);
+      // The first row that has one gives the column's azimuth (one ring for every column of a
+      // dump, so that the steps between columns are the sensor's).
+      if (!az_known[ucol]) out.column_azimuth_deg[ucol] = static_cast<float>(az);
+      az_known[ucol] = true;
+    }
+    if (std::isfinite(t) && is_float(t)) {
+      out.time_s[i] = static_cast<float>(t);
+      if (!time_known[ucol]) out.column_time_s[ucol] = t;
+      time_known[ucol] = true;
+    }
+    if (no_return || !coordinates) continue;
+    const double range = std::sqrt(f.x[k] * f.x[k] + f.y[k] * f.y[k] + f.z[k] * f.z[k]);
+    if (!(range > 0.0) || !is_float(range)) continue;
+    if (out.range[i] > 0.0f && out.range[i] <= range) continue;  // the nearer of two
+    out.x[i] = static_cast<float>(f.x[k]);
+    out.y[i] = static_cast<float>(f.y[k]);
+    out.z[i] = static_cast<float>(f.z[k]);
+    out.range[i] = static_cast<float>(range);
+    out.intensity[i] = intensity_of(f.intensity[k], scale);
+    out.return_type[i] = return_type_of(at_or(f.return_type, k, 1));
+  }
+  fill_gaps(out.column_azimuth_deg, az_known, columns);
+  fill_gaps(out.column_time_s, time_known, columns);
+}
+
+}  // namespace
+
+CloudScanReport cloud_to_scan(const CloudFields& f, const CloudScanOptions& options, Scan& out) {
+  CloudScanReport report;
+  const size_t n = f.x.size();
+  if (f.intensity.empty() && n > 0) {
+    throw CloudError(
+        "no intensity field: the detector reads a tag's code from intensity, so a cloud of "
+        "x, y, z alone gives no tags (write the intensity too, e.g. PCL's PointXYZI)");
+  }
+  for (const auto* field :
+       {&f.y, &f.z, &f.intensity, &f.ring, &f.azimuth_deg, &f.time_s, &f.return_type}) {
+    if (!field->empty() && field->size() != n) throw CloudError("fields of different sizes");
+  }
+  if (f.height > 1 && f.width * f.height != n)
+    throw CloudError("width x height is not the number of points");
+
+  // Intensities of 0..1 (some tools normalise them) would all read as 0 or 1 of 255.
+  double max_intensity = 0.0;
+  for (size_t k = 0; k < n; ++k)
+    if (std::isfinite(f.intensity[k]) && !std::isnan(f.x[k]))
+      max_intensity = std::max(max_intensity, f.intensity[k]);
+  report.intensity_scaled = max_intensity > 0.0 && max_intensity <= 1.0;
+  const double scale = report.intensity_scaled ? 255.0 : 1.0;
+
+  int rings = options.rings;
+  if (!f.ring.empty() && rings <= 0) {
+    int max_ring = -1;
+    for (size_t k = 0; k < n; ++k) max_ring = std::max(max_ring, ring_of(f.ring[k], kMaxRings));
+    rings = max_ring + 1;
+    if (rings <= 0)
+      throw CloudError("no point has a ring number in 0.." + std::to_string(kMaxRings - 1));
+  }
+  if (!f.ring.empty() && f.height > 1 && f.width > 0 &&
+      f.height % static_cast<size_t>(rings) == 0 && f.height / static_cast<size_t>(rings) <= 2) {
+    report.grid = true;
+    to_grid(f, rings, static_cast<int>(f.height / static_cast<size_t>(rings)), scale, report, out);
+    report.points = out.point_count();
+    return report;
+  }
+
+  // Unorganised (or rows that are not rings): columns by azimuth.
+  std::vector<CloudPoint> cloud;
+  cloud.reserve(n);
+  for (size_t k = 0; k < n; ++k) {
+    if (std::isnan(f.x[k]) || std::isnan(f.y[k]) || std::isnan(f.z[k])) continue;  // no return
+    if (!is_float(f.x[k]) || !is_float(f.y[k]) || !is_float(f.z[k])) {
+      ++report.skipped_coordinates;
+      continue;
+    }
+    CloudPoint p;
+    p.x = static_cast<float>(f.x[k]);
+    p.y = static_cast<float>(f.y[k]);
+    p.z = static_cast<float>(f.z[k]);
+    p.intensity = static_cast<float>(intensity_of(f.intensity[k], scale));
+    const double t = at_or(f.time_s, k, 0.0);
+    p.time_s = std::isfinite(t) && is_float(t) ? static_cast<float>(t) : 0.0f;
+    if (!f.ring.empty()) {
+      p.ring = ring_of(f.ring[k], rings);
+      if (p.ring < 0) {
+        ++report.skipped_rings;
+        continue;
+      }
+    }
+    cloud.push_back(p);
+  }
+  if (!f.ring.empty()) {
+    if (!organise_rings(cloud, rings, options.resolution_deg, out))
+      throw CloudError("cannot organise the rings (column width " +
+                       std::to_string(options.resolution_deg) + " degrees)");
+    report.points = out.point_count();
+    return report;
+  }
+  report.regressed = true;
+  RingRegressionOptions ro;
+  ro.horizontal_resolution_deg = options.resolution_deg;
+  ro.elevations_deg = options.elevations_deg;
+  ro.rings = options.rings;
+  if (ro.elevations_deg.empty() && ro.rings <= 0) {
+    throw CloudError(
+        "no ring field: give the sensor model (its beam elevations) or the number of rings to "
+        "regress");
+  }
+  if (!regress_rings(cloud, ro, out)) {
+    throw CloudError("cannot regress rings (fewer than " +
+                     std::to_string(ro.elevations_deg.empty()
+                                        ? ro.rings
+                                        : static_cast<int>(ro.elevations_deg.size())) +
+                     " distinct elevations)");
+  }
+  report.points = out.point_count();
+  return report;
+}
+
+}  // namespace lidartag::detector

@@ -1,0 +1,33 @@
+// The Python module `lidartag` (package python/lidartag, extension lidartag._lidartag): one
+// binding file per part, each with its bind_* function called from module.cpp.
+#pragma once
+
+#include <pybind11/pybind11.h>
+
+#include <string>
+
+#include "lidartag/driver/scan.hpp"
+
+namespace lidartag::python {
+
+namespace py = pybind11;
+
+// One rotation, owned by Python: a copy of the reader's scan holding its filled columns only.
+struct Rotation {
+  Scan scan;
+
+  // Copies the filled columns of `source` (the reader's scan is reused for the next rotation).
+  static Rotation copy_of(const Scan& source);
+};
+
+// Model and return-mode names of a scan ("vlp32c", "dual"); empty when unknown.
+std::string model_name(const Scan& scan);
+std::string return_mode_name(const Scan& scan);
+
+void bind_errors(py::module_& m);
+void bind_rotation(py::module_& m);  // Rotation, Reader (pcap/pcapng/PCD), PCD files
+void bind_detector(py::module_& m);  // Detector, Detection, DetectionResult
+void bind_sim(py::module_& m);       // simulate
+void bind_lcm_log(py::module_& m);   // LcmLog, LogEvent (lidartag.lcmtypes: lcm_types.hpp)
+
+}  // namespace lidartag::python

@@ -1,0 +1,425 @@
+// Rotations as numpy arrays; the Reader that yields them lazily from a pcap/pcapng capture (the
+// driver's CaptureReader) or a PCD file (detector/cloud_scan); PCD files read and written.
+#include <pybind11/numpy.h>
+#include <pybind11/stl.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cstddef>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+
+#include "bindings.hpp"
+#include "lidartag/detector/cloud_scan.hpp"
+#include "lidartag/driver/io/capture_reader.hpp"
+#include "lidartag/driver/io/errors.hpp"
+#include "lidartag/driver/io/pcd.hpp"
+#include "lidartag/driver/io/udp_frame.hpp"
+#include "lidartag/driver/sensor_model.hpp"
+
+namespace lidartag::python {
+namespace {
+
+// One point of Rotation.points (a numpy structured array).
+struct PointRecord {
+  float x, y, z;        // metres, sensor frame
+  float range;          // metres
+  float azimuth;        // degrees [0, 360)
+  float time;           // seconds from the rotation start
+  uint32_t column;      // firing sequence in the rotation
+  uint16_t ring;        // 0 = lowest beam
+  uint8_t intensity;    // 0..255
+  uint8_t return_type;  // lidartag::ReturnType
+};
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return s;
+}
+
+std::optional<velodyne::Model> model_option(const std::optional<std::string>& name) {
+  if (!name || name->empty()) return std::nullopt;
+  const auto model = velodyne::model_from_name(lower(*name));
+  if (!model) {
+    throw py::value_error("unknown model '" + *name + "' (" + velodyne::model_names() + ")");
+  }
+  return model;
+}
+
+bool is_pcd(const std::string& path) {
+  return lower(std::filesystem::path(path).extension().string()) == ".pcd";
+}
+
+// x (returns, rings, columns) arrays of one cell field.
+template <typename Out, typename In>
+py::array_t<Out> grid(const Scan& s, const std::vector<In>& field) {
+  py::array_t<Out> out({s.returns, s.rings, s.columns});
+  auto r = out.template mutable_unchecked<3>();
+  for (int ret = 0; ret < s.returns; ++ret)
+    for (int ring = 0; ring < s.rings; ++ring)
+      for (int col = 0; col < s.columns; ++col)
+        r(ret, ring, col) = static_cast<Out>(field[s.at(ret, ring, col)]);
+  return out;
+}
+
+py::array_t<PointRecord> points_of(const Scan& s) {
+  py::array_t<PointRecord> out(static_cast<py::ssize_t>(s.point_count()));
+  PointRecord* p = out.mutable_data();
+  for (int ret = 0; ret < s.returns; ++ret)
+    for (int ring = 0; ring < s.rings; ++ring)
+      for (int col = 0; col < s.columns; ++col) {
+        const size_t i = s.at(ret, ring, col);
+        if (!s.valid(i)) continue;
+        *p++ = {s.x[i],
+                s.y[i],
+                s.z[i],
+                s.range[i],
+                s.azimuth_deg[i],
+                s.time_s[i],
+                static_cast<uint32_t>(col),
+                static_cast<uint16_t>(ring),
+                s.intensity[i],
+                static_cast<uint8_t>(s.return_type[i])};
+      }
+  return out;
+}
+
+py::dict arrays_of(const Scan& s) {
+  py::dict d;
+  d["x"] = grid<float>(s, s.x);
+  d["y"] = grid<float>(s, s.y);
+  d["z"] = grid<float>(s, s.z);
+  d["range"] = grid<float>(s, s.range);
+  d["intensity"] = grid<uint8_t>(s, s.intensity);
+  d["azimuth"] = grid<float>(s, s.azimuth_deg);
+  d["time"] = grid<float>(s, s.time_s);
+  std::vector<uint8_t> types(s.return_type.size());
+  for (size_t i = 0; i < types.size(); ++i) types[i] = static_cast<uint8_t>(s.return_type[i]);
+  d["return_type"] = grid<uint8_t>(s, types);
+  std::vector<bool> valid(s.range.size());
+  for (size_t i = 0; i < valid.size(); ++i) valid[i] = s.valid(i);
+  d["valid"] = grid<bool>(s, valid);
+  d["column_azimuth"] = py::array_t<float>(s.columns, s.column_azimuth_deg.data());
+  d["column_time"] = py::array_t<double>(s.columns, s.column_time_s.data());
+  d["laser_id"] = py::array_t<uint8_t>(s.rings, s.laser_id.data());
+  return d;
+}
+
+// A PCD file as one rotation (what `lidartag detect` does with one).
+Rotation rotation_of_pcd(const std::string& path, const std::optional<velodyne::Model>& model,
+                         int rings, double resolution_deg) {
+  const velodyne::PcdCloud pcd = velodyne::read_pcd(path);
+  auto column = [&](const char* name) {
+    return pcd.has(name) ? std::span<const double>(pcd.field(name)) : std::span<const double>();
+  };
+  for (const char* axis : {"x", "y", "z"})
+    if (!pcd.has(axis)) throw velodyne::IoError(path + ": no '" + axis + "' field");
+  detector::CloudFields fields;
+  fields.x = column("x");
+  fields.y = column("y");
+  fields.z = column("z");
+  fields.intensity = column("intensity");
+  fields.ring = column("ring");
+  fields.azimuth_deg = column("azimuth");
+  fields.time_s = column("time");
+  fields.return_type = column("return_type");
+  fields.width = pcd.width;
+  fields.height = pcd.height;
+  detector::CloudScanOptions options;
+  options.resolution_deg = resolution_deg;
+  if (model) {
+    options.rings = velodyne::model_spec(*model).lasers;
+    for (const auto& laser : velodyne::model_spec(*model).laser_table)
+      options.elevations_deg.push_back(laser.elevation_deg);
+  } else if (fields.ring.empty()) {
+    options.rings = rings;
+  }
+  Rotation r;
+  try {
+    detector::cloud_to_scan(fields, options, r.scan);
+  } catch (const detector::CloudError& e) {
+    throw detector::CloudError(path + ": " + e.what());
+  }
+  velodyne::apply_pcd_rotation(pcd.rotation, r.scan);
+  if (!pcd.rotation.model && model) r.scan.model = static_cast<uint8_t>(*model);
+  return r;
+}
+
+// Reads rotations lazily; the GIL is released while packets are read and decoded.
+class Reader {
+ public:
+  struct Options {
+    std::optional<std::string> model, calibration, sensor;
+    double cut_deg = velodyne::BatcherOptions{}.cut_azimuth_deg;
+    bool partial = false;
+    uint16_t data_port = velodyne::kDefaultDataPort;
+    uint16_t position_port = velodyne::kDefaultPositionPort;
+    int rings = 0;
+    double resolution_deg = 0.2;
+  };
+
+  Reader(const std::string& path, const Options& o) : path_(path), partial_(o.partial) {
+    const auto model = model_option(o.model);
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(path, ec))
+      throw velodyne::IoError("no such file: '" + path + "'");
+    if (is_pcd(path)) {
+      pcd_ = rotation_of_pcd(path, model, o.rings, o.resolution_deg);
+      return;
+    }
+    velodyne::CaptureReaderOptions options;
+    options.source.data_port = o.data_port;
+    options.source.position_port = o.position_port;
+    if (o.sensor && !o.sensor->empty()) {
+      uint32_t address = 0;
+      if (!velodyne::parse_ipv4_address(*o.sensor, address))
+        throw py::value_error("not an IPv4 address: '" + *o.sensor + "'");
+      options.source.sensor_ipv4 = address;
+    }
+    options.model = model;
+    if (o.calibration) options.calibration_file = *o.calibration;
+    options.batcher.cut_azimuth_deg = o.cut_deg;
+    reader_ = std::make_unique<velodyne::CaptureReader>(path, options);
+  }
+
+  Rotation next() {
+    if (pcd_) {
+      Rotation r = std::move(*pcd_);
+      pcd_.reset();
+      ++rotations_;
+      return r;
+    }
+    if (!reader_) throw py::stop_iteration();
+    std::optional<Rotation> out;
+    {
+      py::gil_scoped_release release;
+      while (const Scan* scan = reader_->next()) {
+        if (!scan->complete && !partial_) {
+          ++skipped_;
+          continue;
+        }
+        out = Rotation::copy_of(*scan);
+        break;
+      }
+    }
+    if (!out) throw py::stop_iteration();
+    ++rotations_;
+    return std::move(*out);
+  }
+
+  py::dict counts() const {
+    py::dict d;
+    d["rotations"] = rotations_;
+    d["skipped_incomplete"] = skipped_;
+    if (!reader_) return d;
+    const auto& c = reader_->counts();
+    d["data_packets"] = c.data_packets;
+    d["position_packets"] = c.position_packets;
+    d["decoded"] = c.decoded;
+    uint64_t errors = 0;
+    for (uint64_t e : c.decode_errors) errors += e;
+    d["decode_errors"] = errors;
+    d["undecodable"] = c.undecodable;
+    d["gprmc_valid"] = c.gprmc_valid;
+    const auto s = reader_->source_stats();
+    d["ignored"] = s.ignored;
+    d["truncated"] = s.truncated;
+    d["malformed"] = s.malformed;
+    const auto b = reader_->batcher_stats();
+    d["missing_packets"] = b.missing_packets;
+    return d;
+  }
+
+  std::optional<std::string> model() const {
+    if (!reader_ || !reader_->model()) return std::nullopt;
+    return std::string(velodyne::model_spec(*reader_->model()).name);
+  }
+  std::string model_mismatch() const { return reader_ ? reader_->model_mismatch() : ""; }
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+  bool partial_ = false;
+  std::optional<Rotation> pcd_;
+  std::unique_ptr<velodyne::CaptureReader> reader_;
+  uint64_t rotations_ = 0, skipped_ = 0;
+};
+
+velodyne::PcdFormat format_of(const std::string& name) {
+  for (auto f : {velodyne::PcdFormat::kAscii, velodyne::PcdFormat::kBinary,
+                 velodyne::PcdFormat::kBinaryCompressed})
+    if (name == velodyne::pcd_format_name(f)) return f;
+  throw py::value_error("PCD format '" + name + "': ascii, binary or binary_compressed");
+}
+
+py::dict read_pcd_fields(const std::string& path) {
+  const velodyne::PcdCloud pcd = velodyne::read_pcd(path);
+  py::dict fields;
+  for (size_t f = 0; f < pcd.fields.size(); ++f) {
+    py::array_t<double> column(static_cast<py::ssize_t>(pcd.size()), pcd.columns[f].data());
+    if (pcd.height > 1)
+      column = column.reshape(
+          {static_cast<py::ssize_t>(pcd.height), static_cast<py::ssize_t>(pcd.width)});
+    fields[py::str(pcd.fields[f])] = column;
+  }
+  py::dict out;
+  out["fields"] = fields;
+  out["width"] = pcd.width;
+  out["height"] = pcd.height;
+  out["format"] = std::string(velodyne::pcd_format_name(pcd.format));
+  out["skipped_fields"] = pcd.skipped_fields;
+  const auto& r = pcd.rotation;
+  out["stamp_ns"] = r.stamp_ns ? py::cast(*r.stamp_ns) : py::none();
+  out["sequence"] = r.sequence ? py::cast(*r.sequence) : py::none();
+  out["model"] = r.model ? py::cast(std::string(velodyne::model_spec(*r.model).name)) : py::none();
+  return out;
+}
+
+}  // namespace
+
+Rotation Rotation::copy_of(const Scan& s) {
+  Rotation r;
+  Scan& d = r.scan;
+  d.reserve(s.rings, s.returns, std::max(s.columns, 1));
+  d.columns = s.columns;
+  for (int ret = 0; ret < s.returns; ++ret)
+    for (int ring = 0; ring < s.rings; ++ring) {
+      const size_t from = s.at(ret, ring, 0), to = d.at(ret, ring, 0);
+      const auto n = static_cast<size_t>(s.columns);
+      auto copy = [&](const auto& src, auto& dst) {
+        std::copy_n(src.begin() + static_cast<std::ptrdiff_t>(from), n,
+                    dst.begin() + static_cast<std::ptrdiff_t>(to));
+      };
+      copy(s.x, d.x);
+      copy(s.y, d.y);
+      copy(s.z, d.z);
+      copy(s.range, d.range);
+      copy(s.azimuth_deg, d.azimuth_deg);
+      copy(s.time_s, d.time_s);
+      copy(s.intensity, d.intensity);
+      copy(s.return_type, d.return_type);
+    }
+  d.laser_id = s.laser_id;
+  std::copy_n(s.column_azimuth_deg.begin(), s.columns, d.column_azimuth_deg.begin());
+  std::copy_n(s.column_time_s.begin(), s.columns, d.column_time_s.begin());
+  d.sequence = s.sequence;
+  d.stamp_ns = s.stamp_ns;
+  d.model = s.model;
+  d.return_mode = s.return_mode;
+  d.complete = s.complete;
+  d.starts_at_cut = s.starts_at_cut;
+  d.ends_at_cut = s.ends_at_cut;
+  d.packets = s.packets;
+  d.missing_packets = s.missing_packets;
+  d.azimuth_jumps = s.azimuth_jumps;
+  d.rpm = s.rpm;
+  return r;
+}
+
+std::string model_name(const Scan& scan) {
+  const auto models = velodyne::all_models();
+  const auto m = static_cast<velodyne::Model>(scan.model);
+  return std::find(models.begin(), models.end(), m) != models.end()
+             ? std::string(velodyne::model_spec(m).name)
+             : std::string();
+}
+
+std::string return_mode_name(const Scan& scan) {
+  const auto mode = velodyne::return_mode_from_byte(scan.return_mode);
+  return mode ? std::string(velodyne::return_mode_name(*mode)) : std::string();
+}
+
+void bind_rotation(py::module_& m) {
+  PYBIND11_NUMPY_DTYPE(PointRecord, x, y, z, range, azimuth, time, column, ring, intensity,
+                       return_type);
+
+  py::class_<Rotation>(m, "Rotation", R"(One rotation of the sensor.
+
+Cells are (return, ring, column): ring 0 the lowest beam, columns in firing order from the cut.
+Units: metres (sensor frame: x forward, y left, z up), degrees of azimuth clockwise from +x seen
+from above, seconds from the rotation's first firing.)")
+      .def_property_readonly(
+          "points", [](const Rotation& r) { return points_of(r.scan); },
+          "The points with a return: a numpy structured array with fields x, y, z, range, azimuth, "
+          "time (float32), column (uint32), ring (uint16), intensity, return_type (uint8); "
+          "return by return, ring by ring, in column order.")
+      .def(
+          "arrays", [](const Rotation& r) { return arrays_of(r.scan); },
+          "Every cell as a dict of numpy arrays shaped (returns, rings, columns): x, y, z, range, "
+          "azimuth, time (float32), intensity, return_type (uint8), valid (bool; range 0 where "
+          "there is no return); column_azimuth, column_time (columns,), laser_id (rings,).")
+      .def_property_readonly(
+          "stamp_ns", [](const Rotation& r) { return r.scan.stamp_ns; },
+          "Absolute time of the first firing, ns since the epoch.")
+      .def_property_readonly(
+          "stamp", [](const Rotation& r) { return static_cast<double>(r.scan.stamp_ns) * 1e-9; },
+          "Absolute time of the first firing, seconds since the epoch.")
+      .def_property_readonly("sequence", [](const Rotation& r) { return r.scan.sequence; })
+      .def_property_readonly(
+          "complete", [](const Rotation& r) { return r.scan.complete; },
+          "Began and ended at the cut with no packet lost.")
+      .def_property_readonly("model",
+                             [](const Rotation& r) -> py::object {
+                               const std::string n = model_name(r.scan);
+                               return n.empty() ? py::object(py::none()) : py::str(n);
+                             })
+      .def_property_readonly("return_mode",
+                             [](const Rotation& r) -> py::object {
+                               const std::string n = return_mode_name(r.scan);
+                               return n.empty() ? py::object(py::none()) : py::str(n);
+                             })
+      .def_property_readonly("rpm", [](const Rotation& r) { return r.scan.rpm; })
+      .def_property_readonly("rings", [](const Rotation& r) { return r.scan.rings; })
+      .def_property_readonly("columns", [](const Rotation& r) { return r.scan.columns; })
+      .def_property_readonly("returns", [](const Rotation& r) { return r.scan.returns; })
+      .def_property_readonly("packets", [](const Rotation& r) { return r.scan.packets; })
+      .def_property_readonly("missing_packets",
+                             [](const Rotation& r) { return r.scan.missing_packets; })
+      .def("__len__", [](const Rotation& r) { return r.scan.point_count(); })
+      .def("__repr__", [](const Rotation& r) {
+        const std::string model = model_name(r.scan);
+        return "<lidartag.Rotation #" + std::to_string(r.scan.sequence) + " " +
+               (model.empty() ? "?" : model) + " stamp " +
+               std::to_string(static_cast<double>(r.scan.stamp_ns) * 1e-9) + " s, " +
+               std::to_string(r.scan.point_count()) + " points, " +
+               (r.scan.complete ? "complete" : "partial") + ">";
+      });
+
+  py::class_<Reader::Options>(m, "_ReaderOptions")
+      .def(py::init<>())
+      .def_readwrite("model", &Reader::Options::model)
+      .def_readwrite("calibration", &Reader::Options::calibration)
+      .def_readwrite("sensor", &Reader::Options::sensor)
+      .def_readwrite("cut_deg", &Reader::Options::cut_deg)
+      .def_readwrite("partial", &Reader::Options::partial)
+      .def_readwrite("data_port", &Reader::Options::data_port)
+      .def_readwrite("position_port", &Reader::Options::position_port)
+      .def_readwrite("rings", &Reader::Options::rings)
+      .def_readwrite("resolution_deg", &Reader::Options::resolution_deg);
+
+  py::class_<Reader>(m, "Reader", "Rotations of a capture, read one at a time (see read()).")
+      .def(py::init<const std::string&, const Reader::Options&>())
+      .def("__iter__", [](Reader& r) -> Reader& { return r; })
+      .def("__next__", &Reader::next)
+      .def_property_readonly("counts", &Reader::counts,
+                             "What was read so far: rotations, packets, errors, ...")
+      .def_property_readonly("model", &Reader::model,
+                             "The model decoded as (None until decided, and for PCD files).")
+      .def_property_readonly("model_mismatch", &Reader::model_mismatch,
+                             "The product byte contradicting the packets' timing ('' if not).")
+      .def_property_readonly("path", &Reader::path);
+
+  m.def("_read_pcd", &read_pcd_fields, py::arg("path"));
+  m.def(
+      "_write_pcd",
+      [](const Rotation& r, const std::string& path, const std::string& format, bool organized) {
+        return velodyne::write_pcd(path, r.scan, {format_of(format), organized});
+      },
+      py::arg("rotation"), py::arg("path"), py::arg("format"), py::arg("organized"));
+}
+
+}  // namespace lidartag::python

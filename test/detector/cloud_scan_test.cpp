@@ -1,0 +1,265 @@
+// Point clouds (as read from PCD files) into scans: organised grids exactly, unorganised clouds by
+// azimuth, rings regressed without ring numbers, and the errors a user meets.
+#include "lidartag/detector/cloud_scan.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "lidartag/detector/detector.hpp"
+#include "synthetic_scene.hpp"
+
+namespace lidartag::detector {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// A cloud's columns of numbers, as a PCD file holds them.
+struct Columns {
+  std::vector<double> x, y, z, intensity, ring, azimuth, time, return_type;
+  size_t width = 0, height = 1;
+
+  void add(double px, double py, double pz, double i, double r, double az, double t, double ret) {
+    x.push_back(px);
+    y.push_back(py);
+    z.push_back(pz);
+    intensity.push_back(i);
+    ring.push_back(r);
+    azimuth.push_back(az);
+    time.push_back(t);
+    return_type.push_back(ret);
+  }
+  CloudFields fields(bool with_ring = true, bool with_intensity = true) const {
+    CloudFields f;
+    f.x = x;
+    f.y = y;
+    f.z = z;
+    if (with_intensity) f.intensity = intensity;
+    if (with_ring) f.ring = ring;
+    f.azimuth_deg = azimuth;
+    f.time_s = time;
+    f.return_type = return_type;
+    f.width = width;
+    f.height = height;
+    return f;
+  }
+};
+
+// A scene with a tag: its cells get firing azimuths and times as the decoder gives them.
+Scan tag_scene() {
+  static const auto& fam = tags::builtin_family("tag16h5");
+  test::SyntheticScene scene;
+  test::SyntheticTag tag;
+  tag.family = &fam;
+  tag.id = 3;
+  tag.center = Eigen::Vector3d(5.0, 1.0, 0.2);
+  tag.rotation = test::facing_sensor(tag.center, 45.0);
+  scene.tags.push_back(tag);
+  Scan s;
+  test::render_scene(scene, test::vlp32c(), s);
+  for (int ring = 0; ring < s.rings; ++ring)
+    for (int col = 0; col < s.columns; ++col) {
+      const size_t i = s.at(0, ring, col);
+      s.azimuth_deg[i] = s.column_azimuth_deg[static_cast<size_t>(col)];
+      s.time_s[i] = static_cast<float>(1e-4 * col + 1e-6 * ring);
+    }
+  return s;
+}
+
+// The organised layout `lidartag dump --organized` writes: rows = rings, NaN without a return.
+Columns organised(const Scan& s) {
+  Columns c;
+  c.width = static_cast<size_t>(s.columns);
+  c.height = static_cast<size_t>(s.rings * s.returns);
+  for (int ret = 0; ret < s.returns; ++ret)
+    for (int ring = 0; ring < s.rings; ++ring)
+      for (int col = 0; col < s.columns; ++col) {
+        const size_t i = s.at(ret, ring, col);
+        const bool v = s.valid(i);
+        c.add(v ? s.x[i] : kNaN, v ? s.y[i] : kNaN, v ? s.z[i] : kNaN, v ? s.intensity[i] : 0, ring,
+              s.azimuth_deg[i], s.time_s[i], v ? static_cast<double>(s.return_type[i]) : 0);
+      }
+  return c;
+}
+
+// The valid cells alone (an unorganised dump).
+Columns unorganised(const Scan& s) {
+  Columns c;
+  for (int ring = 0; ring < s.rings; ++ring)
+    for (int col = 0; col < s.columns; ++col) {
+      const size_t i = s.at(0, ring, col);
+      if (s.valid(i))
+        c.add(s.x[i], s.y[i], s.z[i], s.intensity[i], ring, s.azimuth_deg[i], s.time_s[i], 1);
+    }
+  c.width = c.x.size();
+  return c;
+}
+
+std::vector<Detection> detect(const Scan& s) {
+  Detector det(DetectorOptions{});
+  ScanResult r;
+  det.detect(s, r);
+  return r.detections;
+}
+
+TEST(CloudScan, OrganisedCloudKeepsEveryCellColumnAndTime) {
+  const Scan s = tag_scene();
+  const Columns c = organised(s);
+  Scan out;
+  const CloudScanReport report = cloud_to_scan(c.fields(), {}, out);
+  EXPECT_TRUE(report.grid);
+  EXPECT_FALSE(report.regressed);
+  EXPECT_EQ(report.points, s.point_count());
+  ASSERT_EQ(out.rings, s.rings);
+  ASSERT_EQ(out.columns, s.columns);
+  ASSERT_EQ(out.returns, 1);
+  for (int ring = 0; ring < s.rings; ++ring)
+    for (int col = 0; col < s.columns; ++col) {
+      const size_t i = s.at(0, ring, col), j = out.at(0, ring, col);
+      ASSERT_EQ(s.valid(i), out.valid(j)) << ring << " " << col;
+      EXPECT_EQ(out.time_s[j], s.time_s[i]);
+      EXPECT_EQ(out.azimuth_deg[j], s.azimuth_deg[i]);
+      if (!s.valid(i)) continue;
+      EXPECT_EQ(out.x[j], s.x[i]);
+      EXPECT_EQ(out.z[j], s.z[i]);
+      EXPECT_EQ(out.intensity[j], s.intensity[i]);
+      EXPECT_NEAR(out.range[j], s.range[i], 1e-5);
+    }
+  for (int col = 0; col < s.columns; ++col) {
+    EXPECT_EQ(out.column_azimuth_deg[static_cast<size_t>(col)],
+              s.column_azimuth_deg[static_cast<size_t>(col)]);
+    // Row 0 (ring 0) gives the column's time.
+    EXPECT_EQ(out.column_time_s[static_cast<size_t>(col)], s.time_s[s.at(0, 0, col)]);
+  }
+  // The detector finds what it finds in the original.
+  const auto a = detect(s), b = detect(out);
+  ASSERT_EQ(a.size(), 1u);
+  ASSERT_EQ(b.size(), 1u);
+  EXPECT_EQ(b[0].id, 3);
+  EXPECT_LT((a[0].position - b[0].position).norm(), 1e-6);
+}
+
+TEST(CloudScan, OrganisedDualCloudFillsBothReturns) {
+  Scan s;
+  s.reserve(2, 2, 3);
+  s.columns = 3;
+  for (int ret = 0; ret < 2; ++ret)
+    for (int col = 0; col < 3; ++col) {
+      const size_t i = s.at(ret, 1, col);
+      s.x[i] = 2.0f + static_cast<float>(ret);
+      s.y[i] = -0.01f * static_cast<float>(col);
+      s.range[i] = s.x[i];
+      s.intensity[i] = static_cast<uint8_t>(10 + ret);
+      s.return_type[i] = ret == 0 ? ReturnType::kLast : ReturnType::kSecond;
+    }
+  Scan out;
+  const auto report = cloud_to_scan(organised(s).fields(), {}, out);
+  EXPECT_TRUE(report.grid);
+  ASSERT_EQ(out.returns, 2);
+  EXPECT_EQ(report.points, 6u);
+  EXPECT_EQ(out.x[out.at(1, 1, 2)], 3.0f);
+  EXPECT_EQ(out.return_type[out.at(1, 1, 2)], ReturnType::kSecond);
+  EXPECT_EQ(out.return_type[out.at(0, 1, 0)], ReturnType::kLast);
+  EXPECT_FALSE(out.valid(out.at(0, 0, 0)));
+}
+
+TEST(CloudScan, UnorganisedCloudWithRingsIsBinnedByAzimuthAndKeepsTime) {
+  const Scan s = tag_scene();
+  const Columns c = unorganised(s);
+  Scan out;
+  CloudScanOptions o;
+  o.resolution_deg = 360.0 / s.columns;
+  const auto report = cloud_to_scan(c.fields(), o, out);
+  EXPECT_FALSE(report.grid);
+  EXPECT_FALSE(report.regressed);
+  EXPECT_EQ(report.points, s.point_count());
+  EXPECT_EQ(out.rings, s.rings);
+  size_t timed = 0;
+  for (size_t j = 0; j < out.range.size(); ++j) timed += out.valid(j) && out.time_s[j] > 0.0f;
+  EXPECT_GT(timed, report.points * 9 / 10);
+  const auto b = detect(out);
+  ASSERT_EQ(b.size(), 1u);
+  EXPECT_EQ(b[0].id, 3);
+}
+
+TEST(CloudScan, WithoutRingNumbersRingsAreRegressed) {
+  const Scan s = tag_scene();
+  const Columns c = unorganised(s);
+  Scan out;
+  CloudScanOptions o;
+  o.elevations_deg = test::vlp32c().elevations_deg;
+  const auto report = cloud_to_scan(c.fields(false), o, out);
+  EXPECT_TRUE(report.regressed);
+  EXPECT_EQ(out.rings, 32);
+  EXPECT_EQ(detect(out).size(), 1u);
+  // A ring count instead of the elevations.
+  CloudScanOptions by_count;
+  by_count.rings = 32;
+  EXPECT_TRUE(cloud_to_scan(c.fields(false), by_count, out).regressed);
+  // Neither: one clear error saying what to give.
+  try {
+    cloud_to_scan(c.fields(false), {}, out);
+    FAIL() << "expected CloudError";
+  } catch (const CloudError& e) {
+    EXPECT_NE(std::string(e.what()).find("no ring field"), std::string::npos) << e.what();
+  }
+}
+
+TEST(CloudScan, AMissingIntensityIsAClearErrorNotZeroTags) {
+  const Columns c = unorganised(tag_scene());
+  Scan out;
+  try {
+    cloud_to_scan(c.fields(true, false), {}, out);
+    FAIL() << "expected CloudError";
+  } catch (const CloudError& e) {
+    EXPECT_NE(std::string(e.what()).find("no intensity field"), std::string::npos) << e.what();
+  }
+}
+
+TEST(CloudScan, IntensitiesOfZeroToOneAreScaled) {
+  const Scan s = tag_scene();
+  Columns c = unorganised(s);
+  for (double& i : c.intensity) i /= 255.0;
+  Scan out;
+  const auto report = cloud_to_scan(c.fields(), {}, out);
+  EXPECT_TRUE(report.intensity_scaled);
+  ASSERT_EQ(detect(out).size(), 1u);
+  // 0..255 clouds are left as they are.
+  EXPECT_FALSE(cloud_to_scan(unorganised(s).fields(), {}, out).intensity_scaled);
+}
+
+TEST(CloudScan, BadPointsAreCountedAndNaNIsNoReturn) {
+  Columns c;
+  const double inf = std::numeric_limits<double>::infinity();
+  c.add(1, 0, 0, 50, 0, 0, 0, 1);
+  c.add(kNaN, kNaN, kNaN, 0, 0, 0, 0, 0);  // no return: not counted
+  c.add(inf, 0, 0, 50, 0, 0, 0, 1);        // skipped coordinate
+  c.add(1e300, 0, 0, 50, 0, 0, 0, 1);      // beyond a float
+  c.add(0, 1, 0, 50, 1.5, 0, 0, 1);        // ring not whole
+  c.add(0, 1, 0, 50, 300, 0, 0, 1);        // ring out of range
+  c.add(0, -1, 0, kNaN, 1, 270, 0, 1);     // NaN intensity reads 0
+  c.width = c.x.size();
+  Scan out;
+  const auto report = cloud_to_scan(c.fields(), {}, out);
+  EXPECT_EQ(report.skipped_coordinates, 2u);
+  EXPECT_EQ(report.skipped_rings, 2u);
+  EXPECT_EQ(report.points, 2u);
+  EXPECT_EQ(out.rings, 2);
+  // Sizes that disagree.
+  c.height = 2;
+  EXPECT_THROW(cloud_to_scan(c.fields(), {}, out), CloudError);
+  c.height = 1;
+  Columns short_y = c;
+  short_y.y.pop_back();
+  EXPECT_THROW(cloud_to_scan(short_y.fields(), {}, out), CloudError);
+  // No point with a usable ring.
+  Columns no_ring;
+  no_ring.add(1, 0, 0, 5, -1, 0, 0, 1);
+  no_ring.width = 1;
+  EXPECT_THROW(cloud_to_scan(no_ring.fields(), {}, out), CloudError);
+}
+
+}  // namespace
+}  // namespace lidartag::detector

@@ -1,0 +1,101 @@
+"""The detector with the options of lidartagd's YAML, its detections with numpy poses."""
+import numpy as np
+import pytest
+
+import lidartag
+from conftest import DEMO_CONFIG, DEMO_SIZES, expect_matches_truth
+
+
+def test_detections_of_the_demo_match_its_truth(demo_rotations, truth):
+    detector = lidartag.Detector(DEMO_SIZES)
+    assert detector.tag_sizes_m == [0.8, 0.6] and detector.families == ["tag16h5"]
+    for rotation, expected in zip(demo_rotations, truth["rotations"]):
+        result = detector.detect(rotation)
+        assert result.stamp_ns == rotation.stamp_ns and result.sequence == rotation.sequence
+        expect_matches_truth(result, expected)
+        for d in result:
+            tag = next(t for t in expected["tags"] if t["id"] == d.id)
+            assert d.size_m == tag["size"]
+            q = np.asarray(tag["orientation"])
+            assert abs(np.dot(q, d.orientation)) > np.cos(np.radians(3.0) / 2)
+        assert result.features > 0 and result.clusters >= len(result)
+        assert set(result.timing_ms) == {"features", "clustering", "validation", "plane",
+                                         "corners", "pose", "decode"}
+        assert result.total_ms == pytest.approx(sum(result.timing_ms.values()))
+
+
+def test_a_detection_is_a_consistent_pose(demo_rotations):
+    result = lidartag.Detector(DEMO_SIZES).detect(demo_rotations[0])
+    assert len(result) == 2
+    for d in result:
+        assert d.position.shape == (3,) and d.orientation.shape == (4,)
+        assert d.rotation.shape == (3, 3) and d.pose.shape == (4, 4) and d.corners.shape == (4, 3)
+        np.testing.assert_allclose(d.rotation @ d.rotation.T, np.eye(3), atol=1e-9)
+        w, x, y, z = d.orientation
+        from_quaternion = np.array([
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+        np.testing.assert_allclose(d.rotation, from_quaternion, atol=1e-9)
+        np.testing.assert_array_equal(d.pose[:3, :3], d.rotation)
+        np.testing.assert_array_equal(d.pose[:3, 3], d.position)
+        np.testing.assert_allclose(d.corners.mean(axis=0), d.position, atol=1e-6)
+        # The black square is 0.75 of the marker (16-bit families: 6 of 8 cells).
+        side = np.linalg.norm(d.corners[1] - d.corners[0])
+        assert side == pytest.approx(0.75 * d.size_m, rel=1e-6)
+        with pytest.raises(ValueError):  # read-only
+            d.position[0] = 0.0
+
+
+def positions(detector, rotation):
+    return sorted((d.id, *np.round(d.position, 9)) for d in detector.detect(rotation))
+
+
+def test_every_form_of_the_config_gives_the_same_options(demo_rotations, tmp_path):
+    rotation = demo_rotations[3]
+    expected = positions(lidartag.Detector(DEMO_SIZES), rotation)
+    assert len(expected) == 2
+    text = "detector:\n  tag_sizes_m: [0.8, 0.6]\n  families: [tag16h5]\n"
+    path = tmp_path / "config.yaml"
+    path.write_text(text)
+    for config in ({"detector": DEMO_SIZES}, text, str(path), path, DEMO_CONFIG,
+                   {"tag_sizes_m": np.array([0.8, 0.6]), "families": ("tag16h5",)}):
+        assert positions(lidartag.Detector(config), rotation) == expected, config
+    # The defaults are the YAML's (a 1.2 m tag16h5): the demo's smaller tags are not found.
+    assert positions(lidartag.Detector(), rotation) == []
+
+
+def test_bad_configs_name_the_key(tmp_path):
+    with pytest.raises(lidartag.ConfigError, match="detector.features.zeta"):
+        lidartag.Detector({"features": {"zeta": 0.5}})
+    with pytest.raises(lidartag.ConfigError, match="detector.tag_sizes_m"):
+        lidartag.Detector("detector:\n  tag_sizes_m: [-1]\n")
+    with pytest.raises(lidartag.ConfigError, match="YAML"):
+        lidartag.Detector("detector: [unclosed\n")
+    with pytest.raises(lidartag.ConfigError):
+        lidartag.Detector({"families": ["tag99h9"]})
+    with pytest.raises(TypeError):
+        lidartag.Detector({"tag_sizes_m": [object()]})
+    with pytest.raises(TypeError):
+        lidartag.Detector(42)
+
+
+def test_diagnostics_explain_every_cluster(demo_rotations):
+    result = lidartag.Detector(DEMO_SIZES, diagnostics=True).detect(demo_rotations[0])
+    assert len(result.diagnostics) == result.clusters
+    results = [c["result"] for c in result.diagnostics]
+    assert results.count("decode/accepted") == len(result) == 2
+    for c in result.diagnostics:
+        assert c["features"] >= 0 and c["min_ring"] <= c["max_ring"]
+        if c["result"] == "decode/accepted":
+            assert c["score"] > 0.9 and c["side_m"] > 0 and c["coverage"] > 0
+    assert lidartag.Detector(DEMO_SIZES).detect(demo_rotations[0]).diagnostics == []
+
+
+def test_detect_over_a_capture(demo, truth):
+    results = list(lidartag.detect(demo, DEMO_SIZES))
+    assert len(results) == 10
+    for (rotation, result), expected in zip(results, truth["rotations"]):
+        expect_matches_truth(result, expected)
+    detector = lidartag.Detector(DEMO_SIZES)
+    assert len(list(lidartag.detect(demo, detector, partial=True))) == 12
