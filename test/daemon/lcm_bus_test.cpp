@@ -4,10 +4,8 @@
 #include "lidartag/daemon/lcm_bus.hpp"
 
 #include <gtest/gtest.h>
-#include <signal.h>
 #include <spdlog/sinks/ostream_sink.h>
 #include <spdlog/spdlog.h>
-#include <sys/resource.h>
 #include <unistd.h>
 
 #include <cstdlib>
@@ -15,6 +13,7 @@
 #include <sstream>
 
 #include "daemon/namespaces.hpp"
+#include "io/file_size_limit.hpp"
 #include "lidartag/raw_packet_t.hpp"
 
 namespace lidartag::daemon {
@@ -132,22 +131,7 @@ TEST(LcmLogWriter, EventsReadBackWithLcmsOwnReader) {
   EXPECT_THROW(LcmLogWriter(::testing::TempDir(), false), LcmError);
 }
 
-// Lowers this process's file size limit (RLIMIT_FSIZE): writes past it fail with EFBIG, as on a
-// full disk, without privileges. Restored on destruction.
-class FileSizeLimit {
- public:
-  explicit FileSizeLimit(rlim_t bytes) {
-    signal(SIGXFSZ, SIG_IGN);  // the write fails instead of the process being killed
-    getrlimit(RLIMIT_FSIZE, &saved_);
-    rlimit lower = saved_;
-    lower.rlim_cur = bytes;
-    EXPECT_EQ(setrlimit(RLIMIT_FSIZE, &lower), 0);
-  }
-  ~FileSizeLimit() { setrlimit(RLIMIT_FSIZE, &saved_); }
-
- private:
-  rlimit saved_{};
-};
+using test::FileSizeLimit;
 
 TEST(LcmLogWriter, AFailedWriteIsCutOffAndWritingResumesWhenSpaceComesBack) {
   const std::string path = temp_path("limited.lcmlog");
