@@ -43,6 +43,7 @@ std::unique_ptr<velodyne::PacketSource> open_source(const SensorOptions& sensor,
       o.position_port = s.position_port;
       o.sensor_ipv4 = sender(s);
       o.receive_buffer_bytes = s.receive_buffer_bytes;
+      o.reuse_address = s.share_port;  // daemon-setup: exclusive unless the config shares
       return std::make_unique<velodyne::UdpSource>(o);
     }
     case SourceKind::kInterface: {
