@@ -15,8 +15,21 @@ int64_t steady_ns() {
       .count();
 }
 
+namespace {
+
+// The writer, its setup error naming the setting.
+velodyne::PcapWriter open_record_file(const std::string& path) {
+  try {
+    return velodyne::PcapWriter(path);
+  } catch (const velodyne::IoError& e) {
+    throw velodyne::IoError(std::string("record_pcap: ") + e.what());
+  }
+}
+
+}  // namespace
+
 PcapRecorder::PcapRecorder(const std::string& path)
-    : path_(path), writer_(path), next_flush_ns_(steady_ns() + kFlushPeriodNs) {}
+    : path_(path), writer_(open_record_file(path)), next_flush_ns_(steady_ns() + kFlushPeriodNs) {}
 
 void PcapRecorder::write(const velodyne::RawPacket& packet) noexcept {
   std::lock_guard lock(mutex_);
