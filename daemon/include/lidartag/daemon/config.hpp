@@ -37,7 +37,7 @@ class ConfigError : public std::runtime_error {
 };
 
 // A configuration file must be a regular file of at most this many bytes (1 MiB; the shipped file
-// is about 12 kB).
+// is about 10 kB).
 inline constexpr size_t kMaxConfigBytes = size_t{1} << 20;
 
 // `text` as one short line for a message: control characters escaped (\n, \t, \xNN), and when
