@@ -122,6 +122,12 @@ TEST(Setup, ProblemsStopTheDaemonBeforeReadyWithOneLine) {
     FakeNotifySocket sock;
     std::vector<std::string> args = {kDaemon, "--config", kDemoConfig, "--max-speed"};
     args.insert(args.end(), extra.begin(), extra.end());
+    // The demo by its absolute path (the config's is relative to the source tree), unless the
+    // case names another file.
+    if (std::none_of(extra.begin(), extra.end(),
+                     [](const std::string& a) { return a.find("source.file=") != a.npos; })) {
+      args.insert(args.end(), {"--replay", kDemo});
+    }
     if (std::find(args.begin(), args.end(), "--lcm-url") == args.end()) {
       args.insert(args.end(), {"--lcm-url", "memq://"});
     }
@@ -172,8 +178,8 @@ TEST(Setup, NoMulticastRouteIsASetupErrorSayingHowToAddOne) {
   REQUIRE_DEMO();
   LIDARTAG_RUN_IN_NAMESPACE(std::vector<std::string>{"-n"}, "ip link set lo up",
                             temp("netns_no_route"));
-  Process p({kDaemon, "--config", kDemoConfig, "--max-speed", "--lcm-url", ""}, {},
-            temp("no_route"));
+  Process p({kDaemon, "--config", kDemoConfig, "--replay", kDemo, "--max-speed", "--lcm-url", ""},
+            {}, temp("no_route"));
   EXPECT_EQ(p.wait(30s), 1);
   const auto lines = lines_of(p.err());
   ASSERT_EQ(lines.size(), 1u) << p.err();  // LCM's own page of advice never comes
