@@ -116,7 +116,9 @@ int main(int argc, char** argv) {
                    ->check(CLI::PositiveNumber);
   app.add_flag("--max-speed", a.max_speed, "Replay as fast as the detector goes")->excludes(rate);
   app.add_flag("--loop", a.loop, "Replay in a loop");
-  app.add_option("--record", a.record, "Write every received packet to this pcap file");
+  app.add_option("--record", a.record,
+                 "Write every received packet to this pcap file (a write error, e.g. a full disk, "
+                 "stops recording: exit status 3)");
   app.add_option("--workers", a.workers, "Detector threads (0: one per core)");
   app.add_option("--log-level", a.log_level, "trace, debug, info, warn, error, critical, off");
   app.add_option("--log-file", a.log_file, "Log to this file (reopened on SIGHUP)");
