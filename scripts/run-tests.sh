@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Quick start, tests: installs the Debian packages, configures, builds everything and runs every
 # test; then the ThreadSanitizer build of the lock-free scan buffer and the AddressSanitizer +
-# UndefinedBehaviorSanitizer build of the driver tests.
+# UndefinedBehaviorSanitizer build of the driver, detector and daemon-setup tests.
 # Usage: scripts/run-tests.sh [--no-sanitizers]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -21,12 +21,14 @@ if [ "${1:-}" != "--no-sanitizers" ]; then
   cmake --build build-tsan -j "$jobs" --target test_scan_buffer
   TSAN_OPTIONS="halt_on_error=1" timeout 600 build-tsan/bin/test_scan_buffer
 
-  echo "== AddressSanitizer + UndefinedBehaviorSanitizer: driver, I/O, simulator, detector =="
+  echo "== AddressSanitizer + UndefinedBehaviorSanitizer: driver, I/O, simulator, detector, daemon setup =="
   cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLIDARTAG_SANITIZE=address \
     -DLIDARTAG_BUILD_BENCHMARKS=OFF
   targets="test_driver_core test_driver_captures test_scan_buffer test_pcap_writer test_pcap_source
     test_udp_source test_live_source test_calibration_file test_pcd test_capture_reader test_sim
     test_capture_mutation"
+  # The daemon's configuration parsing, LCM URL/log/bus, recorder and setup checks.
+  targets="$targets test_daemon_config test_daemon_setup"
   # The detector's unit tests, one target per stage (*_test).
   targets="$targets $(cmake --build build-asan --target help | sed -n 's/^\([a-z_]*_test\):.*/\1/p' | sort -u | tr '\n' ' ')"
   cmake --build build-asan -j "$jobs" --target $targets

@@ -1,13 +1,22 @@
 #include "lidartag/daemon/config.hpp"
 
+#include <fcntl.h>
 #include <fmt/format.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <yaml-cpp/depthguard.h>
+#include <yaml-cpp/eventhandler.h>
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <array>
+#include <cerrno>
 #include <charconv>
 #include <cmath>
-#include <fstream>
+#include <cstring>
 #include <limits>
+#include <map>
+#include <memory>
 #include <set>
 #include <sstream>
 #include <type_traits>
@@ -18,11 +27,52 @@
 
 namespace lidartag::daemon {
 
+namespace {
+// Lengths of the parts of a ConfigError's line: a value is shown up to ~80 characters, the key and
+// the reason (which may quote a value) a little longer.
+constexpr size_t kShownValue = 80, kShownKey = 120, kShownReason = 240;
+}  // namespace
+
 ConfigError::ConfigError(std::string key, std::string value, std::string reason)
-    : std::runtime_error(fmt::format("{}: '{}': {}", key, value, reason)),
+    : std::runtime_error(fmt::format("{}: '{}': {}", clip_text(key, kShownKey),
+                                     clip_text(value, kShownValue),
+                                     clip_text(reason, kShownReason))),
       key_(std::move(key)),
       value_(std::move(value)),
       reason_(std::move(reason)) {}
+
+ConfigError::ConfigError(std::string key, std::string reason)
+    : std::runtime_error(
+          fmt::format("{}: {}", clip_text(key, kShownKey), clip_text(reason, kShownReason))),
+      key_(std::move(key)),
+      reason_(std::move(reason)) {}
+
+std::string clip_text(std::string_view text, size_t max) {
+  std::string out;
+  size_t shown = 0;  // characters of `out`
+  size_t i = 0;
+  for (; i < text.size() && shown < max; ++i) {
+    const auto c = static_cast<unsigned char>(text[i]);
+    if (c == '\n') {
+      out += "\\n";
+    } else if (c == '\t') {
+      out += "\\t";
+    } else if (c < 0x20 || c == 0x7F) {
+      out += fmt::format("\\x{:02x}", c);
+    } else {
+      out += static_cast<char>(c);
+      // A UTF-8 sequence counts once and is never cut: its (at most 3) continuation bytes follow.
+      for (int k = 0;
+           k < 3 && i + 1 < text.size() && (static_cast<unsigned char>(text[i + 1]) & 0xC0) == 0x80;
+           ++k) {
+        out += text[++i];
+      }
+    }
+    ++shown;
+  }
+  if (i < text.size()) out += fmt::format("... ({} bytes)", text.size());
+  return out;
+}
 
 std::string_view source_kind_name(SourceKind kind) {
   switch (kind) {
@@ -542,6 +592,7 @@ void visit_sensor(V& v, SensorOptions& o) {
     s.field("position_port", src.position_port, at_least(uint16_t{1}));
     s.field("sensor_address", src.sensor_address, ipv4_or_empty());
     s.field("bind_address", src.bind_address, ipv4_or_empty());
+    s.field("share_port", src.share_port);
     s.field("receive_buffer_bytes", src.receive_buffer_bytes, at_least(4096));
     s.field("interface", src.interface);
     s.field("promiscuous", src.promiscuous);
@@ -647,6 +698,108 @@ void check_relations(const DaemonOptions& o) {
   }
 }
 
+// Walks the parse events of a document (before yaml-cpp builds nodes, which keep the first of two
+// equal keys and drop the second silently) to reject a key given twice in one mapping and a second
+// document. Events, not nodes: aliases stay single events, so shared subtrees are visited once.
+class KeyChecker final : public YAML::EventHandler {
+ public:
+  // `origin` names the text in messages; `base` is the key path of its top level ("" for a file).
+  KeyChecker(std::string origin, std::string base)
+      : origin_(std::move(origin)), base_(std::move(base)) {}
+
+  void OnDocumentStart(const YAML::Mark& mark) override {
+    if (++documents_ > 1) {
+      throw ConfigError(origin_, fmt::format("a second YAML document (line {}): one document "
+                                             "holds the whole configuration",
+                                             mark.line + 1));
+    }
+  }
+  void OnDocumentEnd() override {}
+  void OnNull(const YAML::Mark& mark, YAML::anchor_t) override { node(mark, "~"); }
+  void OnAlias(const YAML::Mark& mark, YAML::anchor_t) override { node(mark, nullptr); }
+  void OnScalar(const YAML::Mark& mark, const std::string&, YAML::anchor_t,
+                const std::string& value) override {
+    node(mark, value.c_str());
+  }
+  void OnSequenceStart(const YAML::Mark& mark, const std::string&, YAML::anchor_t,
+                       YAML::EmitterStyle::value) override {
+    push(node(mark, nullptr), false);
+  }
+  void OnSequenceEnd() override { frames_.pop_back(); }
+  void OnMapStart(const YAML::Mark& mark, const std::string&, YAML::anchor_t,
+                  YAML::EmitterStyle::value) override {
+    push(node(mark, nullptr), true);
+  }
+  void OnMapEnd() override { frames_.pop_back(); }
+
+ private:
+  struct Frame {
+    std::string path;
+    bool map = false;
+    bool want_key = true;
+    size_t index = 0;                 // sequences: the next element's index
+    std::string key;                  // maps: the key whose value comes next
+    std::map<std::string, int> keys;  // maps: each key and its line
+  };
+
+  void push(std::string path, bool map) {
+    Frame& f = frames_.emplace_back();
+    f.path = std::move(path);
+    f.map = map;
+  }
+
+  // Places a node in its parent (a key or a value of a map, an element of a sequence) and returns
+  // its path. `scalar`: the text of a scalar node, null for collections and aliases.
+  std::string node(const YAML::Mark& mark, const char* scalar) {
+    if (frames_.empty()) return base_;
+    Frame& f = frames_.back();
+    if (!f.map) return fmt::format("{}[{}]", f.path, f.index++);
+    if (!f.want_key) {
+      f.want_key = true;
+      return join_key(f.path, f.key);
+    }
+    f.want_key = false;
+    f.key = scalar != nullptr ? scalar : "?";  // a collection or alias as a key: no name
+    const std::string path = join_key(f.path, f.key);
+    if (scalar != nullptr) {
+      const int line = mark.line + 1;
+      const auto [it, inserted] = f.keys.emplace(f.key, line);
+      if (!inserted) {
+        throw ConfigError(
+            path, fmt::format("duplicate key (lines {} and {} of {})", it->second, line, origin_));
+      }
+    }
+    return path;
+  }
+
+  std::string origin_, base_;
+  int documents_ = 0;
+  std::vector<Frame> frames_;
+};
+
+// Parses one YAML document after the KeyChecker's pass. Throws YAML::Exception or ConfigError.
+YAML::Node parse_yaml(std::string_view text, const std::string& origin, const std::string& base) {
+  const std::string copy(text);
+  std::istringstream in(copy);
+  YAML::Parser parser(in);
+  KeyChecker checker(origin, base);
+  while (parser.HandleNextDocument(checker)) {
+  }
+  return YAML::Load(copy);
+}
+
+YAML::Node load_yaml(std::string_view text, const std::string& origin) {
+  try {
+    return parse_yaml(text, origin, "");
+  } catch (const YAML::DeepRecursion& e) {
+    throw ConfigError(origin,
+                      fmt::format("not valid YAML (line {}): nested too deeply", e.mark.line + 1));
+  } catch (const YAML::Exception& e) {
+    throw ConfigError(origin, fmt::format("not valid YAML (line {}, column {}): {}",
+                                          e.mark.line + 1, e.mark.column + 1, e.msg));
+  }
+}
+
 // "a.b[2].c" -> the node, created when missing (a list index may be one past the end: append).
 YAML::Node locate(YAML::Node root, const std::string& path, const std::string& text) {
   YAML::Node node;
@@ -692,7 +845,7 @@ void apply_override(YAML::Node& root, const std::string& assignment) {
   const std::string text = assignment.substr(eq + 1);
   YAML::Node value;
   try {
-    value = YAML::Load(text);
+    value = parse_yaml(text, "--set " + key, key);
   } catch (const YAML::Exception& e) {
     throw ConfigError(key, text, "not a YAML value: " + e.msg);
   }
@@ -710,22 +863,55 @@ DaemonOptions map_document(YAML::Node root) {
   return options;
 }
 
-YAML::Node load_yaml(std::string_view text, const std::string& origin) {
-  try {
-    return YAML::Load(std::string(text));
-  } catch (const YAML::Exception& e) {
-    throw ConfigError(origin, "",
-                      fmt::format("not valid YAML (line {}, column {}): {}", e.mark.line + 1,
-                                  e.mark.column + 1, e.msg));
-  }
+// What a path that is not a regular file is, for the message.
+std::string file_kind(mode_t mode) {
+  if (S_ISDIR(mode)) return "a directory";
+  if (S_ISCHR(mode)) return "a character device";
+  if (S_ISBLK(mode)) return "a block device";
+  if (S_ISFIFO(mode)) return "a FIFO";
+  if (S_ISSOCK(mode)) return "a socket";
+  return "not a regular file";
 }
 
+// A regular file of at most kMaxConfigBytes, read with bounded memory. Opened without blocking (a
+// FIFO would wait for a writer) and checked on the open descriptor (no race with a rename).
 std::string read_file(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw ConfigError("config", path, "cannot read the file");
-  std::stringstream buffer;
-  buffer << in.rdbuf();
-  return buffer.str();
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) {
+    throw ConfigError("config", path, std::string("cannot read the file: ") + std::strerror(errno));
+  }
+  const std::unique_ptr<int, void (*)(int*)> closer(new int(fd), [](int* f) {
+    ::close(*f);
+    delete f;
+  });
+  struct stat st {};
+  if (::fstat(fd, &st) != 0) {
+    throw ConfigError("config", path, std::string("cannot read the file: ") + std::strerror(errno));
+  }
+  if (!S_ISREG(st.st_mode)) {
+    throw ConfigError("config", path, "not a regular file (" + file_kind(st.st_mode) + ")");
+  }
+  const std::string limit =
+      fmt::format("larger than the limit of {} bytes (1 MiB)", kMaxConfigBytes);
+  if (static_cast<uint64_t>(st.st_size) > kMaxConfigBytes) {
+    throw ConfigError("config", path, fmt::format("{} bytes: {}", st.st_size, limit));
+  }
+  // The size may be wrong (a file still growing, /proc): read at most one byte past the limit.
+  std::string text(kMaxConfigBytes + 1, '\0');
+  size_t got = 0;
+  while (got < text.size()) {
+    const ssize_t n = ::read(fd, text.data() + got, text.size() - got);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) {
+      throw ConfigError("config", path,
+                        std::string("cannot read the file: ") + std::strerror(errno));
+    }
+    if (n == 0) break;
+    got += static_cast<size_t>(n);
+  }
+  if (got > kMaxConfigBytes) throw ConfigError("config", path, "grew while read: " + limit);
+  text.resize(got);
+  return text;
 }
 
 }  // namespace

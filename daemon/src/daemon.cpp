@@ -23,6 +23,11 @@ sigset_t handled_signals() {
   sigaddset(&set, SIGINT);
   sigaddset(&set, SIGTERM);
   sigaddset(&set, SIGHUP);
+  // daemon-setup: SIGPIPE (writes to a closed pipe fail with EPIPE instead of killing; the
+  // --print-detections printer raises it to stop the daemon), SIGUSR1 (status now), SIGUSR2.
+  sigaddset(&set, SIGPIPE);
+  sigaddset(&set, SIGUSR1);
+  sigaddset(&set, SIGUSR2);
   return set;
 }
 
@@ -130,6 +135,7 @@ int Daemon::run() {
   bool was_healthy = true;
   const sigset_t signals = handled_signals();
   int stop_signal = 0;
+  bool sigpipe_noted = false;
 
   for (;;) {
     const auto now = Clock::now();
@@ -169,11 +175,27 @@ int Daemon::run() {
     } else if (sig == SIGINT || sig == SIGTERM) {
       stop_signal = sig;
       break;
+    } else if (sig == SIGPIPE) {
+      // daemon-setup: the reader of --print-detections went away: stop as on SIGTERM. Another
+      // closed pipe or socket (e.g. a log reader) is no reason to stop: noted once.
+      if (printer_ && printer_->closed()) {
+        stop_signal = sig;
+        break;
+      }
+      if (!sigpipe_noted) spdlog::warn("SIGPIPE: a write to a closed pipe or socket; ignored");
+      sigpipe_noted = true;
+    } else if (sig == SIGUSR1) {
+      publish_status(false);
+      spdlog::info("SIGUSR1: status: {}", summary());
+    } else if (sig == SIGUSR2) {
+      spdlog::info("SIGUSR2: ignored (no action is bound to it)");
     }
   }
 
   if (stop_signal != 0) {
-    spdlog::info("{}: stopping", stop_signal == SIGINT ? "SIGINT" : "SIGTERM");
+    spdlog::info("{}: stopping", stop_signal == SIGINT    ? "SIGINT"
+                                 : stop_signal == SIGTERM ? "SIGTERM"
+                                                          : "SIGPIPE (standard output closed)");
   } else {
     spdlog::info("every source ended: stopping");
   }

@@ -1,5 +1,7 @@
-// lidartagd: the LiDARTag daemon. Reads the configuration, applies the command line, runs the
-// pipelines. Exit status: 0 normal end, 1 setup or runtime failure, 2 bad configuration or usage.
+// lidartagd: the LiDARTag daemon. Reads the configuration, applies the command line, checks every
+// resource it will open (setup_checks), runs the pipelines. Exit status: 0 normal end, 1 setup or
+// runtime failure, 2 bad configuration or usage, 3 the run ended but data was lost (LCM messages
+// not delivered, an incomplete --record file).
 #include <spdlog/spdlog.h>
 
 // CLI11 1.9's split() trips GCC 12's -Wnull-dereference once inlined here (a false positive inside
@@ -15,6 +17,7 @@
 #include "lidartag/daemon/config.hpp"
 #include "lidartag/daemon/daemon.hpp"
 #include "lidartag/daemon/logging.hpp"
+#include "lidartag/daemon/setup_checks.hpp"
 
 namespace {
 
@@ -62,6 +65,31 @@ int config_error(const std::string& message) {
   return 2;
 }
 
+// Exit statuses (docs/daemon.md).
+constexpr int kExitSetupError = 1;
+constexpr int kExitDataLost = 3;
+
+int setup_error(const std::exception& e) {
+  // One line whatever the message holds (paths and values come from the configuration).
+  std::fprintf(stderr, "lidartagd: error: %s\n",
+               lidartag::daemon::clip_text(e.what(), 600).c_str());
+  return kExitSetupError;
+}
+
+// After a run: what did not reach its destination makes the exit status 3 (unless it is already
+// an error), with one line for the LCM messages (the --record file's line is the daemon's own).
+int data_loss_status(const lidartag::daemon::Daemon& daemon, int status) {
+  const auto& bus = daemon.bus();
+  const uint64_t failures = bus.failures();
+  if (failures > 0) {
+    spdlog::error("LCM: {} of {} messages were not delivered; last: {}", failures,
+                  failures + bus.published(), bus.last_error());
+  }
+  const auto* recorder = daemon.recorder();
+  const bool lost = failures > 0 || (recorder != nullptr && recorder->failed());
+  return status == 0 && lost ? kExitDataLost : status;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -88,13 +116,24 @@ int main(int argc, char** argv) {
                    ->check(CLI::PositiveNumber);
   app.add_flag("--max-speed", a.max_speed, "Replay as fast as the detector goes")->excludes(rate);
   app.add_flag("--loop", a.loop, "Replay in a loop");
-  app.add_option("--record", a.record, "Write every received packet to this pcap file");
+  app.add_option("--record", a.record,
+                 "Write every received packet to this pcap file (a write error, e.g. a full disk, "
+                 "stops recording: exit status 3)");
   app.add_option("--workers", a.workers, "Detector threads (0: one per core)");
   app.add_option("--log-level", a.log_level, "trace, debug, info, warn, error, critical, off");
   app.add_option("--log-file", a.log_file, "Log to this file (reopened on SIGHUP)");
   app.add_flag("--print-config", a.print_config, "Print the effective configuration and exit");
   app.add_flag("--print-detections", a.print_detections,
-               "Print each rotation's detections on standard output, one line per rotation");
+               "Print each rotation's detections on standard output, one line per rotation "
+               "(when its reader goes away, e.g. '| head -1', the daemon stops as on SIGTERM)");
+  app.footer(
+      "Exit status: 0 normal end (a signal, or every replay ended), 1 setup or runtime error "
+      "(a file, port, calibration or LCM URL that cannot be used; checked before READY=1), 2 bad "
+      "configuration or command line, 3 the run ended but data was lost (LCM messages not "
+      "delivered, an incomplete --record file).\n"
+      "Signals: SIGINT/SIGTERM stop cleanly (final status logged and published), SIGHUP reopens "
+      "the log file, SIGUSR1 logs and publishes the status now, SIGUSR2 is ignored, SIGPIPE does "
+      "not kill it.");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -117,15 +156,16 @@ int main(int argc, char** argv) {
   // Before any thread starts, so that every thread inherits the mask.
   lidartag::daemon::block_signals();
   try {
+    // Before READY=1 and before any thread: every file, port and URL the daemon will open.
+    lidartag::daemon::check_setup(options);
     lidartag::daemon::Logging logging(options.logging);
     lidartag::daemon::RunOptions run;
     if (a.print_detections) run.print_detections = stdout;
     lidartag::daemon::Daemon daemon(std::move(options), run, &logging);
-    return daemon.run();
+    return data_loss_status(daemon, daemon.run());
   } catch (const ConfigError& e) {
     return config_error(e.what());
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "lidartagd: error: %s\n", e.what());
-    return 1;
+    return setup_error(e);
   }
 }

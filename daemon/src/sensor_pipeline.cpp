@@ -3,6 +3,11 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 #include <tbb/task_arena.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <csignal>
+#include <cstring>
 
 #include "lidartag/daemon/lcm_log_source.hpp"
 #include "lidartag/daemon/messages.hpp"
@@ -43,6 +48,7 @@ std::unique_ptr<velodyne::PacketSource> open_source(const SensorOptions& sensor,
       o.position_port = s.position_port;
       o.sensor_ipv4 = sender(s);
       o.receive_buffer_bytes = s.receive_buffer_bytes;
+      o.reuse_address = s.share_port;  // daemon-setup: exclusive unless the config shares
       return std::make_unique<velodyne::UdpSource>(o);
     }
     case SourceKind::kInterface: {
@@ -81,9 +87,22 @@ std::unique_ptr<velodyne::PacketSource> open_source(const SensorOptions& sensor,
 
 void LinePrinter::print(const std::string& line) {
   std::lock_guard lock(mutex_);
-  std::fputs(line.c_str(), out_);
-  std::fputc('\n', out_);
-  std::fflush(out_);
+  if (failed_) return;
+  if (std::fputs(line.c_str(), out_) >= 0 && std::fputc('\n', out_) != EOF &&
+      std::fflush(out_) == 0) {
+    return;
+  }
+  // daemon-setup: a failed write stops printing; a closed pipe stops the daemon.
+  const int error = errno;
+  failed_ = true;
+  if (error == EPIPE) {
+    spdlog::warn("--print-detections: standard output was closed (its reader went away)");
+    closed_.store(true);
+    ::kill(::getpid(), SIGPIPE);
+  } else {
+    spdlog::error("--print-detections: cannot write to standard output: {}; printing stops",
+                  std::strerror(error));
+  }
 }
 
 std::string detections_line(const std::string& sensor, const RotationResult& r) {

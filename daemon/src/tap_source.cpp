@@ -1,5 +1,8 @@
 #include "lidartag/daemon/tap_source.hpp"
 
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 
 namespace lidartag::daemon {
@@ -12,32 +15,59 @@ int64_t steady_ns() {
       .count();
 }
 
-PcapRecorder::PcapRecorder(const std::string& path) : writer_(path) {}
+namespace {
+
+// The writer, its setup error naming the setting.
+velodyne::PcapWriter open_record_file(const std::string& path) {
+  try {
+    return velodyne::PcapWriter(path);
+  } catch (const velodyne::IoError& e) {
+    throw velodyne::IoError(std::string("record_pcap: ") + e.what());
+  }
+}
+
+}  // namespace
+
+PcapRecorder::PcapRecorder(const std::string& path)
+    : path_(path), writer_(open_record_file(path)), next_flush_ns_(steady_ns() + kFlushPeriodNs) {}
 
 void PcapRecorder::write(const velodyne::RawPacket& packet) noexcept {
   std::lock_guard lock(mutex_);
-  if (!writer_.is_open()) return;
-  try {
-    const uint32_t source =
-        packet.source_ipv4 != 0 ? packet.source_ipv4 : velodyne::PcapWriter::kDefaultSourceIpv4;
-    writer_.write_udp(packet.payload, packet.receive_time_ns, packet.destination_port, source);
-  } catch (const std::exception& e) {
-    error_ = e.what();
-    try {
-      writer_.close();
-    } catch (const std::exception&) {
-      // Already failing: the first error is the one reported.
-    }
+  ++received_;
+  if (writer_.failed()) return;
+  const uint32_t source =
+      packet.source_ipv4 != 0 ? packet.source_ipv4 : velodyne::PcapWriter::kDefaultSourceIpv4;
+  // kClosed and kTooLarge cannot happen here (closed after the sources stopped; UDP payloads fit):
+  // both leave the packet out of the file, which missed() counts.
+  (void)writer_.append_udp(packet.payload, packet.receive_time_ns, packet.destination_port, source);
+  const int64_t now = steady_ns();
+  if (now >= next_flush_ns_) {
+    (void)writer_.flush();
+    next_flush_ns_ = now + kFlushPeriodNs;
   }
+  check_failure();
 }
 
 void PcapRecorder::close() noexcept {
   std::lock_guard lock(mutex_);
   try {
     writer_.close();
-  } catch (const std::exception& e) {
-    if (error_.empty()) error_ = e.what();
+  } catch (const velodyne::IoError&) {
+    // In writer_.error(), reported below.
   }
+  check_failure();
+}
+
+void PcapRecorder::check_failure() {
+  if (!writer_.failed() || reported_) return;
+  reported_ = true;
+  spdlog::error("recording {} stopped: {}", path_, error_text());
+}
+
+std::string PcapRecorder::error_text() const {
+  if (!writer_.failed()) return {};
+  return fmt::format("{}; the file holds the first {} packets, {} received later are not in it",
+                     writer_.error(), writer_.records(), received_ - writer_.records());
 }
 
 uint64_t PcapRecorder::records() const {
@@ -45,9 +75,19 @@ uint64_t PcapRecorder::records() const {
   return writer_.records();
 }
 
+uint64_t PcapRecorder::missed() const {
+  std::lock_guard lock(mutex_);
+  return received_ - writer_.records();
+}
+
+bool PcapRecorder::failed() const {
+  std::lock_guard lock(mutex_);
+  return writer_.failed();
+}
+
 std::string PcapRecorder::error() const {
   std::lock_guard lock(mutex_);
-  return error_;
+  return error_text();
 }
 
 TapSource::TapSource(std::unique_ptr<velodyne::PacketSource> inner, PcapRecorder* recorder,

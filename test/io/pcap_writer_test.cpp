@@ -10,6 +10,9 @@
 #include <numeric>
 #include <vector>
 
+#include "io/file_size_limit.hpp"
+#include "lidartag/driver/io/pcap_source.hpp"
+
 namespace lidartag::velodyne {
 namespace {
 
@@ -163,6 +166,76 @@ TEST(PcapWriter, RejectsOversizedPayloadAndWritesAfterClose) {
   EXPECT_THROW(writer.write_udp(test_payload(4), 0, 2368), IoError);
   writer.close();  // idempotent
   std::filesystem::remove(path);
+}
+
+using test::FileSizeLimit;
+
+size_t packets_in(const std::string& path) {
+  PcapSource source(path);
+  RawPacket packet;
+  size_t n = 0;
+  while (source.next(packet, std::chrono::milliseconds(10)) == ReadStatus::kPacket) ++n;
+  EXPECT_EQ(source.stats().truncated, 0u);
+  return n;
+}
+
+TEST(PcapWriter, AFullDiskKeepsTheWholeRecordsBeforeItAndSaysHowMany) {
+  const std::string path = temp_path("full.pcap");
+  constexpr size_t kRecord = 16 + 1248;
+  constexpr rlim_t kLimit = 500'000;  // 24 + 395 whole records and part of the next
+  PcapWriter writer(path);
+  size_t taken = 0;
+  PcapWriteStatus status = PcapWriteStatus::kOk;
+  {
+    FileSizeLimit limit(kLimit);
+    for (; taken < 2000; ++taken) {
+      status = writer.append_udp(test_payload(1206), 1'000'000 * static_cast<int64_t>(taken), 2368);
+      if (status != PcapWriteStatus::kOk) break;
+    }
+  }
+  EXPECT_EQ(status, PcapWriteStatus::kWriteError);
+  // The failing block was written in part: its whole records stay, the torn one is cut off.
+  const uint64_t whole = (kLimit - 24) / kRecord;
+  EXPECT_EQ(writer.records(), whole);
+  EXPECT_GT(taken, whole);
+  EXPECT_TRUE(writer.failed());
+  EXPECT_EQ(writer.error(), "cannot write '" + path + "': File too large");
+  EXPECT_EQ(std::filesystem::file_size(path), 24 + whole * kRecord);
+  // Nothing more is taken, even with room again; close() reports the failure.
+  EXPECT_EQ(writer.append_udp(test_payload(4), 0, 2368), PcapWriteStatus::kWriteError);
+  EXPECT_FALSE(writer.flush());
+  EXPECT_THROW(writer.close(), IoError);
+  EXPECT_EQ(writer.records(), whole);
+  // The file is a valid capture of exactly those records.
+  EXPECT_EQ(packets_in(path), whole);
+  std::filesystem::remove(path);
+}
+
+TEST(PcapWriter, RecordsReachTheFileOnFlushAndOnClose) {
+  const std::string path = temp_path("flush.pcap");
+  PcapWriter writer(path);
+  EXPECT_EQ(std::filesystem::file_size(path), 24u);  // the header at once: creatable and writable
+  for (int i = 0; i < 3; ++i)
+    EXPECT_EQ(writer.append_udp(test_payload(100), i, 2368), PcapWriteStatus::kOk);
+  EXPECT_EQ(writer.records(), 3u);
+  EXPECT_EQ(std::filesystem::file_size(path), 24u);  // buffered
+  EXPECT_TRUE(writer.flush());
+  EXPECT_EQ(std::filesystem::file_size(path), 24u + 3u * (16u + 142u));
+  EXPECT_EQ(writer.append_udp(test_payload(100), 3, 2368), PcapWriteStatus::kOk);
+  writer.close();
+  EXPECT_EQ(packets_in(path), 4u);
+  EXPECT_EQ(writer.append_udp(test_payload(100), 4, 2368), PcapWriteStatus::kClosed);
+  std::filesystem::remove(path);
+}
+
+TEST(PcapWriter, AFileThatCannotBeWrittenFailsAtCreation) {
+  // /dev/full takes the open and refuses every byte: the header write fails in the constructor.
+  try {
+    PcapWriter writer("/dev/full");
+    FAIL() << "expected IoError";
+  } catch (const IoError& e) {
+    EXPECT_EQ(std::string(e.what()), "cannot write '/dev/full': No space left on device");
+  }
 }
 
 }  // namespace

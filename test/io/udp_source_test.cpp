@@ -6,7 +6,10 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <filesystem>
 #include <vector>
+
+#include "daemon/namespaces.hpp"
 
 namespace lidartag::velodyne {
 namespace {
@@ -172,6 +175,73 @@ TEST(UdpSource, SetupErrorsAreTyped) {
   } catch (const IoError& e) {
     EXPECT_NE(std::string(e.what()).find(std::to_string(taken.data_port())), std::string::npos)
         << e.what();
+  }
+}
+
+TEST(UdpSource, PortsAreExclusiveUnlessEverySocketShares) {
+  auto first = loopback_options();
+  first.open_position_port = false;
+  EXPECT_FALSE(first.reuse_address);  // the default
+  UdpSource taken(first);
+  auto second = first;
+  second.data_port = taken.data_port();
+  try {
+    UdpSource source(second);
+    FAIL() << "a second socket took the port";
+  } catch (const IoError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "cannot bind UDP 127.0.0.1:" + std::to_string(taken.data_port()) +
+                  ": Address already in use (another program receives on this port, e.g. a "
+                  "second lidartagd or a sensor driver; it is bound exclusively unless every "
+                  "user shares it)");
+  }
+  // One sharing socket is not enough: the exclusive one keeps the port.
+  second.reuse_address = true;
+  EXPECT_THROW(UdpSource source(second), IoError);
+
+  // Both sharing: both bind, and a datagram sent to the port reaches one of them.
+  first.reuse_address = true;
+  UdpSource a(first);
+  second.data_port = a.data_port();
+  UdpSource b(second);
+  ASSERT_TRUE(Sender().send(a.data_port(), payload(100, 1)));
+  RawPacket packet;
+  const bool got_a = a.next(packet, 1s) == ReadStatus::kPacket;
+  const bool got_b = b.next(packet, got_a ? 100ms : 1s) == ReadStatus::kPacket;
+  EXPECT_NE(got_a, got_b);
+}
+
+std::string scratch(const std::string& name) {
+  const std::string dir = ::testing::TempDir() + "/lidartag_udp." + std::to_string(getpid());
+  std::filesystem::create_directories(dir);
+  return dir + "/" + name;
+}
+
+// A multicast group as bind address: joined and shared, every member gets each datagram. In a
+// network namespace of its own (lo with a multicast route), never on the machine's interfaces.
+TEST(UdpSource, MulticastGroupIsJoinedAndSharedByEveryMember) {
+  LIDARTAG_RUN_IN_NAMESPACE(std::vector<std::string>{"-n"},
+                            "ip link set lo up && ip route add 224.0.0.0/4 dev lo",
+                            scratch("netns"));
+  UdpSourceOptions o;
+  o.bind_address = "239.192.0.5";
+  o.data_port = 23680;
+  o.open_position_port = false;
+  UdpSource a(o), b(o);  // shared although reuse_address is off: a group has many members
+  const int fd = ::socket(AF_INET, SOCK_DGRAM, 0);
+  sockaddr_in to{};
+  to.sin_family = AF_INET;
+  to.sin_port = htons(23680);
+  to.sin_addr.s_addr = htonl(0xEFC00005);
+  const auto data = payload(1206, 9);
+  ASSERT_EQ(::sendto(fd, data.data(), data.size(), 0, reinterpret_cast<sockaddr*>(&to), sizeof(to)),
+            static_cast<ssize_t>(data.size()));
+  ::close(fd);
+  for (UdpSource* source : {&a, &b}) {
+    RawPacket packet;
+    ASSERT_EQ(source->next(packet, 1s), ReadStatus::kPacket);
+    EXPECT_EQ(packet.payload.size(), data.size());
+    EXPECT_EQ(packet.destination_port, 23680);
   }
 }
 

@@ -1,60 +1,113 @@
 #include "lidartag/driver/io/pcap_writer.hpp"
 
-#include <pcap/pcap.h>
-#include <sys/time.h>
+#include <fcntl.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <cstring>
 
 #include "net_headers.hpp"
 
 namespace lidartag::velodyne {
 namespace {
 
-pcap_t* as_pcap(void* p) {
-  return static_cast<pcap_t*>(p);
-}
-pcap_dumper_t* as_dumper(void* p) {
-  return static_cast<pcap_dumper_t*>(p);
-}
-
 // Fixed addresses keep the output deterministic: 60:76:88 is Velodyne's OUI.
 constexpr uint8_t kSourceMac[6] = {0x60, 0x76, 0x88, 0x00, 0x00, 0x01};
 constexpr uint8_t kBroadcastMac[6] = {0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF};
-constexpr int kSnapLength = 65535;
+constexpr uint32_t kSnapLength = 65535;
+constexpr uint32_t kLinkTypeEthernet = 1;
+constexpr size_t kFileHeader = 24;
+constexpr size_t kRecordHeader = 16;  // seconds, microseconds, captured length, length
+
+// pcap headers are in the writer's byte order (readers tell it from the magic number).
+void put_u32(uint8_t* p, uint32_t v) {
+  std::memcpy(p, &v, sizeof(v));
+}
+void put_u16(uint8_t* p, uint16_t v) {
+  std::memcpy(p, &v, sizeof(v));
+}
+uint32_t get_u32(const uint8_t* p) {
+  uint32_t v = 0;
+  std::memcpy(&v, p, sizeof(v));
+  return v;
+}
+
+// write(2) until all is written; the bytes written before a failure in `done`.
+bool write_all(int fd, const uint8_t* data, size_t size, size_t& done, int& error) {
+  done = 0;
+  while (done < size) {
+    const ssize_t n = ::write(fd, data + done, size - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      error = n < 0 ? errno : EIO;
+      return false;
+    }
+    done += static_cast<size_t>(n);
+  }
+  return true;
+}
 
 }  // namespace
 
 PcapWriter::PcapWriter(const std::string& path) : path_(path) {
-  pcap_t* pcap =
-      pcap_open_dead_with_tstamp_precision(DLT_EN10MB, kSnapLength, PCAP_TSTAMP_PRECISION_MICRO);
-  if (pcap == nullptr) throw IoError("cannot create pcap writer for '" + path + "'");
-  pcap_dumper_t* dumper = pcap_dump_open(pcap, path.c_str());
-  if (dumper == nullptr) {
-    const std::string message = pcap_geterr(pcap);
-    pcap_close(pcap);
-    throw IoError("cannot create '" + path + "': " + message);
+  fd_ = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+  if (fd_ < 0) throw IoError("cannot create '" + path + "': " + std::strerror(errno));
+  uint8_t header[kFileHeader] = {};
+  put_u32(header, 0xA1B2C3D4);  // microsecond timestamps
+  put_u16(header + 4, 2);       // version 2.4
+  put_u16(header + 6, 4);
+  put_u32(header + 16, kSnapLength);
+  put_u32(header + 20, kLinkTypeEthernet);
+  size_t done = 0;
+  int error = 0;
+  if (!write_all(fd_, header, sizeof(header), done, error)) {
+    ::close(fd_);
+    fd_ = -1;
+    throw IoError("cannot write '" + path + "': " + std::strerror(error));
   }
-  pcap_ = pcap;
-  dumper_ = dumper;
-  frame_.assign(net::kEthernetHeader + net::kIpv4MinHeader + net::kUdpHeader + kMaxPayload, 0);
+  file_bytes_ = sizeof(header);
+  buffer_.assign(kBufferBytes, 0);
 }
 
 PcapWriter::~PcapWriter() {
-  close_quietly();
+  try {
+    close();
+  } catch (const IoError&) {
+    // Destruction cannot report: callers that care call close() (or check error()) first.
+  }
 }
 
 void PcapWriter::write_udp(std::span<const uint8_t> payload, int64_t time_ns, uint16_t dst_port,
                            uint32_t src_ipv4, uint32_t dst_ipv4, uint16_t src_port) {
-  if (dumper_ == nullptr) throw IoError("write to closed pcap file '" + path_ + "'");
-  if (payload.size() > kMaxPayload) {
-    throw IoError("UDP payload of " + std::to_string(payload.size()) + " bytes too large for '" +
-                  path_ + "'");
+  switch (append_udp(payload, time_ns, dst_port, src_ipv4, dst_ipv4, src_port)) {
+    case PcapWriteStatus::kOk:
+      return;
+    case PcapWriteStatus::kClosed:
+      throw IoError("write to closed pcap file '" + path_ + "'");
+    case PcapWriteStatus::kTooLarge:
+      throw IoError("UDP payload of " + std::to_string(payload.size()) + " bytes too large for '" +
+                    path_ + "'");
+    case PcapWriteStatus::kWriteError:
+      throw IoError(error_);
   }
+}
+
+PcapWriteStatus PcapWriter::append_udp(std::span<const uint8_t> payload, int64_t time_ns,
+                                       uint16_t dst_port, uint32_t src_ipv4, uint32_t dst_ipv4,
+                                       uint16_t src_port) noexcept {
+  if (failed()) return PcapWriteStatus::kWriteError;
+  if (fd_ < 0) return PcapWriteStatus::kClosed;
+  if (payload.size() > kMaxPayload) return PcapWriteStatus::kTooLarge;
   if (src_port == 0) src_port = dst_port;
   const size_t udp_length = net::kUdpHeader + payload.size();
   const size_t ip_length = net::kIpv4MinHeader + udp_length;
   const size_t frame_length = net::kEthernetHeader + ip_length;
-  uint8_t* eth = frame_.data();
+  if (used_ + kRecordHeader + frame_length > buffer_.size() && !flush()) {
+    return PcapWriteStatus::kWriteError;
+  }
+  uint8_t* record = buffer_.data() + used_;
+  uint8_t* eth = record + kRecordHeader;
   uint8_t* ip = eth + net::kEthernetHeader;
   uint8_t* udp = ip + net::kIpv4MinHeader;
 
@@ -100,27 +153,61 @@ void PcapWriter::write_udp(std::span<const uint8_t> payload, int64_t time_ns, ui
     usec_part += 1000000;
     --sec;
   }
-  pcap_pkthdr header{};
-  header.ts.tv_sec = static_cast<time_t>(sec);
-  header.ts.tv_usec = static_cast<suseconds_t>(usec_part);
-  header.caplen = static_cast<bpf_u_int32>(frame_length);
-  header.len = static_cast<bpf_u_int32>(frame_length);
-  pcap_dump(static_cast<u_char*>(dumper_), &header, frame_.data());
-  ++records_;
+  put_u32(record, static_cast<uint32_t>(sec));
+  put_u32(record + 4, static_cast<uint32_t>(usec_part));
+  put_u32(record + 8, static_cast<uint32_t>(frame_length));
+  put_u32(record + 12, static_cast<uint32_t>(frame_length));
+  used_ += kRecordHeader + frame_length;
+  ++buffered_;
+  return PcapWriteStatus::kOk;
+}
+
+bool PcapWriter::flush() noexcept {
+  if (failed()) return false;
+  if (fd_ < 0 || used_ == 0) return true;
+  size_t done = 0;
+  int error = 0;
+  if (!write_all(fd_, buffer_.data(), used_, done, error)) {
+    write_failed(done, error);
+    return false;
+  }
+  file_bytes_ += used_;
+  in_file_ += buffered_;
+  used_ = 0;
+  buffered_ = 0;
+  return true;
+}
+
+void PcapWriter::write_failed(size_t written, int error) noexcept {
+  // The whole records among the bytes that reached the file stay; a torn one is cut off.
+  size_t whole_bytes = 0;
+  uint64_t whole = 0;
+  while (whole_bytes + kRecordHeader <= used_) {
+    const size_t length = kRecordHeader + get_u32(buffer_.data() + whole_bytes + 8);
+    if (whole_bytes + length > written) break;
+    whole_bytes += length;
+    ++whole;
+  }
+  error_ = "cannot write '" + path_ + "': " + std::strerror(error);
+  if (written > whole_bytes &&
+      ::ftruncate(fd_, static_cast<off_t>(file_bytes_ + whole_bytes)) != 0) {
+    error_ += std::string(" (and its last record, cut short, could not be removed: ") +
+              std::strerror(errno) + ")";
+  }
+  file_bytes_ += whole_bytes;
+  in_file_ += whole;
+  used_ = 0;
+  buffered_ = 0;
 }
 
 void PcapWriter::close() {
-  if (dumper_ == nullptr) return;
-  const bool flushed = pcap_dump_flush(as_dumper(dumper_)) == 0;
-  close_quietly();
-  if (!flushed) throw IoError("cannot write '" + path_ + "'");
-}
-
-void PcapWriter::close_quietly() noexcept {
-  if (dumper_ != nullptr) pcap_dump_close(as_dumper(dumper_));
-  if (pcap_ != nullptr) pcap_close(as_pcap(pcap_));
-  dumper_ = nullptr;
-  pcap_ = nullptr;
+  if (fd_ < 0) return;
+  (void)flush();  // a failure is in error_
+  if (::close(fd_) != 0 && !failed()) {
+    error_ = "cannot write '" + path_ + "': " + std::strerror(errno);
+  }
+  fd_ = -1;
+  if (failed()) throw IoError(error_);
 }
 
 }  // namespace lidartag::velodyne

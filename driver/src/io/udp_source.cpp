@@ -9,6 +9,7 @@
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wnull-dereference"
 #include <boost/asio/io_context.hpp>
+#include <boost/asio/ip/multicast.hpp>
 #include <boost/asio/ip/udp.hpp>
 #pragma GCC diagnostic pop
 #include <cerrno>
@@ -55,13 +56,17 @@ UdpSource::UdpSource(UdpSourceOptions options)
   const asio::ip::address_v4 address = asio::ip::make_address_v4(options_.bind_address, ec);
   if (ec) throw IoError("invalid bind address '" + options_.bind_address + "': " + ec.message());
 
+  const bool multicast = address.is_multicast();
   auto open = [&](uint16_t port) -> Socket& {
     auto socket = std::make_unique<Socket>(impl_->io, port);
     udp::socket& s = socket->socket;
     const std::string where = options_.bind_address + ":" + std::to_string(port);
     if (s.open(udp::v4(), ec))
       throw IoError("cannot open UDP socket for " + where + ": " + ec.message());
-    if (options_.reuse_address) s.set_option(asio::socket_base::reuse_address(true), ec);
+    if (options_.reuse_address || multicast) {
+      s.set_option(asio::socket_base::reuse_address(true), ec);
+      if (ec) throw IoError("cannot share UDP " + where + ": " + ec.message());
+    }
     const int fd = s.native_handle();
     // Ask for the buffer; when capped by rmem_max, try to force it (needs CAP_NET_ADMIN).
     s.set_option(asio::socket_base::receive_buffer_size(options_.receive_buffer_bytes), ec);
@@ -77,7 +82,22 @@ UdpSource::UdpSource(UdpSourceOptions options)
         options_.kernel_timestamps && set_int_option(fd, SOL_SOCKET, SO_TIMESTAMPNS, 1);
     set_int_option(fd, SOL_SOCKET, SO_RXQ_OVFL, 1);
     if (s.bind(udp::endpoint(address, port), ec)) {
-      throw IoError("cannot bind UDP " + where + ": " + ec.message());
+      std::string why = ec.message();
+      if (ec == boost::system::errc::address_in_use) {
+        why += options_.reuse_address || multicast
+                   ? " (another program has it and does not share it)"
+                   : " (another program receives on this port, e.g. a second lidartagd or a "
+                     "sensor driver; it is bound exclusively unless every user shares it)";
+      }
+      throw IoError("cannot bind UDP " + where + ": " + why);
+    }
+    if (multicast) {
+      s.set_option(asio::ip::multicast::join_group(address), ec);
+      if (ec) {
+        throw IoError("cannot join the multicast group " + options_.bind_address + ": " +
+                      ec.message() + " (is there a route for it? e.g. 'ip route add " +
+                      "224.0.0.0/4 dev eth0')");
+      }
     }
     socket->port = s.local_endpoint(ec).port();
     s.non_blocking(true, ec);

@@ -21,10 +21,13 @@
 namespace lidartag::daemon {
 
 // A configuration that cannot be used: the key (dotted path, e.g. "sensors[0].source.kind"), the
-// offending value as written, and why. what() is one line: "KEY: 'VALUE': REASON".
+// offending value as written, and why. what() is one line: "KEY: 'VALUE': REASON", or "KEY: REASON"
+// for an error without a value (a duplicate key, a file that is not a regular file's text). Long
+// or multi-line parts are shortened there (clip_text); key(), value() and reason() keep them whole.
 class ConfigError : public std::runtime_error {
  public:
   ConfigError(std::string key, std::string value, std::string reason);
+  ConfigError(std::string key, std::string reason);
   const std::string& key() const { return key_; }
   const std::string& value() const { return value_; }
   const std::string& reason() const { return reason_; }
@@ -32,6 +35,14 @@ class ConfigError : public std::runtime_error {
  private:
   std::string key_, value_, reason_;
 };
+
+// A configuration file must be a regular file of at most this many bytes (1 MiB; the shipped file
+// is about 10 kB).
+inline constexpr size_t kMaxConfigBytes = size_t{1} << 20;
+
+// `text` as one short line for a message: control characters escaped (\n, \t, \xNN), and when
+// longer than `max` characters, its first `max` characters then "... (N bytes)".
+std::string clip_text(std::string_view text, size_t max = 80);
 
 enum class SourceKind : uint8_t {
   kUdp,        // live sensor: UDP sockets on the data and position ports
@@ -47,8 +58,13 @@ struct SourceOptions {
   uint16_t data_port = velodyne::kDefaultDataPort;          // UDP port of data packets
   uint16_t position_port = velodyne::kDefaultPositionPort;  // UDP port of position packets
   std::string sensor_address;  // only packets from this IPv4 sender; empty: any
-  // udp: local address to bind (0.0.0.0: every interface; sensors broadcast).
+  // udp: local address to bind (0.0.0.0: every interface; sensors broadcast). A multicast group
+  // (224.0.0.0/4) is joined, and its ports are shared (see share_port).
   std::string bind_address = "0.0.0.0";
+  // udp: share the ports with other programs (SO_REUSEADDR) instead of binding them exclusively.
+  // Only for broadcast or multicast sensor traffic, which every sharer receives; a unicast
+  // datagram reaches one of them. A multicast bind_address always shares.
+  bool share_port = false;
   // udp, interface: kernel receive buffer, bytes. 8 MiB holds about 1 s of VLS-128 data.
   int receive_buffer_bytes = 8 * 1024 * 1024;
   std::string interface;     // interface: e.g. "eth0"
@@ -154,7 +170,9 @@ struct DaemonOptions {
 // key is checked: unknown keys and bad values throw ConfigError. Cross-field rules too (unique
 // sensor names and prefixes, a file for replay sources, detector families that exist).
 DaemonOptions parse_config(std::string_view yaml, const std::vector<std::string>& overrides = {});
-// Reads `path` (ConfigError with key "config" when it cannot be read or is not YAML).
+// Reads `path` (ConfigError with key "config" when it cannot be read, is not a regular file, is
+// larger than kMaxConfigBytes or is not YAML). In files and --set values alike, a key given twice
+// in one mapping and a second YAML document are errors.
 DaemonOptions load_config(const std::string& path, const std::vector<std::string>& overrides = {});
 
 // The `detector:` section of a config file alone (for `lidartag detect --config`); other sections

@@ -19,8 +19,9 @@
 
 namespace lidartag::daemon {
 
-// Blocks SIGINT, SIGTERM and SIGHUP in the calling thread and in every thread it starts later
-// (call first in main); Daemon::run() takes them with sigtimedwait.
+// Blocks SIGINT, SIGTERM, SIGHUP, SIGPIPE, SIGUSR1 and SIGUSR2 in the calling thread and in every
+// thread it starts later (call first in main); Daemon::run() takes them with sigtimedwait. A
+// blocked SIGPIPE makes a write to a closed pipe fail with EPIPE instead of killing the process.
 void block_signals();
 
 struct RunOptions {
@@ -39,6 +40,9 @@ class Daemon {
   int run();
 
   int workers() const { return workers_; }
+  // For main's exit status (daemon-setup): messages not delivered, an incomplete --record file.
+  const LcmBus& bus() const { return *bus_; }
+  const PcapRecorder* recorder() const { return recorder_.get(); }
 
  private:
   void publish_status(bool final);

@@ -37,11 +37,17 @@ namespace lidartag::daemon {
 class LinePrinter {
  public:
   explicit LinePrinter(std::FILE* out) : out_(out) {}
+  // One line, flushed. daemon-setup: when writing fails, printing stops and it is logged once;
+  // when the reader closed the pipe (EPIPE) the daemon is asked to stop (a process-directed
+  // SIGPIPE, which Daemon::run() takes).
   void print(const std::string& line);
+  bool closed() const { return closed_.load(); }  // the output's reader went away
 
  private:
   std::mutex mutex_;
   std::FILE* out_;
+  bool failed_ = false;
+  std::atomic<bool> closed_{false};
 };
 
 // One line: "SENSOR #SEQ N tag(s): FAMILY:ID (x, y, z) m score S; ..." or "... 0 tags".

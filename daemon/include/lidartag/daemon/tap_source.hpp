@@ -16,20 +16,39 @@
 
 namespace lidartag::daemon {
 
-// The --record file, shared by every sensor's receiver thread. Write errors never propagate: the
-// first one is remembered, recording stops, the daemon goes on.
+// The --record file, shared by every sensor's receiver thread. Packets are buffered by the writer
+// and reach the file at least once a second. Write errors never propagate: on the first one
+// recording stops, it is logged once (what failed, what the file holds), and every later packet
+// is counted as not recorded.
 class PcapRecorder {
  public:
+  static constexpr int64_t kFlushPeriodNs = 1'000'000'000;
+
   explicit PcapRecorder(const std::string& path);  // throws velodyne::IoError
   void write(const velodyne::RawPacket& packet) noexcept;
+  // Writes what is buffered and closes the file; a failure then counts like a write error.
   void close() noexcept;
+  // Packets in the file (after close() or a failure exactly those; before, buffered ones too).
   uint64_t records() const;
-  std::string error() const;  // empty while all went well
+  // Packets handed to write() that are not in the file (lost at or after a failure).
+  uint64_t missed() const;
+  bool failed() const;
+  // Empty while all went well; else what failed and what the file holds, e.g. "cannot write
+  // 'x.pcap': No space left on device; the file holds the first 826 packets, 8211 received later
+  // are not in it".
+  std::string error() const;
+  const std::string& path() const { return path_; }
 
  private:
+  std::string error_text() const;  // mutex held
+  void check_failure();            // mutex held: logs the first failure
+
+  std::string path_;
   mutable std::mutex mutex_;
   velodyne::PcapWriter writer_;
-  std::string error_;
+  uint64_t received_ = 0;
+  int64_t next_flush_ns_ = 0;
+  bool reported_ = false;
 };
 
 class TapSource final : public velodyne::PacketSource {

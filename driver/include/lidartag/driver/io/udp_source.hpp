@@ -18,7 +18,9 @@
 namespace lidartag::velodyne {
 
 struct UdpSourceOptions {
-  // Local IPv4 address to bind; 0.0.0.0 receives on every interface (sensors broadcast).
+  // Local IPv4 address to bind; 0.0.0.0 receives on every interface (sensors broadcast). A
+  // multicast group (224.0.0.0/4) is bound and joined (on the interface the routing table picks
+  // for it), and its ports are always shared (reuse_address), as every member gets each packet.
   std::string bind_address = "0.0.0.0";
   // 0 lets the kernel choose a free port (tests); read the result with data_port().
   uint16_t data_port = kDefaultDataPort;
@@ -32,13 +34,17 @@ struct UdpSourceOptions {
   int receive_buffer_bytes = 8 * 1024 * 1024;
   // Kernel receive timestamps (SO_TIMESTAMPNS); when unavailable the host clock at read time.
   bool kernel_timestamps = true;
-  // SO_REUSEADDR, so a restarted daemon can bind while old sockets linger.
-  bool reuse_address = true;
+  // SO_REUSEADDR: share the ports with other sockets that set it too. Off, a port in use is an
+  // error at construction, so that a second receiver cannot take a sensor's unicast packets
+  // unnoticed (with sharing, Linux gives each unicast datagram to one socket only; broadcast and
+  // multicast datagrams reach all). UDP has no lingering sockets for it to help with.
+  bool reuse_address = false;
 };
 
 class UdpSource final : public PacketSource {
  public:
-  // Binds the sockets; throws IoError naming the address and port on failure.
+  // Binds the sockets (and joins a multicast group); throws IoError naming the address and port on
+  // failure, e.g. a port another program uses.
   explicit UdpSource(UdpSourceOptions options = {});
   ~UdpSource() override;
   UdpSource(const UdpSource&) = delete;

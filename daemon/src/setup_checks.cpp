@@ -1,0 +1,241 @@
+#include "lidartag/daemon/setup_checks.hpp"
+
+#include <fmt/format.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <yaml-cpp/yaml.h>
+
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+
+#include "lidartag/daemon/lcm_url.hpp"
+#include "lidartag/driver/io/calibration_file.hpp"
+#include "lidartag/driver/io/udp_frame.hpp"
+
+namespace lidartag::daemon {
+
+namespace {
+
+std::string errno_text(int error) {
+  return std::strerror(error);
+}
+
+// `path` can be created or written: not a directory; when it exists, writable; otherwise its
+// directory exists and new files can be made there.
+void check_writable(const std::string& key, const std::string& path, const std::string& what) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) == 0) {
+    if (S_ISDIR(st.st_mode)) {
+      throw SetupError(key, fmt::format("{} '{}' is a directory", what, path));
+    }
+    if (::access(path.c_str(), W_OK) != 0) {
+      throw SetupError(key,
+                       fmt::format("{} '{}' cannot be written: {}", what, path, errno_text(errno)));
+    }
+    return;
+  }
+  if (errno != ENOENT) {
+    throw SetupError(key, fmt::format("{} '{}': {}", what, path, errno_text(errno)));
+  }
+  std::string dir = std::filesystem::path(path).parent_path().string();
+  if (dir.empty()) dir = ".";
+  if (::stat(dir.c_str(), &st) != 0) {
+    throw SetupError(key,
+                     fmt::format("{} '{}': its directory '{}' does not exist", what, path, dir));
+  }
+  if (!S_ISDIR(st.st_mode)) {
+    throw SetupError(key, fmt::format("{} '{}': '{}' is not a directory", what, path, dir));
+  }
+  if (::access(dir.c_str(), W_OK | X_OK) != 0) {
+    throw SetupError(key, fmt::format("{} '{}' cannot be created in '{}': {}", what, path, dir,
+                                      errno_text(errno)));
+  }
+}
+
+void check_lcm(const std::string& url_text) {
+  LcmUrl url;
+  try {
+    url = parse_lcm_url(url_text);
+    check_multicast_route(url);
+  } catch (const LcmError& e) {
+    throw SetupError("lcm.url", e.what());
+  }
+  if (url.provider == "file") check_writable("lcm.url", url.target, "the LCM log");
+}
+
+// A readable regular file of at most `limit` bytes.
+void check_small_regular_file(const std::string& key, const std::string& path,
+                              const std::string& what, size_t limit) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) {
+    throw SetupError(key, fmt::format("{} '{}': {}", what, path, errno_text(errno)));
+  }
+  if (!S_ISREG(st.st_mode)) {
+    throw SetupError(key, fmt::format("{} '{}' is not a regular file", what, path));
+  }
+  if (::access(path.c_str(), R_OK) != 0) {
+    throw SetupError(key, fmt::format("{} '{}' cannot be read: {}", what, path, errno_text(errno)));
+  }
+  if (static_cast<uint64_t>(st.st_size) > limit) {
+    throw SetupError(key, fmt::format("{} '{}': {} bytes, more than the limit of {}", what, path,
+                                      st.st_size, limit));
+  }
+}
+
+// `path` can be read and is not a directory (a FIFO is fine for a replay).
+void check_readable(const std::string& key, const std::string& path, const std::string& what) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) {
+    throw SetupError(key, fmt::format("{} '{}': {}", what, path, errno_text(errno)));
+  }
+  if (S_ISDIR(st.st_mode)) throw SetupError(key, fmt::format("{} '{}' is a directory", what, path));
+  if (::access(path.c_str(), R_OK) != 0) {
+    throw SetupError(key, fmt::format("{} '{}' cannot be read: {}", what, path, errno_text(errno)));
+  }
+}
+
+// The calibration file parses and fits the configured model; with model auto, some model (the
+// packets decide which one later, and that model's check is repeated then).
+void check_calibration(const std::string& key, const SensorOptions& sensor) {
+  const std::string& path = sensor.calibration;
+  check_small_regular_file(key, path, "calibration file", kMaxCalibrationBytes);
+  try {
+    if (sensor.model) {
+      (void)velodyne::load_calibration_file(path, *sensor.model);
+      return;
+    }
+    const YAML::Node root = YAML::LoadFile(path);
+    const YAML::Node lasers = root.IsMap() ? root["lasers"] : YAML::Node();
+    if (!lasers.IsDefined() || !lasers.IsSequence()) {
+      // Not a calibration whatever the model: the loader says what is wrong with it.
+      (void)velodyne::load_calibration_file(path, velodyne::all_models().front());
+    }
+    std::string models;
+    for (const velodyne::Model model : velodyne::all_models()) {
+      const auto& spec = velodyne::model_spec(model);
+      models += fmt::format("{}{} {}", models.empty() ? "" : ", ", spec.name, spec.lasers);
+      if (static_cast<size_t>(spec.lasers) != lasers.size()) continue;
+      // The first model with this many lasers: the file's own faults show the same for all.
+      (void)velodyne::load_calibration_file(path, model);
+      return;
+    }
+    throw SetupError(key, fmt::format("calibration file '{}': {} lasers, but no model has that "
+                                      "many ({})",
+                                      path, lasers.size(), models));
+  } catch (const velodyne::CalibrationError& e) {
+    throw SetupError(key, e.what());
+  } catch (const YAML::Exception& e) {
+    throw SetupError(key, fmt::format("calibration file '{}': not valid YAML: {}", path, e.msg));
+  }
+}
+
+bool is_multicast(uint32_t address) {
+  return (address >> 28) == 0xE;
+}
+
+// Binds a probe socket the way UdpSource will, and closes it.
+void check_udp_port(const std::string& key, const SourceOptions& src, uint16_t port) {
+  uint32_t address = 0;
+  if (!velodyne::parse_ipv4_address(src.bind_address, address)) return;  // config-checked
+  const bool shared = src.share_port || is_multicast(address);
+  const int fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) throw SetupError(key, "cannot open a UDP socket: " + errno_text(errno));
+  const int on = 1;
+  if (shared) ::setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &on, sizeof(on));
+  sockaddr_in at{};
+  at.sin_family = AF_INET;
+  at.sin_port = htons(port);
+  at.sin_addr.s_addr = htonl(address);
+  const int rc = ::bind(fd, reinterpret_cast<const sockaddr*>(&at), sizeof(at));
+  const int error = errno;
+  ::close(fd);
+  if (rc == 0) return;
+  const std::string where = fmt::format("UDP {}:{}", src.bind_address, port);
+  switch (error) {
+    case EADDRINUSE:
+      throw SetupError(
+          key, shared ? fmt::format("{} is in use by another program that does not share it", where)
+                      : fmt::format("{} is in use by another program (a second lidartagd, or a "
+                                    "sensor driver): stop it, give this sensor another port, or "
+                                    "set share_port: true here and share it there too "
+                                    "(broadcast/multicast traffic only)",
+                                    where));
+    case EACCES:
+      throw SetupError(key, fmt::format("{}: permission denied (ports below 1024 need "
+                                        "CAP_NET_BIND_SERVICE)",
+                                        where));
+    case EADDRNOTAVAIL:
+      throw SetupError(
+          key, fmt::format("{}: {} is not an address of this host", where, src.bind_address));
+    default:
+      throw SetupError(key, fmt::format("{}: {}", where, errno_text(error)));
+  }
+}
+
+// Two sensors of this daemon on one port: only when both share it (two sensors broadcasting to
+// 2368 is common; sensor_address tells them apart).
+void check_port_overlap(const DaemonOptions& options) {
+  const auto& sensors = options.sensors;
+  for (size_t j = 0; j < sensors.size(); ++j) {
+    const SourceOptions& b = sensors[j].source;
+    if (b.kind != SourceKind::kUdp) continue;
+    for (size_t i = 0; i < j; ++i) {
+      const SourceOptions& a = sensors[i].source;
+      if (a.kind != SourceKind::kUdp) continue;
+      const bool overlap = a.bind_address == b.bind_address || a.bind_address == "0.0.0.0" ||
+                           b.bind_address == "0.0.0.0";
+      uint32_t address_a = 0, address_b = 0;
+      velodyne::parse_ipv4_address(a.bind_address, address_a);
+      velodyne::parse_ipv4_address(b.bind_address, address_b);
+      const bool shared =
+          (a.share_port || is_multicast(address_a)) && (b.share_port || is_multicast(address_b));
+      if (!overlap || shared) continue;
+      for (const auto& [name, port] :
+           {std::pair{"data_port", b.data_port}, std::pair{"position_port", b.position_port}}) {
+        if (port != a.data_port && port != a.position_port) continue;
+        throw SetupError(
+            fmt::format("sensors[{}].source.{}", j, name),
+            fmt::format("UDP port {} is also sensor '{}''s (sensors[{}]): give each sensor its "
+                        "own port, or set share_port: true on both and sensor_address on each "
+                        "to tell them apart",
+                        port, sensors[i].name, i));
+      }
+    }
+  }
+}
+
+}  // namespace
+
+SetupError::SetupError(const std::string& key, const std::string& problem)
+    : std::runtime_error(key + ": " + problem), key_(key) {}
+
+void check_setup(const DaemonOptions& options) {
+  check_lcm(options.lcm.url);
+  if (!options.record_pcap.empty()) {
+    check_writable("record_pcap", options.record_pcap, "the --record file");
+  }
+  check_port_overlap(options);
+  for (size_t i = 0; i < options.sensors.size(); ++i) {
+    const SensorOptions& sensor = options.sensors[i];
+    const std::string key = fmt::format("sensors[{}]", i);
+    if (!sensor.calibration.empty()) check_calibration(key + ".calibration", sensor);
+    const SourceOptions& src = sensor.source;
+    switch (src.kind) {
+      case SourceKind::kUdp:
+        check_udp_port(key + ".source.data_port", src, src.data_port);
+        check_udp_port(key + ".source.position_port", src, src.position_port);
+        break;
+      case SourceKind::kPcap:
+      case SourceKind::kLcm:
+        check_readable(key + ".source.file", src.file, "replay file");
+        break;
+      case SourceKind::kInterface:
+        break;  // opening the capture is the check (it needs CAP_NET_RAW)
+    }
+  }
+}
+
+}  // namespace lidartag::daemon
