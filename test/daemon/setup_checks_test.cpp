@@ -69,8 +69,12 @@ TEST(SetupChecks, CalibrationFilesAreReadAtStartupWhateverTheModel) {
   sensor.model = velodyne::Model::kVLP32C;
   EXPECT_EQ(error_of(o), "");
   sensor.model = velodyne::Model::kVLP16;  // configured: checked against the model
+  // (Entries beyond a model's lasers are accepted only all zero: 64-entry files of 32-laser
+  // sensors.)
   EXPECT_EQ(error_of(o), "sensors[0].calibration: calibration file '" + sensor.calibration +
-                             "', key 'lasers': 32 lasers, but a VLP-16 has 16");
+                             "', key 'lasers[16].vert_correction': 32 lasers listed, but a "
+                             "VLP-16 has 16: laser 16 is beyond the 16 lasers, and such an entry "
+                             "must be all zero, found 0.00844514");
 
   sensor.model.reset();
   sensor.calibration = calibration_file("twenty.yaml", 20);

@@ -78,9 +78,9 @@ Calibration assemble(const detail::CalibrationEntries& file, Model model, const 
         if (v.value != 0.0) {
           throw CalibrationError(
               path, v.key,
-              "laser " + std::to_string(id) + " is beyond the " + std::to_string(spec.lasers) +
-                  " lasers of a " + std::string(spec.display_name) +
-                  ": such an entry must be all zero, found " + number_text(v.value));
+              std::to_string(listed) + " lasers listed, but " + model_has + ": laser " +
+                  std::to_string(id) + " is beyond the " + std::to_string(spec.lasers) +
+                  " lasers, and such an entry must be all zero, found " + number_text(v.value));
         }
       }
       continue;
