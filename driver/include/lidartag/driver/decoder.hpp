@@ -24,8 +24,11 @@ enum class DecodeStatus : uint8_t {
 };
 std::string_view decode_status_name(DecodeStatus s);
 
-// The points of one data packet. Cells are indexed [ret][ring][col] (ring-major like Scan, so that
-// the batcher copies each ring's columns as one run); ring 0 is the lowest beam.
+class Decoder;
+
+// One data packet. Decoder::parse() fills the header part (columns, their azimuths and times, and
+// what write_points() needs to decode them later); Decoder::decode() also fills the points. Cells
+// are indexed [ret][ring][col] (ring-major like Scan); ring 0 is the lowest beam.
 struct DecodedPacket {
   static constexpr int kMaxColumns = 24;
   static constexpr int kMaxRings = 128;
@@ -41,11 +44,34 @@ struct DecodedPacket {
   std::array<float, kMaxColumns> column_azimuth_deg{};  // firing azimuth, [0, 360)
   std::array<double, kMaxColumns> column_time_us{};     // from the packet's first firing
 
+  // True once the points below are filled (decode()); after parse() alone the points are written
+  // straight into a scan by `decoder->write_points()`, from `payload`, which must still be valid.
+  bool has_points = false;
+  const Decoder* decoder = nullptr;
+  const uint8_t* payload = nullptr;
+  // Per column, what every point of the column shares: the firing azimuth's cos/sin, the spin
+  // rate (deg and rad per us), the firing time (us, float) and, per echo and bank, the payload
+  // offset of the column's channel 0.
+  std::array<float, kMaxColumns> cos_az{}, sin_az{}, rate_deg{}, rate_rad{}, time0_us{};
+  std::array<std::array<std::array<uint16_t, 4>, 2>, kMaxColumns> channel_offset{};
+
   std::array<float, kMaxCells> x{}, y{}, z{}, range{}, azimuth_deg{}, time_us{};
   std::array<uint8_t, kMaxCells> intensity{};
   std::array<ReturnType, kMaxCells> return_type{};
 
   int at(int ret, int col, int ring) const { return (ret * rings + ring) * columns + col; }
+};
+
+// Where write_points() puts a run of columns: pointers to the run's first cell of return 0,
+// ring 0, per field; cells of the next ring are `ring_stride` further, of return 1
+// `return_stride` further. Times are written as time_offset + t_us * time_scale, t_us from the
+// packet's first firing.
+struct PointSink {
+  float *x, *y, *z, *range, *azimuth_deg, *time;
+  uint8_t* intensity;
+  ReturnType* return_type;
+  size_t ring_stride, return_stride;
+  float time_offset, time_scale;
 };
 
 namespace detail {
@@ -71,8 +97,8 @@ struct DecoderOptions {
   double max_range_m = 0.0;
 };
 
-// Decodes data packets of one sensor. Holds the calibration, per-laser constants and the last measured
-// rotation rate (used where a packet's own azimuths cannot give it).
+// Decodes data packets of one sensor. Holds the calibration, per-laser constants and the last
+// measured rotation rate (used where a packet's own azimuths cannot give it).
 class Decoder {
  public:
   // `calibration.model` is the model decoded; the calibration must match it (lasers count).
@@ -81,6 +107,13 @@ class Decoder {
   // Decodes `payload` into `out`; `clock` turns the packet timestamp into absolute time.
   [[nodiscard]] DecodeStatus decode(std::span<const uint8_t> payload, const SensorClock& clock,
                                     int64_t receive_time_ns, DecodedPacket& out);
+  // Checks `payload` and reads its header and column azimuths and times, not its points: the
+  // batcher then has write_points() put each column straight where it belongs in the scan. On an
+  // error `out` is left untouched. `payload` must outlive the use of `out`.
+  [[nodiscard]] DecodeStatus parse(std::span<const uint8_t> payload, const SensorClock& clock,
+                                   int64_t receive_time_ns, DecodedPacket& out);
+  // The points of `count` columns from `first` of a parsed packet into `sink`. Never allocates.
+  void write_points(const DecodedPacket& packet, int first, int count, const PointSink& sink) const;
 
   const Calibration& calibration() const { return calibration_; }
   const ModelSpec& spec() const { return *spec_; }
