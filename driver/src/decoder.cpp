@@ -136,24 +136,39 @@ struct LaserConstants {
   double dist_offset;
 };
 
-// The echoes of one ring over a run of columns (one or two slots): distance in metres (0 where
-// there is no usable return) and 1/0 for a usable return, as floats for the vectorised loop.
+// One ring over a run of columns: the raw distances and return types of a single-return run
+// gathered from the payload; per slot the distance in metres and 1/0 for a usable return, as
+// floats for the vectorised loops.
 struct RingEchoes {
-  std::array<float, DecodedPacket::kMaxColumns> distance[2];
-  std::array<float, DecodedPacket::kMaxColumns> ok[2];
-  std::array<float, DecodedPacket::kMaxColumns> ca, sa;  // of each point's azimuth
+  static constexpr size_t kN = DecodedPacket::kMaxColumns;
+  std::array<uint16_t, kN> raw[1];
+  std::array<ReturnType, kN> type[1];
+  std::array<float, kN> distance[2], ok[2];
+  std::array<float, kN> ca, sa;  // of each point's azimuth
 };
 
-// Distance, validity, intensity and return type of one echo; the bytes go straight to the sink.
-inline void take_echo(uint16_t raw, uint8_t inten, ReturnType type, double unit, double dist_off,
-                      float min_r, float max_r, float& d_out, float& ok_out, uint8_t& inten_out,
-                      ReturnType& type_out) {
+// One echo's distance, validity and return type (the same expressions as compute_firing()).
+inline void take_echo(uint16_t raw, ReturnType type, double unit, double dist_off, float min_r,
+                      float max_r, float& d_out, float& ok_out, ReturnType& type_out) {
   const auto d = static_cast<float>(raw * unit + dist_off);
   const bool ok = (raw != 0) & (d >= min_r) & (d <= max_r);
   d_out = d;
   ok_out = ok ? 1.0f : 0.0f;
-  inten_out = inten;
   type_out = static_cast<ReturnType>(static_cast<uint8_t>(type) * uint8_t{ok});
+}
+
+// Distances of a run of echoes in metres and 1/0 validity (the same expressions as
+// compute_firing()); the return type becomes kNone where there is no usable return.
+void echo_ranges(int n, const uint16_t* __restrict raw, const ReturnType* __restrict type_in,
+                 double unit, double dist_off, float min_r, float max_r, float* __restrict d_out,
+                 float* __restrict ok_out, ReturnType* __restrict type_out) {
+  for (int k = 0; k < n; ++k) {
+    const auto d = static_cast<float>(raw[k] * unit + dist_off);
+    const bool ok = (raw[k] != 0) & (d >= min_r) & (d <= max_r);
+    d_out[k] = d;
+    ok_out[k] = ok ? 1.0f : 0.0f;
+    type_out[k] = static_cast<ReturnType>(static_cast<uint8_t>(type_in[k]) * uint8_t{ok});
+  }
 }
 
 // The rotation shared by every echo of a ring's run of columns: (cos, sin) of each point's
@@ -472,31 +487,35 @@ void Decoder::write_points(const DecodedPacket& pk, int first, int count,
     const auto ch = static_cast<size_t>(l % lasers_per_firing) * 3;
     const double dist_off = t.dist_offset_m[ul];
     const size_t cell0 = static_cast<size_t>(ring) * sink.ring_stride;
-    uint8_t* __restrict in0 = sink.intensity + cell0;
-    ReturnType* __restrict ty0 = sink.return_type + cell0;
+    uint8_t* in0 = sink.intensity + cell0;
+    ReturnType* ty0 = sink.return_type + cell0;
     if (!dual) {
+      // Gather (scalar: 3-byte strided fields), then convert in a vectorised loop.
       for (int k = 0; k < count; ++k) {
         const auto uk = static_cast<size_t>(k);
         const uint8_t* c = p + pk.channel_offset[static_cast<size_t>(first + k)][0][bank] + ch;
-        take_echo(read_u16(c), c[2], single_type, unit, dist_off, min_r, max_r,
-                  echoes.distance[0][uk], echoes.ok[0][uk], in0[k], ty0[k]);
+        echoes.raw[0][uk] = read_u16(c);
+        in0[k] = c[2];
       }
+      std::fill_n(echoes.type[0].data(), count, single_type);
+      echo_ranges(count, echoes.raw[0].data(), echoes.type[0].data(), unit, dist_off, min_r, max_r,
+                  echoes.distance[0].data(), echoes.ok[0].data(), ty0);
     } else {
-      uint8_t* __restrict in1 = in0 + sink.return_stride;
-      ReturnType* __restrict ty1 = ty0 + sink.return_stride;
+      // A dual run has 12 columns at most, too short for vectors of bytes: one scalar pass.
+      uint8_t* in1 = in0 + sink.return_stride;
+      ReturnType* ty1 = ty0 + sink.return_stride;
       for (int k = 0; k < count; ++k) {
         const auto uk = static_cast<size_t>(k);
         const auto& off = pk.channel_offset[static_cast<size_t>(first + k)];
         const uint8_t* c0 = p + off[0][bank] + ch;
         const uint8_t* c1 = p + off[1][bank] + ch;
         uint16_t da = 0, db = 0;
-        uint8_t ia = 0, ib = 0;
         ReturnType ta{}, tb{};
-        sort_echoes(read_u16(c0), c0[2], read_u16(c1), c1[2], da, ia, ta, db, ib, tb);
-        take_echo(da, ia, ta, unit, dist_off, min_r, max_r, echoes.distance[0][uk],
-                  echoes.ok[0][uk], in0[k], ty0[k]);
-        take_echo(db, ib, tb, unit, dist_off, min_r, max_r, echoes.distance[1][uk],
-                  echoes.ok[1][uk], in1[k], ty1[k]);
+        sort_echoes(read_u16(c0), c0[2], read_u16(c1), c1[2], da, in0[k], ta, db, in1[k], tb);
+        take_echo(da, ta, unit, dist_off, min_r, max_r, echoes.distance[0][uk], echoes.ok[0][uk],
+                  ty0[k]);
+        take_echo(db, tb, unit, dist_off, min_r, max_r, echoes.distance[1][uk], echoes.ok[1][uk],
+                  ty1[k]);
       }
     }
     const LaserConstants lc{
