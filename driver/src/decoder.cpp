@@ -140,7 +140,7 @@ struct LaserConstants {
 // gathered from the payload; per slot the distance in metres and 1/0 for a usable return, as
 // floats for the vectorised loops.
 struct RingEchoes {
-  static constexpr size_t kN = DecodedPacket::kMaxColumns;
+  static constexpr size_t kN = PacketColumns::kMaxColumns;
   std::array<uint16_t, kN> raw[1];
   std::array<ReturnType, kN> type[1];
   std::array<float, kN> distance[2], ok[2];
@@ -175,7 +175,7 @@ void echo_ranges(int n, const uint16_t* __restrict raw, const ReturnType* __rest
 // azimuth, the azimuth and the time, written once per column. Restrict-qualified parameters:
 // GCC drops the restrict of local pointers when it inlines, and then gives up on vectorising
 // for the number of run-time alias checks.
-void ring_rotation(const DecodedPacket& pk, int first, int n, const LaserConstants& lc, float t_off,
+void ring_rotation(const PacketColumns& pk, int first, int n, const LaserConstants& lc, float t_off,
                    float t_scale, float* __restrict ca_out, float* __restrict sa_out,
                    float* __restrict az_out, float* __restrict time_out) {
   const float* cos_az = pk.cos_az.data() + first;
@@ -297,12 +297,11 @@ DecodeStatus Decoder::decode(std::span<const uint8_t> payload, const SensorClock
                        0.0f,
                        1.0f};
   write_points(out, 0, out.columns, sink);
-  out.has_points = true;
   return DecodeStatus::kOk;
 }
 
 DecodeStatus Decoder::parse(std::span<const uint8_t> payload, const SensorClock& clock,
-                            int64_t receive_time_ns, DecodedPacket& out) {
+                            int64_t receive_time_ns, PacketColumns& out) {
   if (payload.size() != kDataPacketSize) return DecodeStatus::kWrongSize;
   const uint8_t* p = payload.data();
   ReturnMode mode = ReturnMode::kStrongest;  // 0x00: firmware without the byte
@@ -389,7 +388,6 @@ DecodeStatus Decoder::parse(std::span<const uint8_t> payload, const SensorClock&
   out.mode = mode;
   out.usec_since_hour = usec;
   out.stamp_ns = clock.join(usec, receive_time_ns);
-  out.has_points = false;
   out.decoder = this;
   out.payload = p;
 
@@ -427,7 +425,7 @@ DecodeStatus Decoder::parse(std::span<const uint8_t> payload, const SensorClock&
   return DecodeStatus::kOk;
 }
 
-void Decoder::write_points(const DecodedPacket& pk, int first, int count,
+void Decoder::write_points(const PacketColumns& pk, int first, int count,
                            const PointSink& sink) const {
   if (count <= 0) return;
   const ModelSpec& spec = *spec_;

@@ -26,13 +26,12 @@ std::string_view decode_status_name(DecodeStatus s);
 
 class Decoder;
 
-// One data packet. Decoder::parse() fills the header part (columns, their azimuths and times, and
-// what write_points() needs to decode them later); Decoder::decode() also fills the points. Cells
-// are indexed [ret][ring][col] (ring-major like Scan); ring 0 is the lowest beam.
-struct DecodedPacket {
+// What Decoder::parse() reads of a data packet: its header, its columns' azimuths and times, and
+// what write_points() needs to decode the points of any run of its columns later, from `payload`
+// (which must then still be valid: a copy of this struct may point it at a copy of the bytes).
+struct PacketColumns {
   static constexpr int kMaxColumns = 24;
   static constexpr int kMaxRings = 128;
-  static constexpr int kMaxCells = 2 * 384;  // returns x columns x rings, all models
 
   int columns = 0;
   int rings = 0;
@@ -44,16 +43,19 @@ struct DecodedPacket {
   std::array<float, kMaxColumns> column_azimuth_deg{};  // firing azimuth, [0, 360)
   std::array<double, kMaxColumns> column_time_us{};     // from the packet's first firing
 
-  // True once the points below are filled (decode()); after parse() alone the points are written
-  // straight into a scan by `decoder->write_points()`, from `payload`, which must still be valid.
-  bool has_points = false;
-  const Decoder* decoder = nullptr;
-  const uint8_t* payload = nullptr;
+  const Decoder* decoder = nullptr;  // the one that parsed it (owns the calibration)
+  const uint8_t* payload = nullptr;  // kDataPacketSize bytes
   // Per column, what every point of the column shares: the firing azimuth's cos/sin, the spin
   // rate (deg and rad per us), the firing time (us, float) and, per echo and bank, the payload
   // offset of the column's channel 0.
   std::array<float, kMaxColumns> cos_az{}, sin_az{}, rate_deg{}, rate_rad{}, time0_us{};
   std::array<std::array<std::array<uint16_t, 4>, 2>, kMaxColumns> channel_offset{};
+};
+
+// A data packet with its points (Decoder::decode()). Cells are indexed [ret][ring][col]
+// (ring-major like Scan); ring 0 is the lowest beam.
+struct DecodedPacket : PacketColumns {
+  static constexpr int kMaxCells = 2 * 384;  // returns x columns x rings, all models
 
   std::array<float, kMaxCells> x{}, y{}, z{}, range{}, azimuth_deg{}, time_us{};
   std::array<uint8_t, kMaxCells> intensity{};
@@ -111,9 +113,9 @@ class Decoder {
   // batcher then has write_points() put each column straight where it belongs in the scan. On an
   // error `out` is left untouched. `payload` must outlive the use of `out`.
   [[nodiscard]] DecodeStatus parse(std::span<const uint8_t> payload, const SensorClock& clock,
-                                   int64_t receive_time_ns, DecodedPacket& out);
+                                   int64_t receive_time_ns, PacketColumns& out);
   // The points of `count` columns from `first` of a parsed packet into `sink`. Never allocates.
-  void write_points(const DecodedPacket& packet, int first, int count, const PointSink& sink) const;
+  void write_points(const PacketColumns& packet, int first, int count, const PointSink& sink) const;
 
   const Calibration& calibration() const { return calibration_; }
   const ModelSpec& spec() const { return *spec_; }
