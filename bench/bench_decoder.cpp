@@ -3,12 +3,12 @@
 //   build/bin/bench_decoder --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 #include <benchmark/benchmark.h>
 
+#include <array>
 #include <deque>
 #include <memory>
 
 #include "../test/driver/synthetic_stream.hpp"
 #include "lidartag/driver/scan_batcher.hpp"
-#include "lidartag/driver/scan_buffer.hpp"
 
 namespace lidartag::velodyne {
 namespace {
@@ -49,15 +49,16 @@ void BM_Decode(benchmark::State& state, Model m, ReturnMode mode) {
   report(state, f, packets, points);
 }
 
-// Decode + cut into rotations + hand over through the lock-free buffer, as the daemon does.
+// Decode + cut into rotations, straight into the caller's scans (two, alternating), as the daemon
+// fills the slots of its scan buffer.
 void BM_DecodeAndAssemble(benchmark::State& state, Model m, ReturnMode mode) {
   Fixture f(m, mode);
   Decoder decoder(Calibration::builtin(m));
   SensorClock clock;
   DecodedPacket out;
-  ScanBuffer buffer(4, 1, f.spec.lasers, mode == ReturnMode::kDual ? 2 : 1,
-                    ScanBatcher::column_capacity(f.spec));
-  ScanBatcher batcher(f.spec, mode, {}, buffer);
+  ScanBatcher batcher(f.spec, mode, {});
+  std::array<Scan, 2> scans;
+  size_t current = 0;
   size_t packets = 0, points = 0;
   int64_t shift = 0;
   const int64_t span = f.packets.back().time_ns - f.packets.front().time_ns +
@@ -66,9 +67,8 @@ void BM_DecodeAndAssemble(benchmark::State& state, Model m, ReturnMode mode) {
     for (const auto& p : f.packets) {
       (void)decoder.decode(p.bytes, clock, p.time_ns + shift, out);
       out.stamp_ns = p.time_ns + shift;  // keep time running across iterations
-      batcher.add(out);
+      if (batcher.add(out, scans[current])) current = 1 - current;
       points += static_cast<size_t>(out.columns * out.rings * out.returns);
-      if (Scan* s = buffer.pop()) buffer.release(s);
     }
     shift += span;
     packets += f.packets.size();

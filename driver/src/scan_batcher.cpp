@@ -50,9 +50,10 @@ void copy_cells(const DecodedPacket& pk, size_t src, Scan& s, size_t dst, int n,
 
 }  // namespace
 
-ScanBatcher::ScanBatcher(const ModelSpec& spec, ReturnMode mode, BatcherOptions options,
-                         ScanSink& sink)
-    : spec_(spec), mode_(mode), options_(options), sink_(sink) {}
+ScanBatcher::ScanBatcher(const ModelSpec& spec, ReturnMode mode, BatcherOptions options)
+    : spec_(spec), mode_(mode), options_(options), stash_(std::make_unique<DecodedPacket>()) {}
+
+ScanBatcher::~ScanBatcher() = default;
 
 int ScanBatcher::column_capacity(const ModelSpec& spec) {
   // One rotation at 300 rpm lasts 200 ms; 10 % margin for clock drift and jitter.
@@ -66,78 +67,121 @@ bool ScanBatcher::crossed_cut(double from_deg, double to_deg) const {
   return to_cut > 0 && to_cut <= step;
 }
 
-void ScanBatcher::begin(double /*column_azimuth*/) {
-  scan_ = sink_.acquire();
-  if (scan_ == nullptr) return;
-  scan_->clear();
-  scan_->sequence = sequence_++;
-  scan_->model = static_cast<uint8_t>(spec_.model);
-  scan_->return_mode = static_cast<uint8_t>(mode_);
-  scan_->starts_at_cut = next_starts_at_cut_;
+void ScanBatcher::begin(Scan& scan, int64_t stamp_ns) {
+  const int returns = mode_ == ReturnMode::kDual ? 2 : 1;
+  // A fresh scan, or one last filled in another return mode: sized here, once.
+  if (scan.rings != spec_.lasers || scan.returns != returns || scan.column_capacity <= 0) {
+    scan.reserve(spec_.lasers, returns, column_capacity(spec_));
+  }
+  scan.clear();
+  scan.sequence = sequence_++;
+  scan.model = static_cast<uint8_t>(spec_.model);
+  scan.return_mode = static_cast<uint8_t>(mode_);
+  scan.starts_at_cut = next_starts_at_cut_;
+  scan.stamp_ns = stamp_ns;
   rate_steps_deg_ = 0;
   rate_time_us_ = 0;
+  open_ = true;
 }
 
-void ScanBatcher::finish(bool ends_at_cut) {
-  copy_run();
+void ScanBatcher::finish(Scan& scan, bool ends_at_cut) {
+  copy_run(scan);
   next_starts_at_cut_ = ends_at_cut;
-  if (scan_ == nullptr) return;
-  Scan* s = scan_;
-  scan_ = nullptr;
-  s->ends_at_cut = ends_at_cut;
-  s->complete = s->starts_at_cut && s->ends_at_cut && s->missing_packets == 0 && !overflowed_;
-  if (rate_time_us_ > 0) s->rpm = static_cast<float>(rate_steps_deg_ / rate_time_us_ * 1e6 / 6.0);
+  if (!open_) return;
+  open_ = false;
+  scan.ends_at_cut = ends_at_cut;
+  scan.complete =
+      scan.starts_at_cut && scan.ends_at_cut && scan.missing_packets == 0 && !overflowed_;
+  if (rate_time_us_ > 0) {
+    scan.rpm = static_cast<float>(rate_steps_deg_ / rate_time_us_ * 1e6 / 6.0);
+  }
   overflowed_ = false;
   ++stats_.rotations;
-  ++(s->complete ? stats_.complete : stats_.incomplete);
-  sink_.publish(s);
+  ++(scan.complete ? stats_.complete : stats_.incomplete);
 }
 
-void ScanBatcher::flush() {
-  if (scan_ != nullptr) finish(false);
+void ScanBatcher::keep(const DecodedPacket& pk, int column, uint32_t missing, bool evaluated) {
+  // Once per rotation: the copy of one packet is small next to a rotation.
+  if (&pk != stash_.get()) *stash_ = pk;
+  pending_ = true;
+  pending_column_ = column;
+  pending_missing_ = missing;
+  pending_evaluated_ = evaluated;
+}
+
+void ScanBatcher::take_pending(Scan& scan) {
+  if (!pending_) return;
+  pending_ = false;
+  // The rest of a packet that already ended a rotation: it cannot end another (see run()).
+  (void)run(*stash_, pending_column_, scan, false);
+}
+
+bool ScanBatcher::flush(Scan& scan) {
+  take_pending(scan);
+  const bool delivered = open_;
+  finish(scan, false);
   next_starts_at_cut_ = false;
   have_last_ = false;
+  return delivered;
 }
 
-void ScanBatcher::poll(int64_t now_ns) {
-  if (scan_ != nullptr &&
-      static_cast<double>(now_ns - last_packet_stamp_ns_) > options_.flush_timeout_s * 1e9)
-    flush();
+bool ScanBatcher::poll(int64_t now_ns, Scan& scan) {
+  if (in_progress() &&
+      static_cast<double>(now_ns - last_packet_stamp_ns_) > options_.flush_timeout_s * 1e9) {
+    return flush(scan);
+  }
+  return false;
 }
 
-void ScanBatcher::add(const DecodedPacket& pk) {
+bool ScanBatcher::add(const DecodedPacket& pk, Scan& scan) {
+  take_pending(scan);
   if (pk.mode != mode_) {
-    // Another return mode changes the layout of the scan: close the rotation in progress.
-    flush();
+    // Another return mode changes the layout of the scan: close the rotation in progress, and
+    // start the next one with this packet, in a scan of the new layout.
+    const bool delivered = open_;
+    finish(scan, false);
+    next_starts_at_cut_ = false;
+    have_last_ = false;
     mode_ = pk.mode;
     ++stats_.mode_changes;
+    if (delivered) {
+      last_packet_stamp_ns_ = pk.stamp_ns;
+      keep(pk, 0, 0, true);
+      return true;
+    }
   }
   if (have_last_ && pk.stamp_ns <= last_column_stamp_ns_ &&
       static_cast<double>(last_column_stamp_ns_ - pk.stamp_ns) < kMaxGapUs * 1e3) {
     // A duplicate, or a packet overtaken by a later one (whose gap was already counted).
     ++stats_.late_packets;
-    return;
+    return false;
   }
   last_packet_stamp_ns_ = pk.stamp_ns;
+  return run(pk, 0, scan, true);
+}
+
+bool ScanBatcher::run(const DecodedPacket& pk, int first, Scan& scan, bool may_end) {
   packet_ = &pk;
   const double fp = spec_.firing_period_us;
   const int per_packet = spec_.columns_per_packet(pk.mode);
-  for (int c = 0; c < pk.columns; ++c) {
+  for (int c = first; c < pk.columns; ++c) {
     const auto uc = static_cast<size_t>(c);
     const double az = pk.column_azimuth_deg[uc];
     const int64_t stamp =
         pk.stamp_ns + static_cast<int64_t>(std::llround(pk.column_time_us[uc] * 1e3));
     uint32_t missing = 0;
-    bool cut = false;
-    if (have_last_) {
+    bool cut = false, jump = false;
+    if (c == first && pending_evaluated_) {
+      // The column that ended the previous rotation: compared with its predecessor already.
+      pending_evaluated_ = false;
+      missing = pending_missing_;
+    } else if (have_last_) {
       const double dt = static_cast<double>(stamp - last_column_stamp_ns_) * 1e-3;  // us
       const double step = wrap360(az - last_column_azimuth_);
       if (dt <= 0 || dt > kMaxGapUs) {
         // Discontinuity: restart, clock reset or replay loop.
         ++stats_.azimuth_jumps;
-        if (scan_ != nullptr) ++scan_->azimuth_jumps;
-        finish(false);
-        dropping_ = false;
+        jump = true;
       } else {
         const double rate = last_rate_deg_per_us_;
         const double normal_step = rate * fp;
@@ -162,51 +206,53 @@ void ScanBatcher::add(const DecodedPacket& pk) {
         cut = crossed_cut(last_column_azimuth_, az);
       }
     }
-    if (cut) {
-      // A loss that straddles the cut leaves both rotations short.
-      if (scan_ != nullptr) scan_->missing_packets += missing;
-      finish(true);
-      dropping_ = false;
-    }
-    if (scan_ == nullptr && !dropping_) {
-      begin(az);
-      if (scan_ == nullptr) {
-        dropping_ = true;  // no free scan: the columns up to the next cut are lost
-        ++stats_.dropped_no_buffer;
-      } else {
-        scan_->stamp_ns = stamp;
+    if (jump || cut) {
+      if (!open_) {
+        if (cut) next_starts_at_cut_ = true;
+      } else if (may_end) {
+        if (jump) {
+          ++scan.azimuth_jumps;
+        } else {
+          // A loss that straddles the cut leaves both rotations short.
+          scan.missing_packets += missing;
+        }
+        finish(scan, cut);
+        keep(pk, c, missing, true);
+        packet_ = nullptr;
+        return true;
       }
+      // Otherwise a second end inside one packet (azimuths that cross the cut twice, or a cut in
+      // the packet that followed a discontinuity): physically a rotation shorter than a packet.
+      // The columns stay in the rotation in progress, which did not start at the cut anyway.
     }
-    if (scan_ == nullptr) {
-      have_last_ = true;
-      last_column_azimuth_ = az;
-      last_column_stamp_ns_ = stamp;
+    if (!open_) begin(scan, stamp);
+    if (scan.columns >= scan.column_capacity) {
+      if (may_end) {
+        scan.missing_packets += missing;
+        overflowed_ = true;
+        ++stats_.overflows;
+        finish(scan, false);
+        keep(pk, c, 0, true);
+        packet_ = nullptr;
+        return true;
+      }
+      // Only with a scan smaller than one packet: the column is lost, counted.
+      copy_run(scan);
+      ++stats_.overflows;
       continue;
     }
-    scan_->missing_packets += missing;
-    if (scan_->columns >= scan_->column_capacity) {
-      overflowed_ = true;
-      ++stats_.overflows;
-      finish(false);
-      begin(az);
-      if (scan_ == nullptr) {
-        dropping_ = true;
-        ++stats_.dropped_no_buffer;
-        continue;
-      }
-      scan_->stamp_ns = stamp;
-    }
-    add_column(pk, c, stamp);
+    scan.missing_packets += missing;
+    add_column(pk, c, stamp, scan);
     have_last_ = true;
     last_column_azimuth_ = az;
     last_column_stamp_ns_ = stamp;
   }
-  copy_run();
+  copy_run(scan);
   packet_ = nullptr;
+  return false;
 }
 
-void ScanBatcher::add_column(const DecodedPacket& pk, int c, int64_t stamp) {
-  Scan& s = *scan_;
+void ScanBatcher::add_column(const DecodedPacket& pk, int c, int64_t stamp, Scan& s) {
   const int col = s.columns++;
   const auto ucol = static_cast<size_t>(col);
   const double t0 = static_cast<double>(stamp - s.stamp_ns) * 1e-9;  // column start from scan start
@@ -227,13 +273,12 @@ void ScanBatcher::add_column(const DecodedPacket& pk, int c, int64_t stamp) {
   ++run_columns_;
 }
 
-void ScanBatcher::copy_run() {
-  if (run_columns_ == 0 || scan_ == nullptr || packet_ == nullptr) {
+void ScanBatcher::copy_run(Scan& s) {
+  if (run_columns_ == 0 || !open_ || packet_ == nullptr) {
     run_columns_ = 0;
     return;
   }
   const DecodedPacket& pk = *packet_;
-  Scan& s = *scan_;
   const int n = run_columns_;
   run_columns_ = 0;
   const int rings = std::min(s.rings, pk.rings);

@@ -11,48 +11,45 @@
 namespace lidartag::velodyne {
 namespace {
 
-// Collects every rotation; can be told to have no free scan.
-class CollectingSink : public ScanSink {
- public:
-  CollectingSink(int rings, int returns, int capacity)
-      : rings_(rings), returns_(returns), capacity_(capacity) {}
-  Scan* acquire() override {
-    if (refuse) return nullptr;
-    pool_.push_back(std::make_unique<Scan>());
-    pool_.back()->reserve(rings_, returns_, capacity_);
-    return pool_.back().get();
-  }
-  void publish(Scan* s) override { scans.push_back(s); }
-  std::vector<Scan*> scans;
-  bool refuse = false;
-
- private:
-  int rings_, returns_, capacity_;
-  std::deque<std::unique_ptr<Scan>> pool_;
-};
-
+// Feeds the batcher a fresh scan after every finished rotation and keeps them all; scans of
+// `capacity` columns (0: sized by the batcher on first use).
 struct Rig {
   const ModelSpec& spec;
   ReturnMode mode;
   Decoder decoder;
   SensorClock clock;
-  CollectingSink sink;
   ScanBatcher batcher;
   DecodedPacket pk;
-  Rig(Model m, ReturnMode md, BatcherOptions o = {}, int capacity = 0)
+  int capacity;
+  std::deque<std::unique_ptr<Scan>> all;  // the scan in progress is the last one
+  std::vector<Scan*> scans;               // finished rotations, in order
+  Rig(Model m, ReturnMode md, BatcherOptions o = {}, int capacity_columns = 0)
       : spec(model_spec(m)),
         mode(md),
         decoder(Calibration::builtin(m)),
-        sink(spec.lasers, md == ReturnMode::kDual ? 2 : 1,
-             capacity > 0 ? capacity : ScanBatcher::column_capacity(spec)),
-        batcher(spec, md, o, sink) {}
+        batcher(spec, md, o),
+        capacity(capacity_columns) {
+    fresh();
+  }
+  void fresh() {
+    all.push_back(std::make_unique<Scan>());
+    if (capacity > 0) all.back()->reserve(spec.lasers, mode == ReturnMode::kDual ? 2 : 1, capacity);
+  }
+  Scan& current() { return *all.back(); }
+  void keep(bool finished) {
+    if (!finished) return;
+    scans.push_back(&current());
+    fresh();
+  }
   void feed(const testing::StreamPacket& p) {
     ASSERT_EQ(decoder.decode(p.bytes, clock, p.time_ns, pk), DecodeStatus::kOk);
-    batcher.add(pk);
+    keep(batcher.add(pk, current()));
   }
   void feed_all(const std::vector<testing::StreamPacket>& v) {
     for (const auto& p : v) feed(p);
   }
+  void flush() { keep(batcher.flush(current())); }
+  void poll(int64_t now_ns) { keep(batcher.poll(now_ns, current())); }
 };
 
 double ahead_of_cut(double az, double cut) {
@@ -69,8 +66,8 @@ TEST(ScanBatcher, CutsWholeRotationsAtTheAzimuthInsideAPacket) {
     const auto stream =
         testing::make_stream(rig.spec, ReturnMode::kStrongest, per_rotation_packets * 3 + 5);
     rig.feed_all(stream);
-    rig.batcher.flush();
-    const auto& scans = rig.sink.scans;
+    rig.flush();
+    const auto& scans = rig.scans;
     ASSERT_EQ(scans.size(), 4u) << rig.spec.name;  // partial, 2 whole, partial
     EXPECT_FALSE(scans[0]->complete);
     EXPECT_FALSE(scans[0]->starts_at_cut);
@@ -115,8 +112,8 @@ TEST(ScanBatcher, CutsWholeRotationsAtTheAzimuthInsideAPacket) {
 TEST(ScanBatcher, PerPointTimeAndAzimuthAreMonotonicPerRing) {
   Rig rig(Model::kVLP32C, ReturnMode::kStrongest);
   rig.feed_all(testing::make_stream(rig.spec, ReturnMode::kStrongest, 400));
-  ASSERT_GE(rig.sink.scans.size(), 2u);
-  const Scan& s = *rig.sink.scans[1];
+  ASSERT_GE(rig.scans.size(), 2u);
+  const Scan& s = *rig.scans[1];
   ASSERT_TRUE(s.complete);
   for (int ring = 0; ring < s.rings; ++ring) {
     double prev_t = -1, prev_az = -1, ref = -1;
@@ -140,11 +137,11 @@ TEST(ScanBatcher, LostPacketsAreCountedAndMarkTheRotationIncomplete) {
   // Rotation 1 spans packets 36..111 (start azimuth 10, cut 180, 75.4 packets a turn).
   stream.erase(stream.begin() + 100, stream.begin() + 103);
   rig.feed_all(stream);
-  rig.batcher.flush();
-  ASSERT_GE(rig.sink.scans.size(), 3u);
-  EXPECT_EQ(rig.sink.scans[1]->missing_packets, 3u);
-  EXPECT_FALSE(rig.sink.scans[1]->complete);
-  EXPECT_TRUE(rig.sink.scans[2]->complete);
+  rig.flush();
+  ASSERT_GE(rig.scans.size(), 3u);
+  EXPECT_EQ(rig.scans[1]->missing_packets, 3u);
+  EXPECT_FALSE(rig.scans[1]->complete);
+  EXPECT_TRUE(rig.scans[2]->complete);
   EXPECT_EQ(rig.batcher.stats().missing_packets, 3u);
 }
 
@@ -154,11 +151,11 @@ TEST(ScanBatcher, DuplicatesAndLatePacketsAreDroppedAndCounted) {
   stream.insert(stream.begin() + 200, stream[199]);  // duplicate
   std::swap(stream[300], stream[301]);               // reordered pair
   rig.feed_all(stream);
-  rig.batcher.flush();
+  rig.flush();
   EXPECT_EQ(rig.batcher.stats().late_packets, 2u);  // the duplicate and the overtaken packet
   EXPECT_EQ(rig.batcher.stats().missing_packets, 1u);
   size_t complete = 0;
-  for (const Scan* s : rig.sink.scans) complete += s->complete ? 1u : 0u;
+  for (const Scan* s : rig.scans) complete += s->complete ? 1u : 0u;
   // 500 packets of 552.96 us = 2.76 rotations; the duplicate costs nothing, the reorder one.
   EXPECT_EQ(rig.batcher.stats().rotations, 4u);
   EXPECT_EQ(complete, 1u);
@@ -188,7 +185,7 @@ TEST(ScanBatcher, RestrictedFieldOfViewGivesCompleteRotations) {
       fov.push_back(q);
     }
     rig.feed_all(fov);
-    rig.batcher.flush();
+    rig.flush();
     EXPECT_EQ(rig.batcher.stats().missing_packets, 0u) << "cut " << cut;
     EXPECT_GE(rig.batcher.stats().fov_gaps, 3u);
     EXPECT_GE(rig.batcher.stats().complete, 3u) << "cut " << cut;
@@ -204,9 +201,9 @@ TEST(ScanBatcher, SensorRestartEndsTheRotationIncomplete) {
   auto b = testing::make_stream(rig.spec, ReturnMode::kStrongest, 120, later);
   rig.feed_all(a);
   rig.feed_all(b);
-  rig.batcher.flush();
+  rig.flush();
   EXPECT_EQ(rig.batcher.stats().azimuth_jumps, 1u);
-  for (const Scan* s : rig.sink.scans) EXPECT_FALSE(s->complete && s->azimuth_jumps > 0);
+  for (const Scan* s : rig.scans) EXPECT_FALSE(s->complete && s->azimuth_jumps > 0);
 }
 
 TEST(ScanBatcher, StreamThatStopsIsFlushedAfterTheTimeout) {
@@ -215,11 +212,11 @@ TEST(ScanBatcher, StreamThatStopsIsFlushedAfterTheTimeout) {
   Rig rig(Model::kVLP16, ReturnMode::kStrongest, o);
   const auto stream = testing::make_stream(rig.spec, ReturnMode::kStrongest, 30);
   rig.feed_all(stream);
-  rig.batcher.poll(stream.back().time_ns + 100'000'000);
-  EXPECT_TRUE(rig.sink.scans.empty());
-  rig.batcher.poll(stream.back().time_ns + 300'000'000);
-  ASSERT_EQ(rig.sink.scans.size(), 1u);
-  EXPECT_FALSE(rig.sink.scans[0]->ends_at_cut);
+  rig.poll(stream.back().time_ns + 100'000'000);
+  EXPECT_TRUE(rig.scans.empty());
+  rig.poll(stream.back().time_ns + 300'000'000);
+  ASSERT_EQ(rig.scans.size(), 1u);
+  EXPECT_FALSE(rig.scans[0]->ends_at_cut);
 }
 
 TEST(ScanBatcher, RpmChangeChangesColumnsPerRotation) {
@@ -236,7 +233,7 @@ TEST(ScanBatcher, RpmChangeChangesColumnsPerRotation) {
   rig.feed_all(a);
   rig.feed_all(b);
   std::vector<const Scan*> complete;
-  for (const Scan* s : rig.sink.scans)
+  for (const Scan* s : rig.scans)
     if (s->complete) complete.push_back(s);
   ASSERT_GE(complete.size(), 3u);
   EXPECT_NEAR(complete.front()->rpm, 300, 2);
@@ -248,8 +245,8 @@ TEST(ScanBatcher, RpmChangeChangesColumnsPerRotation) {
 TEST(ScanBatcher, DualReturnScansCarryBothEchoes) {
   Rig rig(Model::kVLP16, ReturnMode::kDual);
   rig.feed_all(testing::make_stream(rig.spec, ReturnMode::kDual, 400));
-  ASSERT_GE(rig.sink.scans.size(), 2u);
-  const Scan& s = *rig.sink.scans[1];
+  ASSERT_GE(rig.scans.size(), 2u);
+  const Scan& s = *rig.scans[1];
   EXPECT_TRUE(s.complete);
   EXPECT_EQ(s.returns, 2);
   size_t second = 0;
@@ -262,15 +259,91 @@ TEST(ScanBatcher, ScanThatFillsUpIsCutAndCounted) {
   Rig rig(Model::kVLP16, ReturnMode::kStrongest, {}, 500);
   rig.feed_all(testing::make_stream(rig.spec, ReturnMode::kStrongest, 100));
   EXPECT_GE(rig.batcher.stats().overflows, 1u);
-  for (const Scan* s : rig.sink.scans) EXPECT_LE(s->columns, 500);
+  for (const Scan* s : rig.scans) EXPECT_LE(s->columns, 500);
 }
 
-TEST(ScanBatcher, NoFreeScanDropsTheRotationWithoutBlocking) {
+TEST(ScanBatcher, AssemblesIntoTheCallersScanAndSizesItOnFirstUse) {
+  // The scan the caller passes is the rotation: no pool, no copy. An empty scan is reserved for
+  // the model; the columns after a cut wait in the batcher and open the next scan passed in.
+  const ModelSpec& spec = model_spec(Model::kVLP32C);
+  Decoder decoder(Calibration::builtin(Model::kVLP32C));
+  SensorClock clock;
+  ScanBatcher batcher(spec, ReturnMode::kStrongest, {});
+  DecodedPacket pk;
+  Scan a, b;
+  const auto stream = testing::make_stream(spec, ReturnMode::kStrongest, 400);
+  std::vector<int> ends;  // packet index of each finished rotation
+  Scan* current = &a;
+  for (size_t i = 0; i < stream.size(); ++i) {
+    ASSERT_EQ(decoder.decode(stream[i].bytes, clock, stream[i].time_ns, pk), DecodeStatus::kOk);
+    if (batcher.add(pk, *current)) {
+      ends.push_back(static_cast<int>(i));
+      EXPECT_EQ(current->rings, spec.lasers);
+      EXPECT_EQ(current->column_capacity, ScanBatcher::column_capacity(spec));
+      if (ends.size() >= 2) {
+        EXPECT_TRUE(current->complete);
+        // The other scan's last column and this one's first are consecutive firings.
+        EXPECT_TRUE(batcher.in_progress());
+      }
+      current = current == &a ? &b : &a;
+    }
+  }
+  ASSERT_GE(ends.size(), 3u);
+  // 400 packets of 663.552 us at 600 rpm: the cut at 180 deg every 150.7 packets.
+  EXPECT_NEAR(ends[2] - ends[1], 151, 1);
+  EXPECT_TRUE(batcher.flush(*current));
+  EXPECT_FALSE(current->ends_at_cut);
+  EXPECT_FALSE(batcher.in_progress());
+  EXPECT_FALSE(batcher.flush(*current));  // nothing left
+}
+
+TEST(ScanBatcher, ReturnModeChangeEndsTheRotationAndResizesTheNextScan) {
   Rig rig(Model::kVLP16, ReturnMode::kStrongest);
-  rig.sink.refuse = true;
-  rig.feed_all(testing::make_stream(rig.spec, ReturnMode::kStrongest, 200));
-  EXPECT_TRUE(rig.sink.scans.empty());
-  EXPECT_EQ(rig.batcher.stats().dropped_no_buffer, 4u);  // partial, two whole, partial
+  const auto single = testing::make_stream(rig.spec, ReturnMode::kStrongest, 100);
+  rig.feed_all(single);
+  testing::StreamOptions later;
+  later.start_ns = single.back().time_ns + 1'000'000;
+  rig.feed_all(testing::make_stream(rig.spec, ReturnMode::kDual, 300, later));
+  rig.flush();
+  EXPECT_EQ(rig.batcher.stats().mode_changes, 1u);
+  // Single: 10 -> 180 deg, 180 -> 128 deg (ended by the change); dual: 10 -> 180, a whole turn,
+  // the flushed rest.
+  ASSERT_EQ(rig.scans.size(), 5u);
+  EXPECT_EQ(rig.scans[1]->returns, 1);
+  EXPECT_FALSE(rig.scans[1]->ends_at_cut);
+  EXPECT_EQ(rig.scans[2]->returns, 2);
+  EXPECT_EQ(rig.scans[2]->return_mode, static_cast<uint8_t>(ReturnMode::kDual));
+  EXPECT_FALSE(rig.scans[2]->starts_at_cut);
+  EXPECT_TRUE(rig.scans[3]->complete);
+  EXPECT_EQ(rig.scans[3]->returns, 2);
+}
+
+TEST(ScanBatcher, APacketEndsAtMostOneRotation) {
+  // Block azimuths that cross the cut several times inside one packet (garbage, or a spoofed
+  // packet) cannot deliver rotations shorter than a packet.
+  Rig rig(Model::kVLP32C, ReturnMode::kStrongest);
+  auto stream = testing::make_stream(rig.spec, ReturnMode::kStrongest, 200);
+  auto& bad = stream[60].bytes;
+  for (size_t b = 0; b < kBlocks; ++b) {
+    write_u16(bad.data() + b * kBlockSize + 2, static_cast<uint16_t>(b % 2 == 0 ? 17900 : 18100));
+  }
+  rig.feed_all(stream);
+  rig.flush();
+  size_t short_ones = 0;
+  for (const Scan* s : rig.scans) short_ones += s->columns < 12 ? 1u : 0u;
+  EXPECT_EQ(short_ones, 0u);
+  EXPECT_LE(rig.batcher.stats().rotations, 4u);
+}
+
+TEST(ScanBatcher, ScanThatFillsUpLosesNothingElse) {
+  // The columns after an overflow go on into the next scan: every column is delivered once.
+  Rig rig(Model::kVLP16, ReturnMode::kStrongest, {}, 500);
+  const auto stream = testing::make_stream(rig.spec, ReturnMode::kStrongest, 100);
+  rig.feed_all(stream);
+  rig.flush();
+  int columns = 0;
+  for (const Scan* s : rig.scans) columns += s->columns;
+  EXPECT_EQ(columns, 100 * rig.spec.columns_per_packet(ReturnMode::kStrongest));
 }
 
 }  // namespace

@@ -13,42 +13,6 @@ namespace {
 constexpr size_t kMinHeld = 1024;
 }  // namespace
 
-// A fixed set of scans: the batcher fills one at a time and publishes it into a queue that
-// next() drains. Scans are sized for the current return mode when handed to the batcher.
-class CaptureReader::Pool final : public ScanSink {
- public:
-  Pool(size_t size, int rings, int columns) : rings_(rings), columns_(columns) {
-    for (size_t i = 0; i < size; ++i) {
-      scans_.push_back(std::make_unique<Scan>());
-      free_.push_back(scans_.back().get());
-    }
-  }
-  void set_returns(int returns) { returns_ = returns; }
-  Scan* acquire() override {
-    if (free_.empty()) return nullptr;
-    Scan* s = free_.back();
-    free_.pop_back();
-    if (s->rings != rings_ || s->returns != returns_ || s->column_capacity != columns_) {
-      s->reserve(rings_, returns_, columns_);  // first use, or the return mode changed
-    }
-    return s;
-  }
-  void publish(Scan* scan) override { ready_.push_back(scan); }
-  void release(Scan* scan) { free_.push_back(scan); }
-  Scan* pop() {
-    if (ready_.empty()) return nullptr;
-    Scan* s = ready_.front();
-    ready_.pop_front();
-    return s;
-  }
-
- private:
-  std::vector<std::unique_ptr<Scan>> scans_;
-  std::vector<Scan*> free_;
-  std::deque<Scan*> ready_;
-  int rings_, columns_, returns_ = 1;
-};
-
 CaptureReader::CaptureReader(const std::string& path, CaptureReaderOptions options)
     : CaptureReader(std::make_unique<PcapSource>(path, options.source), options) {}
 
@@ -56,7 +20,6 @@ CaptureReader::CaptureReader(std::unique_ptr<PacketSource> source, CaptureReader
     : source_(std::move(source)),
       options_(std::move(options)),
       packet_(std::make_unique<DecodedPacket>()) {
-  if (options_.scan_pool < 2) options_.scan_pool = 2;
   if (options_.model) decide();  // loads the calibration now: errors surface at setup
 }
 
@@ -80,31 +43,26 @@ void CaptureReader::decide() {
                                   ? Calibration::builtin(*model_)
                                   : load_calibration_file(options_.calibration_file, *model_);
     decoder_ = std::make_unique<Decoder>(std::move(calibration), options_.decoder);
-    const ModelSpec& spec = model_spec(*model_);
-    pool_ =
-        std::make_unique<Pool>(options_.scan_pool, spec.lasers, ScanBatcher::column_capacity(spec));
   }
-  // Decode what was held back while probing, in arrival order.
-  std::vector<Held> held = std::move(held_);
-  held_.clear();
-  for (const Held& h : held) handle(h.payload, h.time_ns, h.port);
+  // What was held back while probing is decoded next, in arrival order (by read()).
+  held_next_ = 0;
 }
 
-void CaptureReader::take(const RawPacket& p) {
+bool CaptureReader::take(const RawPacket& p, Scan& scan) {
   if (counts_.first_time_ns == 0) counts_.first_time_ns = p.receive_time_ns;
   counts_.last_time_ns = p.receive_time_ns;
-  if (p.destination_port == options_.source.data_port) check_.add(p.payload);
-  if (decided_) {
-    handle(p.payload, p.receive_time_ns, p.destination_port);
-    return;
+  if (p.destination_port == options_.source.data_port) {
+    check_.add(p.payload);
+    last_data_ = std::chrono::steady_clock::now();
   }
+  if (decided_) return handle(p.payload, p.receive_time_ns, p.destination_port, scan);
   // Traffic that never completes the probe (position packets only, datagrams of another size on
   // the data port) must not be held without bound: past the limit the oldest goes on undecoded
   // (position packets as usual, data packets counted as undecodable), its buffer reused.
   if (held_.size() >= std::max<size_t>(kMinHeld, 4 * options_.probe_packets)) {
     Held oldest = std::move(held_.front());
     held_.erase(held_.begin());
-    handle(oldest.payload, oldest.time_ns, oldest.port);
+    (void)handle(oldest.payload, oldest.time_ns, oldest.port, scan);  // no decoder: no rotation
     oldest.payload.assign(p.payload.begin(), p.payload.end());
     oldest.time_ns = p.receive_time_ns;
     oldest.port = p.destination_port;
@@ -113,66 +71,112 @@ void CaptureReader::take(const RawPacket& p) {
     held_.push_back({{p.payload.begin(), p.payload.end()}, p.receive_time_ns, p.destination_port});
   }
   if (check_.packets() >= options_.probe_packets) decide();
+  return false;
 }
 
-void CaptureReader::handle(std::span<const uint8_t> payload, int64_t time_ns, uint16_t port) {
+bool CaptureReader::handle(std::span<const uint8_t> payload, int64_t time_ns, uint16_t port,
+                           Scan& scan) {
   if (port == options_.source.position_port) {
     ++counts_.position_packets;
     PositionPacket position;
     if (parse_position_packet(payload, position) != PositionStatus::kOk) {
       ++counts_.position_errors;
-      return;
+      return false;
     }
     ++counts_.position_ok;
     counts_.pps = position.pps;
     counts_.last_nmea = std::string(position.sentence());
     if (position.has_gprmc) ++counts_.gprmc_valid;
     clock_.update(position);
-    return;
+    return false;
   }
-  if (port != options_.source.data_port) return;
+  if (port != options_.source.data_port) return false;
   ++counts_.data_packets;
   if (!decoder_) {
     ++counts_.undecodable;
-    return;
+    return false;
   }
   const DecodeStatus status = decoder_->decode(payload, clock_, time_ns, *packet_);
   if (status != DecodeStatus::kOk) {
     const auto index = static_cast<size_t>(status);
     if (index < counts_.decode_errors.size()) ++counts_.decode_errors[index];
-    return;
+    return false;
   }
   ++counts_.decoded;
   if (!batcher_) {
-    mode_ = packet_->mode;
-    batcher_ =
-        std::make_unique<ScanBatcher>(decoder_->spec(), packet_->mode, options_.batcher, *pool_);
+    batcher_ = std::make_unique<ScanBatcher>(decoder_->spec(), packet_->mode, options_.batcher);
   }
   mode_ = packet_->mode;
-  pool_->set_returns(packet_->returns);
-  batcher_->poll(packet_->stamp_ns);
-  batcher_->add(*packet_);
+  // A pause in the packets' own clock ends the rotation before this packet joins the next one.
+  if (batcher_->poll(packet_->stamp_ns, scan)) {
+    packet_waiting_ = true;
+    return true;
+  }
+  return batcher_->add(*packet_, scan);
+}
+
+bool CaptureReader::add_packet(Scan& scan) {
+  packet_waiting_ = false;
+  return batcher_->add(*packet_, scan);
+}
+
+CaptureReader::ReadResult CaptureReader::read(Scan& scan, std::chrono::milliseconds timeout) {
+  using Clock = std::chrono::steady_clock;
+  const auto deadline = Clock::now() + timeout;
+  for (;;) {
+    if (finished_) return ReadResult::kEnd;
+    if (packet_waiting_ && add_packet(scan)) return ReadResult::kRotation;
+    // Packets held back while the model was probed, one at a time: each may end a rotation.
+    if (decided_ && held_next_ < held_.size()) {
+      const Held& h = held_[held_next_++];
+      const bool done = handle(h.payload, h.time_ns, h.port, scan);
+      if (held_next_ == held_.size()) {
+        held_.clear();
+        held_.shrink_to_fit();
+        held_next_ = 0;
+      }
+      if (done) return ReadResult::kRotation;
+      continue;
+    }
+    if (source_ended_) {
+      finished_ = true;
+      if (batcher_ && batcher_->flush(scan)) return ReadResult::kRotation;
+      return ReadResult::kEnd;
+    }
+    const auto now = Clock::now();
+    // Rounded up: a source that waits the whole timeout returns after the deadline, not just
+    // before it (which would take another call).
+    const auto left = std::chrono::ceil<std::chrono::milliseconds>(deadline - now);
+    RawPacket packet;
+    const ReadStatus status =
+        source_->next(packet, std::max(left, std::chrono::milliseconds::zero()));
+    if (status == ReadStatus::kPacket) {
+      if (take(packet, scan)) return ReadResult::kRotation;
+    } else if (status == ReadStatus::kEnd || status == ReadStatus::kError) {
+      if (!decided_) decide();
+      source_ended_ = true;
+      continue;
+    } else if (batcher_ && batcher_->in_progress() &&
+               std::chrono::duration<double>(Clock::now() - last_data_).count() >
+                   options_.batcher.flush_timeout_s) {
+      // The source fell silent: deliver the rotation in progress rather than hold it.
+      if (batcher_->flush(scan)) return ReadResult::kRotation;
+    }
+    if (Clock::now() >= deadline) return ReadResult::kTimeout;
+  }
 }
 
 const Scan* CaptureReader::next() {
-  if (out_ != nullptr) {
-    pool_->release(out_);
-    out_ = nullptr;
-  }
+  Scan& scan = own_[own_next_];
   for (;;) {
-    if (pool_) {
-      out_ = pool_->pop();
-      if (out_ != nullptr) return out_;
-    }
-    if (finished_) return nullptr;
-    RawPacket packet;
-    const ReadStatus status = source_->next(packet, 1000ms);
-    if (status == ReadStatus::kPacket) {
-      take(packet);
-    } else if (status == ReadStatus::kEnd || status == ReadStatus::kError) {
-      if (!decided_) decide();
-      if (batcher_) batcher_->flush();
-      finished_ = true;
+    switch (read(scan, 1000ms)) {
+      case ReadResult::kRotation:
+        own_next_ = 1 - own_next_;
+        return &scan;
+      case ReadResult::kTimeout:
+        continue;
+      case ReadResult::kEnd:
+        return nullptr;
     }
   }
 }
