@@ -1,5 +1,5 @@
-// Decoding and scan assembly throughput, in points per second and as a multiple of each model's
-// real-time rate (sensor seconds processed per wall second, one core).
+// Decoding and scan assembly throughput per model and return mode: packets and points per second
+// and the multiple of the sensor's real-time rate (sensor seconds processed per second, one core).
 //   build/bin/bench_decoder --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 #include <benchmark/benchmark.h>
 
@@ -24,6 +24,8 @@ struct Fixture {
 };
 
 void report(benchmark::State& state, const Fixture& f, size_t packets, size_t points) {
+  state.counters["packets_per_s"] =
+      benchmark::Counter(static_cast<double>(packets), benchmark::Counter::kIsRate);
   state.counters["points_per_s"] =
       benchmark::Counter(static_cast<double>(points), benchmark::Counter::kIsRate);
   // Sensor seconds decoded per second of CPU = multiple of real time.
@@ -49,13 +51,14 @@ void BM_Decode(benchmark::State& state, Model m, ReturnMode mode) {
   report(state, f, packets, points);
 }
 
-// Decode + cut into rotations, straight into the caller's scans (two, alternating), as the daemon
-// fills the slots of its scan buffer.
+// Packets -> whole rotations in the caller's scans (two, alternating), as the daemon fills the
+// slots of its scan buffer: parse() reads the packet's columns, the batcher has the decoder write
+// them straight into the scan (reorder window and screening included).
 void BM_DecodeAndAssemble(benchmark::State& state, Model m, ReturnMode mode) {
   Fixture f(m, mode);
   Decoder decoder(Calibration::builtin(m));
   SensorClock clock;
-  DecodedPacket out;
+  PacketColumns out;
   ScanBatcher batcher(f.spec, mode, {});
   std::array<Scan, 2> scans;
   size_t current = 0;
@@ -65,7 +68,7 @@ void BM_DecodeAndAssemble(benchmark::State& state, Model m, ReturnMode mode) {
                        static_cast<int64_t>(f.spec.packet_period_us(mode) * 1e3);
   for (auto _ : state) {
     for (const auto& p : f.packets) {
-      (void)decoder.decode(p.bytes, clock, p.time_ns + shift, out);
+      (void)decoder.parse(p.bytes, clock, p.time_ns + shift, out);
       out.stamp_ns = p.time_ns + shift;  // keep time running across iterations
       if (batcher.add(out, scans[current])) current = 1 - current;
       points += static_cast<size_t>(out.columns * out.rings * out.returns);
@@ -82,15 +85,24 @@ void BM_DecodeAndAssemble(benchmark::State& state, Model m, ReturnMode mode) {
 
 LIDARTAG_MODEL_BENCH(BM_Decode, VLP16, Strongest);
 LIDARTAG_MODEL_BENCH(BM_Decode, VLP16, Dual);
+LIDARTAG_MODEL_BENCH(BM_Decode, PuckHiRes, Strongest);
+LIDARTAG_MODEL_BENCH(BM_Decode, PuckHiRes, Dual);
 LIDARTAG_MODEL_BENCH(BM_Decode, VLP32C, Strongest);
 LIDARTAG_MODEL_BENCH(BM_Decode, VLP32C, Dual);
 LIDARTAG_MODEL_BENCH(BM_Decode, HDL32E, Strongest);
+LIDARTAG_MODEL_BENCH(BM_Decode, HDL32E, Dual);
 LIDARTAG_MODEL_BENCH(BM_Decode, VLS128, Strongest);
 LIDARTAG_MODEL_BENCH(BM_Decode, VLS128, Dual);
 LIDARTAG_MODEL_BENCH(BM_DecodeAndAssemble, VLP16, Strongest);
+LIDARTAG_MODEL_BENCH(BM_DecodeAndAssemble, VLP16, Dual);
+LIDARTAG_MODEL_BENCH(BM_DecodeAndAssemble, PuckHiRes, Strongest);
+LIDARTAG_MODEL_BENCH(BM_DecodeAndAssemble, PuckHiRes, Dual);
 LIDARTAG_MODEL_BENCH(BM_DecodeAndAssemble, VLP32C, Strongest);
+LIDARTAG_MODEL_BENCH(BM_DecodeAndAssemble, VLP32C, Dual);
 LIDARTAG_MODEL_BENCH(BM_DecodeAndAssemble, HDL32E, Strongest);
+LIDARTAG_MODEL_BENCH(BM_DecodeAndAssemble, HDL32E, Dual);
 LIDARTAG_MODEL_BENCH(BM_DecodeAndAssemble, VLS128, Strongest);
+LIDARTAG_MODEL_BENCH(BM_DecodeAndAssemble, VLS128, Dual);
 
 }  // namespace
 }  // namespace lidartag::velodyne

@@ -54,7 +54,7 @@ class SimScans final {
             deliver();
           }
         });
-    if (batcher.flush(scans_[next_])) deliver();
+    while (batcher.flush(scans_[next_])) deliver();
     on_scan_ = nullptr;
     return truth;
   }

@@ -12,46 +12,35 @@ namespace {
 // replay loop), not loss.
 constexpr double kMaxGapUs = 1e6;
 
-// n consecutive cells of one ring from a packet into a scan. Plain restrict pointers so that the
-// compiler neither reloads the vectors' data pointers after every store nor assumes aliasing.
-void copy_cells(const DecodedPacket& pk, size_t src, Scan& s, size_t dst, int n, float t_off) {
-  const float* __restrict px = pk.x.data() + src;
-  const float* __restrict py = pk.y.data() + src;
-  const float* __restrict pz = pk.z.data() + src;
-  const float* __restrict pr = pk.range.data() + src;
-  const float* __restrict pa = pk.azimuth_deg.data() + src;
-  const float* __restrict pt = pk.time_us.data() + src;
-  const uint8_t* __restrict pi = pk.intensity.data() + src;
-  const ReturnType* __restrict pty = pk.return_type.data() + src;
-  float* __restrict sx = s.x.data() + dst;
-  float* __restrict sy = s.y.data() + dst;
-  float* __restrict sz = s.z.data() + dst;
-  float* __restrict sr = s.range.data() + dst;
-  float* __restrict sa = s.azimuth_deg.data() + dst;
-  float* __restrict st = s.time_s.data() + dst;
-  uint8_t* __restrict si = s.intensity.data() + dst;
-  ReturnType* __restrict sty = s.return_type.data() + dst;
-  // The 8 x rings destination streams are too many for the hardware prefetcher: ask for the
-  // line the next packet's columns will land in now, so its fetch overlaps this packet's work.
-  for (float* p : {sx, sy, sz, sr, sa, st}) __builtin_prefetch(p + n + 16, 1);
-  __builtin_prefetch(si + n + 64, 1);
-  __builtin_prefetch(sty + n + 64, 1);
-  for (int k = 0; k < n; ++k) {
-    sx[k] = px[k];
-    sy[k] = py[k];
-    sz[k] = pz[k];
-    sr[k] = pr[k];
-    sa[k] = pa[k];
-    st[k] = t_off + pt[k] * 1e-6f;
-    si[k] = pi[k];
-    sty[k] = pty[k];
-  }
+// Screening: the azimuth a packet must have, predicted from the stream's newest packet, within
+// this many degrees, plus this fraction of the predicted travel (rate uncertainty over a gap).
+// (In-packet rates are good to about 0.5 %, packet times to 1 us: a stream's own packets land
+// within a few hundredths of a degree; a stray packet fits by chance once in several hundred.)
+constexpr double kAzimuthToleranceDeg = 0.3;
+constexpr double kTravelTolerance = 0.02;
+// Packets later than this many packet periods are not reordered ones but foreign.
+constexpr double kMaxLatePackets = 16;
+
+// Time of a packet's last column.
+int64_t last_stamp(const PacketColumns& pk) {
+  const auto last = static_cast<size_t>(std::max(pk.columns - 1, 0));
+  return pk.stamp_ns + static_cast<int64_t>(std::llround(pk.column_time_us[last] * 1e3));
+}
+
+// Signed difference of two azimuths, (-180, 180].
+double azimuth_diff(double a, double b) {
+  const double d = wrap360(a - b);
+  return d > 180.0 ? d - 360.0 : d;
 }
 
 }  // namespace
 
 ScanBatcher::ScanBatcher(const ModelSpec& spec, ReturnMode mode, BatcherOptions options)
-    : spec_(spec), mode_(mode), options_(options), stash_(std::make_unique<DecodedPacket>()) {}
+    : spec_(spec),
+      mode_(mode),
+      options_(options),
+      slots_(std::make_unique<std::array<Held, kSlots>>()),
+      candidates_(std::make_unique<std::array<Held, kNewStreamPackets>>()) {}
 
 ScanBatcher::~ScanBatcher() = default;
 
@@ -85,7 +74,7 @@ void ScanBatcher::begin(Scan& scan, int64_t stamp_ns) {
 }
 
 void ScanBatcher::finish(Scan& scan, bool ends_at_cut) {
-  copy_run(scan);
+  write_run(scan);
   next_starts_at_cut_ = ends_at_cut;
   if (!open_) return;
   open_ = false;
@@ -100,28 +89,265 @@ void ScanBatcher::finish(Scan& scan, bool ends_at_cut) {
   ++(scan.complete ? stats_.complete : stats_.incomplete);
 }
 
-void ScanBatcher::keep(const DecodedPacket& pk, int column, uint32_t missing, bool evaluated) {
-  // Once per rotation: the copy of one packet is small next to a rotation.
-  if (&pk != stash_.get()) *stash_ = pk;
-  pending_ = true;
-  pending_column_ = column;
-  pending_missing_ = missing;
-  pending_evaluated_ = evaluated;
+// ---- Screening: which packets belong to the stream ------------------------------------------
+
+ScanBatcher::Ref ScanBatcher::ref_of(const PacketColumns& pk) {
+  const auto last = static_cast<size_t>(std::max(pk.columns - 1, 0));
+  return {pk.stamp_ns, pk.column_azimuth_deg[0], pk.column_azimuth_deg[last], pk.rate_deg[last]};
+}
+
+bool ScanBatcher::fits(const Ref& ref, const PacketColumns& pk) const {
+  if (pk.columns <= 0) return false;
+  const double dt_us = static_cast<double>(pk.stamp_ns - ref.stamp_ns) * 1e-3;
+  const double period_us = spec_.packet_period_us(pk.mode);
+  if (dt_us < -kMaxLatePackets * period_us || dt_us > options_.flush_timeout_s * 1e6) return false;
+  // Where the sensor pointed at that time, by the rate measured inside the newest packet.
+  const double travel = ref.rate_deg_per_us * dt_us;
+  const double az = pk.column_azimuth_deg[0];
+  if (std::abs(azimuth_diff(az, ref.first_azimuth_deg + travel)) <=
+      kAzimuthToleranceDeg + kTravelTolerance * std::abs(travel))
+    return true;
+  // A restricted field of view: the sensor paused, then goes on from where it stopped.
+  const double step = ref.rate_deg_per_us * spec_.firing_period_us;
+  return dt_us > 0 &&
+         std::abs(azimuth_diff(az, ref.last_azimuth_deg + step)) <= kAzimuthToleranceDeg + step;
+}
+
+ScanBatcher::Verdict ScanBatcher::screen(const PacketColumns& pk) const {
+  if (!have_head_) return Verdict::kAccept;
+  const float az = pk.column_azimuth_deg[0];
+  // Seen before: in the window, or released not long ago.
+  for (int i = 0; i < window_size_; ++i) {
+    const PacketColumns& h =
+        (*slots_)[static_cast<size_t>(window_[static_cast<size_t>(i)])].columns;
+    if (h.stamp_ns == pk.stamp_ns && h.column_azimuth_deg[0] == az) return Verdict::kDuplicate;
+  }
+  const int remembered = std::min(released_count_, kHistory);
+  for (int i = 0; i < remembered; ++i)
+    if (released_stamp_[static_cast<size_t>(i)] == pk.stamp_ns &&
+        released_azimuth_[static_cast<size_t>(i)] == az)
+      return Verdict::kDuplicate;
+  if (!fits(head_, pk)) {
+    // The newest packet taken may itself have been a stray one that fitted by chance.
+    if (have_previous_head_ && pk.stamp_ns > previous_head_.stamp_ns && fits(previous_head_, pk))
+      return Verdict::kAcceptHeadWasStray;
+    return Verdict::kSuspect;
+  }
+  // Older than what was already written into the rotation: too late to be put in place.
+  if (have_last_ && pk.stamp_ns <= last_column_stamp_ns_) return Verdict::kTooLate;
+  // A sensor's packets never overlap in time: one that does is stray, however well it fits.
+  const int64_t end = last_stamp(pk);
+  for (int i = 0; i < window_size_; ++i) {
+    const PacketColumns& h =
+        (*slots_)[static_cast<size_t>(window_[static_cast<size_t>(i)])].columns;
+    if (pk.stamp_ns <= last_stamp(h) && h.stamp_ns <= end) return Verdict::kSuspect;
+  }
+  return Verdict::kAccept;
+}
+
+void ScanBatcher::hold(const PacketColumns& pk, Held& slot) {
+  slot.columns = pk;
+  if (pk.payload != nullptr) std::copy_n(pk.payload, kDataPacketSize, slot.bytes.begin());
+  slot.columns.payload = slot.bytes.data();
+}
+
+void ScanBatcher::insert(const PacketColumns& pk) {
+  int slot = 0;
+  while (slot < kSlots && busy_[static_cast<size_t>(slot)]) ++slot;
+  if (slot == kSlots) return;  // cannot happen: pump() keeps the window below its slots
+  busy_[static_cast<size_t>(slot)] = true;
+  hold(pk, (*slots_)[static_cast<size_t>(slot)]);
+  // Sorted by time, oldest first; a packet placed before a later one arrived out of order.
+  int i = window_size_;
+  while (i > 0 &&
+         (*slots_)[static_cast<size_t>(window_[static_cast<size_t>(i - 1)])].columns.stamp_ns >
+             pk.stamp_ns) {
+    window_[static_cast<size_t>(i)] = window_[static_cast<size_t>(i - 1)];
+    --i;
+  }
+  if (i < window_size_) ++stats_.reordered;
+  window_[static_cast<size_t>(i)] = slot;
+  ++window_size_;
+  if (!have_head_ || pk.stamp_ns > head_.stamp_ns) {
+    previous_head_ = head_;
+    have_previous_head_ = have_head_;
+    head_ = ref_of(pk);
+  }
+  have_head_ = true;
+  last_packet_stamp_ns_ = std::max(last_packet_stamp_ns_, pk.stamp_ns);
+}
+
+void ScanBatcher::drop_stray_head() {
+  ++stats_.inconsistent;
+  for (int i = 0; i < window_size_; ++i) {
+    const int slot = window_[static_cast<size_t>(i)];
+    if ((*slots_)[static_cast<size_t>(slot)].columns.stamp_ns != head_.stamp_ns) continue;
+    std::copy(window_.begin() + i + 1, window_.begin() + window_size_, window_.begin() + i);
+    --window_size_;
+    busy_[static_cast<size_t>(slot)] = false;
+    break;
+  }
+  head_ = previous_head_;
+  have_previous_head_ = false;
+}
+
+void ScanBatcher::forgive_gap(int64_t stamp_ns) {
+  for (Gap& g : gaps_) {
+    if (g.missing > 0 && stamp_ns > g.from_ns && stamp_ns < g.to_ns) {
+      --g.missing;
+      if (stats_.missing_packets > 0) --stats_.missing_packets;
+      return;
+    }
+  }
+}
+
+bool ScanBatcher::add(const PacketColumns& pk, Scan& scan) {
+  if (pk.columns <= 0 || pk.decoder == nullptr) {
+    ++stats_.inconsistent;  // not a parsed packet
+    return pump(scan);
+  }
+  bool delivered = false;
+  switch (screen(pk)) {
+    case Verdict::kDuplicate:
+      ++stats_.duplicates;
+      ++stats_.late_packets;
+      break;
+    case Verdict::kTooLate:
+      ++stats_.reordered;
+      ++stats_.late_packets;
+      forgive_gap(pk.stamp_ns);  // it did arrive
+      break;
+    case Verdict::kAcceptHeadWasStray:
+      drop_stray_head();
+      [[fallthrough]];
+    case Verdict::kAccept:
+      // The stream is alive: what looked like the start of another one was not.
+      stats_.inconsistent += static_cast<uint64_t>(candidate_count_);
+      candidate_count_ = 0;
+      if (pk.mode != mode_) {
+        if (have_head_ && pk.stamp_ns < head_.stamp_ns) {  // a late packet of the old mode
+          ++stats_.reordered;
+          ++stats_.late_packets;
+          break;
+        }
+        // Another return mode changes the layout of the scan: close the rotation in progress;
+        // this packet starts the next one, in a scan of the new layout.
+        delivered = close_stream(scan, false);
+        mode_ = pk.mode;
+        ++stats_.mode_changes;
+      }
+      insert(pk);
+      break;
+    case Verdict::kSuspect: {
+      auto& c = *candidates_;
+      if (candidate_count_ == 0 ||
+          fits(ref_of(c[static_cast<size_t>(candidate_count_ - 1)].columns), pk)) {
+        hold(pk, c[static_cast<size_t>(candidate_count_++)]);
+        if (candidate_count_ == kNewStreamPackets) delivered = adopt_new_stream(scan);
+      } else if (candidate_count_ == 1) {
+        // One odd packet then another that disagrees with it: the first was the stray one.
+        ++stats_.inconsistent;
+        hold(pk, c[0]);
+      } else {
+        ++stats_.inconsistent;
+      }
+      break;
+    }
+  }
+  if (delivered) return true;
+  return pump(scan);
+}
+
+bool ScanBatcher::close_stream(Scan& scan, bool jump) {
+  take_pending(scan);
+  // What the window holds goes into the rotation in progress (a cut among those few packets
+  // does not end it: the rotation ends here anyway, incomplete).
+  while (window_size_ > 0) (void)release_oldest(scan, false);
+  const bool delivered = open_;
+  if (jump) {
+    ++stats_.azimuth_jumps;
+    if (open_) ++scan.azimuth_jumps;
+  }
+  finish(scan, false);
+  next_starts_at_cut_ = false;
+  have_last_ = false;
+  have_head_ = have_previous_head_ = false;
+  return delivered;
+}
+
+bool ScanBatcher::adopt_new_stream(Scan& scan) {
+  // Several packets agree with each other and none of the old stream came meanwhile. Right after
+  // the stream in time: its azimuth jumped (a field of view restricted between packets), the
+  // rotation goes on. Otherwise the sensor restarted, its clock jumped or a replay looped.
+  const PacketColumns& first = (*candidates_)[0].columns;
+  const double dt_us = static_cast<double>(first.stamp_ns - head_.stamp_ns) * 1e-3;
+  const bool continues =
+      have_head_ && dt_us > 0 && dt_us <= kNewStreamPackets * spec_.packet_period_us(first.mode);
+  const bool delivered = continues ? false : close_stream(scan, true);
+  const int n = candidate_count_;
+  candidate_count_ = 0;
+  for (int i = 0; i < n; ++i) {
+    const PacketColumns& pk = (*candidates_)[static_cast<size_t>(i)].columns;
+    if (pk.mode != mode_) {
+      mode_ = pk.mode;
+      ++stats_.mode_changes;
+    }
+    insert(pk);
+  }
+  return delivered;
+}
+
+bool ScanBatcher::pump(Scan& scan) {
+  take_pending(scan);
+  while (window_size_ > kReorderWindow)
+    if (release_oldest(scan, true)) return true;
+  return false;
+}
+
+bool ScanBatcher::release_oldest(Scan& scan, bool may_end) {
+  const int slot = window_[0];
+  std::copy(window_.begin() + 1, window_.begin() + window_size_, window_.begin());
+  --window_size_;
+  const PacketColumns& pk = (*slots_)[static_cast<size_t>(slot)].columns;
+  const auto h = static_cast<size_t>(released_count_++ % kHistory);
+  released_stamp_[h] = pk.stamp_ns;
+  released_azimuth_[h] = pk.column_azimuth_deg[0];
+  if (run(pk, 0, scan, may_end)) {
+    pending_slot_ = slot;  // its columns after the end wait for the next scan
+    return true;
+  }
+  busy_[static_cast<size_t>(slot)] = false;
+  return false;
 }
 
 void ScanBatcher::take_pending(Scan& scan) {
-  if (!pending_) return;
-  pending_ = false;
+  if (pending_slot_ < 0) return;
+  const int slot = pending_slot_;
+  pending_slot_ = -1;
   // The rest of a packet that already ended a rotation: it cannot end another (see run()).
-  (void)run(*stash_, pending_column_, scan, false);
+  (void)run((*slots_)[static_cast<size_t>(slot)].columns, pending_column_, scan, false);
+  busy_[static_cast<size_t>(slot)] = false;
+}
+
+bool ScanBatcher::release_held(Scan& scan) {
+  take_pending(scan);
+  while (window_size_ > 0)
+    if (release_oldest(scan, true)) return true;
+  return false;
 }
 
 bool ScanBatcher::flush(Scan& scan) {
   take_pending(scan);
+  while (window_size_ > 0)
+    if (release_oldest(scan, true)) return true;
+  // Candidates of a new stream that never got enough company.
+  stats_.inconsistent += static_cast<uint64_t>(candidate_count_);
+  candidate_count_ = 0;
   const bool delivered = open_;
   finish(scan, false);
   next_starts_at_cut_ = false;
   have_last_ = false;
+  have_head_ = have_previous_head_ = false;
   return delivered;
 }
 
@@ -133,34 +359,9 @@ bool ScanBatcher::poll(int64_t now_ns, Scan& scan) {
   return false;
 }
 
-bool ScanBatcher::add(const DecodedPacket& pk, Scan& scan) {
-  take_pending(scan);
-  if (pk.mode != mode_) {
-    // Another return mode changes the layout of the scan: close the rotation in progress, and
-    // start the next one with this packet, in a scan of the new layout.
-    const bool delivered = open_;
-    finish(scan, false);
-    next_starts_at_cut_ = false;
-    have_last_ = false;
-    mode_ = pk.mode;
-    ++stats_.mode_changes;
-    if (delivered) {
-      last_packet_stamp_ns_ = pk.stamp_ns;
-      keep(pk, 0, 0, true);
-      return true;
-    }
-  }
-  if (have_last_ && pk.stamp_ns <= last_column_stamp_ns_ &&
-      static_cast<double>(last_column_stamp_ns_ - pk.stamp_ns) < kMaxGapUs * 1e3) {
-    // A duplicate, or a packet overtaken by a later one (whose gap was already counted).
-    ++stats_.late_packets;
-    return false;
-  }
-  last_packet_stamp_ns_ = pk.stamp_ns;
-  return run(pk, 0, scan, true);
-}
+// ---- Assembly: released packets into the scan ----------------------------------------------
 
-bool ScanBatcher::run(const DecodedPacket& pk, int first, Scan& scan, bool may_end) {
+bool ScanBatcher::run(const PacketColumns& pk, int first, Scan& scan, bool may_end) {
   packet_ = &pk;
   const double fp = spec_.firing_period_us;
   const int per_packet = spec_.columns_per_packet(pk.mode);
@@ -190,6 +391,7 @@ bool ScanBatcher::run(const DecodedPacket& pk, int first, Scan& scan, bool may_e
           const double lost_columns = std::max(0.0, std::round(dt / fp) - 1.0);
           missing = static_cast<uint32_t>(std::ceil(lost_columns / per_packet));
           stats_.missing_packets += missing;
+          gaps_[static_cast<size_t>(gap_next_++ % kGaps)] = {last_column_stamp_ns_, stamp, missing};
         } else if (dt > 1.5 * fp) {
           // Time gap, azimuth continuous: the sensor paused outside its field of view.
           ++stats_.fov_gaps;
@@ -217,7 +419,12 @@ bool ScanBatcher::run(const DecodedPacket& pk, int first, Scan& scan, bool may_e
           scan.missing_packets += missing;
         }
         finish(scan, cut);
-        keep(pk, c, missing, true);
+        pending_column_ = c;
+        pending_missing_ = missing;
+        pending_evaluated_ = true;
+        have_last_ = true;
+        last_column_azimuth_ = az;
+        last_column_stamp_ns_ = stamp;
         packet_ = nullptr;
         return true;
       }
@@ -232,12 +439,17 @@ bool ScanBatcher::run(const DecodedPacket& pk, int first, Scan& scan, bool may_e
         overflowed_ = true;
         ++stats_.overflows;
         finish(scan, false);
-        keep(pk, c, 0, true);
+        pending_column_ = c;
+        pending_missing_ = 0;
+        pending_evaluated_ = true;
+        have_last_ = true;
+        last_column_azimuth_ = az;
+        last_column_stamp_ns_ = stamp;
         packet_ = nullptr;
         return true;
       }
       // Only with a scan smaller than one packet: the column is lost, counted.
-      copy_run(scan);
+      write_run(scan);
       ++stats_.overflows;
       continue;
     }
@@ -247,12 +459,12 @@ bool ScanBatcher::run(const DecodedPacket& pk, int first, Scan& scan, bool may_e
     last_column_azimuth_ = az;
     last_column_stamp_ns_ = stamp;
   }
-  copy_run(scan);
+  write_run(scan);
   packet_ = nullptr;
   return false;
 }
 
-void ScanBatcher::add_column(const DecodedPacket& pk, int c, int64_t stamp, Scan& s) {
+void ScanBatcher::add_column(const PacketColumns& pk, int c, int64_t stamp, Scan& s) {
   const int col = s.columns++;
   const auto ucol = static_cast<size_t>(col);
   const double t0 = static_cast<double>(stamp - s.stamp_ns) * 1e-9;  // column start from scan start
@@ -273,27 +485,36 @@ void ScanBatcher::add_column(const DecodedPacket& pk, int c, int64_t stamp, Scan
   ++run_columns_;
 }
 
-void ScanBatcher::copy_run(Scan& s) {
+void ScanBatcher::write_run(Scan& s) {
   if (run_columns_ == 0 || !open_ || packet_ == nullptr) {
     run_columns_ = 0;
     return;
   }
-  const DecodedPacket& pk = *packet_;
+  const PacketColumns& pk = *packet_;
   const int n = run_columns_;
   run_columns_ = 0;
-  const int rings = std::min(s.rings, pk.rings);
-  const auto t_off = static_cast<float>(run_time_offset_s_);
-  // Both layouts are ring-major: each ring's columns are one contiguous run on either side.
-  for (int r = 0; r < s.returns; ++r) {
-    for (int ring = 0; ring < rings; ++ring) {
-      const size_t dst = s.at(r, ring, run_scan_column_);
-      if (r >= pk.returns) {  // a single-return packet in a dual-return scan
-        std::fill_n(s.range.begin() + static_cast<std::ptrdiff_t>(dst), n, 0.0f);
-        std::fill_n(s.return_type.begin() + static_cast<std::ptrdiff_t>(dst), n, ReturnType::kNone);
-        continue;
-      }
-      const auto src = static_cast<size_t>(pk.at(r, run_packet_column_, ring));
-      copy_cells(pk, src, s, dst, n, t_off);
+  if (pk.rings != s.rings || pk.returns > s.returns) return;  // cannot happen: begin() sized it
+  // The decoder writes the run straight into the scan's ring-major storage.
+  const size_t cell = s.at(0, 0, run_scan_column_);
+  const auto ring_stride = static_cast<size_t>(s.column_capacity);
+  const PointSink sink{s.x.data() + cell,
+                       s.y.data() + cell,
+                       s.z.data() + cell,
+                       s.range.data() + cell,
+                       s.azimuth_deg.data() + cell,
+                       s.time_s.data() + cell,
+                       s.intensity.data() + cell,
+                       s.return_type.data() + cell,
+                       ring_stride,
+                       ring_stride * static_cast<size_t>(s.rings),
+                       static_cast<float>(run_time_offset_s_),
+                       1e-6f};
+  pk.decoder->write_points(pk, run_packet_column_, n, sink);
+  for (int r = pk.returns; r < s.returns; ++r) {  // a single-return packet in a dual-return scan
+    for (int ring = 0; ring < s.rings; ++ring) {
+      const auto dst = static_cast<std::ptrdiff_t>(s.at(r, ring, run_scan_column_));
+      std::fill_n(s.range.begin() + dst, n, 0.0f);
+      std::fill_n(s.return_type.begin() + dst, n, ReturnType::kNone);
     }
   }
 }

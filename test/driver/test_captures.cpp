@@ -120,7 +120,7 @@ Decoded decode_capture(const std::string& path) {
       prev_az = az;
     }
   }
-  d.sink->keep(batcher.flush(d.sink->current()));
+  while (batcher.flush(d.sink->current())) d.sink->keep(true);
   d.stats = batcher.stats();
   // Median step between blocks of distinct azimuth; such blocks are one block duration apart.
   std::nth_element(steps.begin(), steps.begin() + static_cast<long>(steps.size() / 2), steps.end());

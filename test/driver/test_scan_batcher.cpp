@@ -1,6 +1,7 @@
 // Whole rotations: cut at the point, loss, duplicates, reordering, FOV gaps, restarts, timeouts.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <deque>
 #include <memory>
@@ -48,7 +49,9 @@ struct Rig {
   void feed_all(const std::vector<testing::StreamPacket>& v) {
     for (const auto& p : v) feed(p);
   }
-  void flush() { keep(batcher.flush(current())); }
+  void flush() {
+    while (batcher.flush(current())) keep(true);  // what the reorder window held, then the rest
+  }
   void poll(int64_t now_ns) { keep(batcher.poll(now_ns, current())); }
 };
 
@@ -145,20 +148,192 @@ TEST(ScanBatcher, LostPacketsAreCountedAndMarkTheRotationIncomplete) {
   EXPECT_EQ(rig.batcher.stats().missing_packets, 3u);
 }
 
-TEST(ScanBatcher, DuplicatesAndLatePacketsAreDroppedAndCounted) {
+TEST(ScanBatcher, DuplicatesAreDroppedAndAReorderedPairIsPutInPlace) {
   Rig rig(Model::kHDL32E, ReturnMode::kStrongest);
   auto stream = testing::make_stream(rig.spec, ReturnMode::kStrongest, 500);
   stream.insert(stream.begin() + 200, stream[199]);  // duplicate
   std::swap(stream[300], stream[301]);               // reordered pair
   rig.feed_all(stream);
   rig.flush();
-  EXPECT_EQ(rig.batcher.stats().late_packets, 2u);  // the duplicate and the overtaken packet
-  EXPECT_EQ(rig.batcher.stats().missing_packets, 1u);
+  const BatcherStats& st = rig.batcher.stats();
+  EXPECT_EQ(st.duplicates, 1u);
+  EXPECT_EQ(st.reordered, 1u);     // put back in place by the reorder window
+  EXPECT_EQ(st.late_packets, 1u);  // only the duplicate was dropped
+  EXPECT_EQ(st.missing_packets, 0u);
+  EXPECT_EQ(st.inconsistent, 0u);
   size_t complete = 0;
   for (const Scan* s : rig.scans) complete += s->complete ? 1u : 0u;
-  // 500 packets of 552.96 us = 2.76 rotations; the duplicate costs nothing, the reorder one.
-  EXPECT_EQ(rig.batcher.stats().rotations, 4u);
-  EXPECT_EQ(complete, 1u);
+  // 500 packets of 552.96 us = 2.76 rotations: partial, two whole ones, partial.
+  EXPECT_EQ(st.rotations, 4u);
+  EXPECT_EQ(complete, 2u);
+}
+
+// Clean rotations of a stream, for comparison with a disturbed one.
+std::vector<Scan*> complete_of(const Rig& rig) {
+  std::vector<Scan*> v;
+  for (Scan* s : rig.scans)
+    if (s->complete) v.push_back(s);
+  return v;
+}
+
+// Cell-by-cell equality of two rotations (the disturbance must leave no trace).
+void expect_same_rotation(const Scan& a, const Scan& b) {
+  ASSERT_EQ(a.columns, b.columns);
+  ASSERT_EQ(a.stamp_ns, b.stamp_ns);
+  for (int r = 0; r < a.returns; ++r)
+    for (int ring = 0; ring < a.rings; ++ring)
+      for (int c = 0; c < a.columns; ++c) {
+        const size_t i = a.at(r, ring, c);
+        ASSERT_EQ(a.x[i], b.x[i]);
+        ASSERT_EQ(a.range[i], b.range[i]);
+        ASSERT_EQ(a.time_s[i], b.time_s[i]);
+      }
+}
+
+TEST(ScanBatcher, PacketsReorderedByOneToThreeKeepRotationsComplete) {
+  for (int shift : {1, 2, 3}) {
+    Rig clean(Model::kVLP16, ReturnMode::kStrongest);
+    Rig rig(Model::kVLP16, ReturnMode::kStrongest);
+    const auto stream = testing::make_stream(rig.spec, ReturnMode::kStrongest, 300);
+    clean.feed_all(stream);
+    clean.flush();
+    // Every 10th packet arrives `shift` packets late.
+    auto late = stream;
+    int moved = 0;
+    for (size_t i = 20; i + static_cast<size_t>(shift) < late.size(); i += 10) {
+      std::rotate(late.begin() + static_cast<long>(i), late.begin() + static_cast<long>(i) + 1,
+                  late.begin() + static_cast<long>(i) + shift + 1);
+      ++moved;
+    }
+    rig.feed_all(late);
+    rig.flush();
+    const BatcherStats& st = rig.batcher.stats();
+    EXPECT_EQ(st.reordered, static_cast<uint64_t>(moved)) << "shift " << shift;
+    EXPECT_EQ(st.missing_packets, 0u);
+    EXPECT_EQ(st.late_packets, 0u);
+    const auto a = complete_of(clean), b = complete_of(rig);
+    ASSERT_EQ(a.size(), 3u);
+    ASSERT_EQ(b.size(), a.size()) << "shift " << shift;
+    for (size_t i = 0; i < a.size(); ++i) expect_same_rotation(*a[i], *b[i]);
+  }
+}
+
+TEST(ScanBatcher, APacketLaterThanTheWindowIsReorderedNotMissing) {
+  Rig rig(Model::kVLP16, ReturnMode::kStrongest);
+  auto stream = testing::make_stream(rig.spec, ReturnMode::kStrongest, 300);
+  // Packet 100 arrives 8 packets late: beyond the reorder window, so its columns cannot be put
+  // in place; it did arrive, so it is not counted as missing.
+  std::rotate(stream.begin() + 100, stream.begin() + 101, stream.begin() + 109);
+  rig.feed_all(stream);
+  rig.flush();
+  const BatcherStats& st = rig.batcher.stats();
+  EXPECT_EQ(st.reordered, 1u);
+  EXPECT_EQ(st.late_packets, 1u);
+  EXPECT_EQ(st.missing_packets, 0u);
+  // The rotation that lacks its columns is not complete.
+  ASSERT_GE(rig.scans.size(), 3u);
+  EXPECT_FALSE(rig.scans[1]->complete);
+  EXPECT_EQ(rig.scans[1]->missing_packets, 1u);
+}
+
+TEST(ScanBatcher, DuplicatesAreCountedOnceAndChangeNothing) {
+  Rig clean(Model::kVLP32C, ReturnMode::kStrongest);
+  Rig rig(Model::kVLP32C, ReturnMode::kStrongest);
+  const auto stream = testing::make_stream(rig.spec, ReturnMode::kStrongest, 600);
+  clean.feed_all(stream);
+  clean.flush();
+  std::vector<testing::StreamPacket> twice;
+  for (size_t i = 0; i < stream.size(); ++i) {
+    twice.push_back(stream[i]);
+    if (i % 7 == 3) twice.push_back(stream[i]);                 // right away
+    if (i % 11 == 5 && i >= 3) twice.push_back(stream[i - 3]);  // a little later
+  }
+  rig.feed_all(twice);
+  rig.flush();
+  const BatcherStats& st = rig.batcher.stats();
+  EXPECT_EQ(st.duplicates, twice.size() - stream.size());
+  EXPECT_EQ(st.late_packets, st.duplicates);
+  EXPECT_EQ(st.reordered, 0u);
+  EXPECT_EQ(st.missing_packets, 0u);
+  EXPECT_EQ(st.rotations, clean.batcher.stats().rotations);
+  const auto a = complete_of(clean), b = complete_of(rig);
+  ASSERT_EQ(b.size(), a.size());
+  for (size_t i = 0; i < a.size(); ++i) expect_same_rotation(*a[i], *b[i]);
+}
+
+// A well-formed packet of the same model with a random azimuth, stamped like its neighbours.
+testing::StreamPacket spoof(const ModelSpec& spec, const testing::StreamPacket& like,
+                            uint32_t seed) {
+  testing::StreamOptions o;
+  o.start_azimuth_deg = static_cast<double>((seed * 2654435761u) % 36000u) * 0.01;
+  o.start_ns = like.time_ns + 1000 * static_cast<int64_t>(seed % 500);
+  return testing::make_stream(spec, ReturnMode::kStrongest, 1, o)[0];
+}
+
+TEST(ScanBatcher, SpoofedPacketsDoNotMultiplyRotations) {
+  Rig clean(Model::kVLP32C, ReturnMode::kStrongest);
+  Rig rig(Model::kVLP32C, ReturnMode::kStrongest);
+  const auto stream = testing::make_stream(rig.spec, ReturnMode::kStrongest, 1507);  // 1 s
+  clean.feed_all(stream);
+  clean.flush();
+  // 20 % of what arrives is foreign: well-formed, random in-range azimuths.
+  std::vector<testing::StreamPacket> mixed;
+  uint64_t spoofed = 0;
+  for (size_t i = 0; i < stream.size(); ++i) {
+    mixed.push_back(stream[i]);
+    if (i % 4 == 1) {
+      mixed.push_back(spoof(rig.spec, stream[i], static_cast<uint32_t>(i)));
+      ++spoofed;
+    }
+  }
+  rig.feed_all(mixed);
+  rig.flush();
+  const BatcherStats& st = rig.batcher.stats();
+  EXPECT_EQ(st.rotations, clean.batcher.stats().rotations);
+  EXPECT_EQ(st.inconsistent, spoofed);
+  EXPECT_EQ(st.azimuth_jumps, 0u);
+  EXPECT_EQ(st.missing_packets, 0u);
+  const auto a = complete_of(clean), b = complete_of(rig);
+  ASSERT_EQ(a.size(), 9u);
+  ASSERT_EQ(b.size(), a.size());
+  for (size_t i = 0; i < a.size(); ++i) expect_same_rotation(*a[i], *b[i]);
+}
+
+TEST(ScanBatcher, ASecondCoherentStreamOnThePortIsRejectedWhileTheFirstLives) {
+  // Another sensor's packets agree with each other but not with the stream: as long as the
+  // stream goes on they are foreign, never a restart.
+  Rig clean(Model::kVLP16, ReturnMode::kStrongest);
+  Rig rig(Model::kVLP16, ReturnMode::kStrongest);
+  const auto stream = testing::make_stream(rig.spec, ReturnMode::kStrongest, 400);
+  testing::StreamOptions other;
+  other.start_azimuth_deg = 200.0;
+  other.start_ns = stream[0].time_ns + 300'000;
+  const auto foreign = testing::make_stream(rig.spec, ReturnMode::kStrongest, 400, other);
+  clean.feed_all(stream);
+  clean.flush();
+  for (size_t i = 0; i < stream.size(); ++i) {
+    rig.feed(stream[i]);
+    rig.feed(foreign[i]);
+  }
+  rig.flush();
+  EXPECT_EQ(rig.batcher.stats().inconsistent, foreign.size());
+  EXPECT_EQ(rig.batcher.stats().rotations, clean.batcher.stats().rotations);
+  EXPECT_EQ(complete_of(rig).size(), complete_of(clean).size());
+}
+
+TEST(ScanBatcher, ReplayLoopIsANewStreamNotStrayPackets) {
+  Rig rig(Model::kVLP32C, ReturnMode::kStrongest);
+  const auto stream = testing::make_stream(rig.spec, ReturnMode::kStrongest, 700);
+  rig.feed_all(stream);
+  rig.feed_all(stream);  // the capture starts over: time and azimuth jump back
+  rig.flush();
+  const BatcherStats& st = rig.batcher.stats();
+  EXPECT_EQ(st.azimuth_jumps, 1u);
+  EXPECT_EQ(st.inconsistent, 0u);
+  EXPECT_EQ(st.duplicates, 0u);
+  // Each pass: partial, two whole rotations (700 packets = 4.6 turns from 10 deg), partial.
+  EXPECT_EQ(complete_of(rig).size(), 2u * (complete_of(rig).size() / 2));
+  EXPECT_GE(complete_of(rig).size(), 6u);
 }
 
 TEST(ScanBatcher, RestrictedFieldOfViewGivesCompleteRotations) {

@@ -83,7 +83,7 @@ inline Decoded decode(const Capture& c, const Scene& scene) {
     }
     d.sink->keep(batcher.add(*packet, d.sink->current()));
   }
-  d.sink->keep(batcher.flush(d.sink->current()));
+  while (batcher.flush(d.sink->current())) d.sink->keep(true);
   for (Scan* s : d.sink->scans)
     if (s->complete) d.complete.push_back(s);
   return d;
