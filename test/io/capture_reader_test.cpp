@@ -278,6 +278,76 @@ TEST(CaptureReader, ReadReturnsAtTheDeadlineWhilePacketsKeepComing) {
   EXPECT_EQ(reader.counts().decoded, 2u);
 }
 
+TEST(CaptureReader, AnotherModelMidStreamIsNoticedAndDecodedAsThatModel) {
+  // VLP-16 packets after VLP-32C packets on the same port, the model detected.
+  const auto first = testing::make_stream(model_spec(Model::kVLP32C), ReturnMode::kStrongest, 1507);
+  testing::StreamOptions later;
+  later.start_ns = first.back().time_ns + 100'000'000;
+  later.start_azimuth_deg = 77.0;
+  const auto second =
+      testing::make_stream(model_spec(Model::kVLP16), ReturnMode::kStrongest, 754 * 2, later);
+  auto stream = first;
+  stream.insert(stream.end(), second.begin(), second.end());
+  auto owned = std::make_unique<StreamSource>(stream);
+  owned->ended = true;
+  CaptureReader reader(std::move(owned), {});
+  size_t vlp32c_complete = 0, vlp16_complete = 0, after_switch_other = 0;
+  bool switched = false;
+  while (const Scan* scan = reader.next()) {
+    if (scan->rings == 16) switched = true;
+    if (switched && scan->rings != 16) ++after_switch_other;
+    if (!scan->complete) continue;
+    (scan->rings == 32 ? vlp32c_complete : vlp16_complete) += 1;
+    EXPECT_EQ(scan->model,
+              static_cast<uint8_t>(scan->rings == 32 ? Model::kVLP32C : Model::kVLP16));
+  }
+  EXPECT_EQ(reader.model(), Model::kVLP16);
+  EXPECT_GE(vlp32c_complete, 8u);
+  EXPECT_GE(vlp16_complete, 15u);  // 2 s at 600 rpm: the first fraction decoded as a VLP-32C
+  EXPECT_EQ(after_switch_other, 0u);
+  EXPECT_GT(reader.counts().model_mismatch, 0u);
+  EXPECT_NE(reader.model_mismatch().find("vlp32c -> vlp16"), std::string::npos)
+      << reader.model_mismatch();
+}
+
+TEST(CaptureReader, AConfiguredModelThePacketsContradictIsReported) {
+  const auto stream = testing::make_stream(model_spec(Model::kVLP16), ReturnMode::kStrongest, 754);
+  auto owned = std::make_unique<StreamSource>(stream);
+  owned->ended = true;
+  CaptureReaderOptions options;
+  options.model = Model::kVLP32C;  // wrong
+  CaptureReader reader(std::move(owned), options);
+  size_t rotations = 0;
+  while (const Scan* scan = reader.next()) {
+    ++rotations;
+    EXPECT_EQ(scan->rings, 32);  // decoded as told
+  }
+  EXPECT_GT(rotations, 0u);
+  EXPECT_EQ(reader.model(), Model::kVLP32C);
+  EXPECT_GE(reader.counts().model_mismatch, 600u);
+  EXPECT_NE(reader.model_mismatch().find("configured model vlp32c"), std::string::npos)
+      << reader.model_mismatch();
+  EXPECT_NE(reader.model_mismatch().find("fit vlp16"), std::string::npos);
+}
+
+TEST(CaptureReader, TheRightModelIsNotReported) {
+  for (Model m : all_models()) {
+    const auto stream = testing::make_stream(model_spec(m), ReturnMode::kStrongest, 1000);
+    for (bool configured : {false, true}) {
+      auto owned = std::make_unique<StreamSource>(stream);
+      owned->ended = true;
+      CaptureReaderOptions options;
+      if (configured) options.model = m;
+      CaptureReader reader(std::move(owned), options);
+      while (reader.next() != nullptr) {
+      }
+      EXPECT_EQ(reader.counts().model_mismatch, 0u) << model_spec(m).name;
+      EXPECT_EQ(reader.model_mismatch(), "") << model_spec(m).name;
+      EXPECT_EQ(reader.model(), m);
+    }
+  }
+}
+
 TEST(CaptureReader, CalibrationFileErrorsSurfaceAtSetup) {
   const std::string path = kCaptures + "vlp16_rlu.pcap";
   if (!std::filesystem::exists(path)) GTEST_SKIP() << "capture not available: " << path;

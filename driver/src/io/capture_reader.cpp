@@ -11,6 +11,11 @@ using namespace std::chrono_literals;
 namespace {
 // Packets held back while probing: this many, or 4 x probe_packets when that is more.
 constexpr size_t kMinHeld = 1024;
+// Host time without packets after which the batcher's reorder window is released (many packet
+// periods of every model).
+constexpr double kReorderWait_s = 0.005;
+// Data packets per model check after the decision.
+constexpr size_t kModelEpochPackets = 64;
 }  // namespace
 
 CaptureReader::CaptureReader(const std::string& path, CaptureReaderOptions options)
@@ -19,7 +24,7 @@ CaptureReader::CaptureReader(const std::string& path, CaptureReaderOptions optio
 CaptureReader::CaptureReader(std::unique_ptr<PacketSource> source, CaptureReaderOptions options)
     : source_(std::move(source)),
       options_(std::move(options)),
-      packet_(std::make_unique<DecodedPacket>()) {
+      packet_(std::make_unique<PacketColumns>()) {
   if (options_.model) decide();  // loads the calibration now: errors surface at setup
 }
 
@@ -33,11 +38,58 @@ BatcherStats CaptureReader::batcher_stats() const {
   return batcher_ ? batcher_->stats() : BatcherStats{};
 }
 
+std::string CaptureReader::model_mismatch() const {
+  if (!stream_mismatch_.empty()) return stream_mismatch_;
+  // A configured model that the timing fits settles a product byte that says otherwise.
+  if (options_.model && check_.timing_model() == options_.model) return {};
+  return check_.mismatch();
+}
+
+void CaptureReader::watch_model(std::span<const uint8_t> payload) {
+  if (!model_ || switch_to_) return;
+  epoch_.add(payload);
+  if (epoch_.packets() < kModelEpochPackets) return;
+  // The product byte's model if the timing fits it, else the model the timing fits.
+  const std::optional<Model> fits = epoch_.timing_model();
+  const double period_us = epoch_.median_packet_period_us();
+  epoch_ = ModelCheck{};
+  // Compared with what the first packets (or the configuration) said: a capture whose product
+  // byte contradicts its timing from the start is ModelCheck's complaint, not a change.
+  if (!fits || *fits == *model_ || fits == expected_) {
+    mismatched_epochs_ = 0;
+    return;
+  }
+  counts_.model_mismatch += kModelEpochPackets;
+  if (++mismatched_epochs_ < 2) return;  // sustained, not a burst of stray packets
+  const std::string now(model_spec(*model_).name), seen(model_spec(*fits).name);
+  if (options_.model || !options_.calibration_file.empty()) {
+    // Configured: decode as told, but say so (once; the counter keeps counting).
+    if (stream_mismatch_.empty())
+      stream_mismatch_ =
+          std::string(options_.model ? "configured model " : "calibration file's model ") + now +
+          " but the packets' product byte and timing (" +
+          std::to_string(static_cast<int>(period_us)) + " us per packet) fit " + seen;
+    return;
+  }
+  stream_mismatch_ = "model changed mid-stream: " + now + " -> " + seen +
+                     " (product byte and packet timing); decoding as " + seen;
+  switch_to_ = *fits;
+  expected_ = *fits;
+}
+
+void CaptureReader::switch_model(Model model) {
+  model_ = model;
+  decoder_ = std::make_unique<Decoder>(Calibration::builtin(model), options_.decoder);
+  batcher_.reset();  // the next packet makes one for the new model; scans are reshaped by it
+  mismatched_epochs_ = 0;
+}
+
 void CaptureReader::decide() {
   decided_ = true;
   model_ = options_.model;
   if (!model_) model_ = check_.product_model();
   if (!model_) model_ = check_.timing_model();
+  expected_ = options_.model ? options_.model : check_.timing_model();
   if (model_) {
     Calibration calibration = options_.calibration_file.empty()
                                   ? Calibration::builtin(*model_)
@@ -53,6 +105,7 @@ bool CaptureReader::take(const RawPacket& p, Scan& scan) {
   counts_.last_time_ns = p.receive_time_ns;
   if (p.destination_port == options_.source.data_port) {
     check_.add(p.payload);
+    if (decided_) watch_model(p.payload);
     last_data_ = std::chrono::steady_clock::now();
   }
   if (decided_) return handle(p.payload, p.receive_time_ns, p.destination_port, scan);
@@ -96,7 +149,9 @@ bool CaptureReader::handle(std::span<const uint8_t> payload, int64_t time_ns, ui
     ++counts_.undecodable;
     return false;
   }
-  const DecodeStatus status = decoder_->decode(payload, clock_, time_ns, *packet_);
+  // Header and column azimuths only: the batcher has the decoder write the points straight into
+  // the scan (from `payload`, valid during this call; what the batcher holds back it copies).
+  const DecodeStatus status = decoder_->parse(payload, clock_, time_ns, *packet_);
   if (status != DecodeStatus::kOk) {
     const auto index = static_cast<size_t>(status);
     if (index < counts_.decode_errors.size()) ++counts_.decode_errors[index];
@@ -107,16 +162,8 @@ bool CaptureReader::handle(std::span<const uint8_t> payload, int64_t time_ns, ui
     batcher_ = std::make_unique<ScanBatcher>(decoder_->spec(), packet_->mode, options_.batcher);
   }
   mode_ = packet_->mode;
-  // A pause in the packets' own clock ends the rotation before this packet joins the next one.
-  if (batcher_->poll(packet_->stamp_ns, scan)) {
-    packet_waiting_ = true;
-    return true;
-  }
-  return batcher_->add(*packet_, scan);
-}
-
-bool CaptureReader::add_packet(Scan& scan) {
-  packet_waiting_ = false;
+  // A pause in the packets' own clock longer than flush_timeout_s makes the stream a new one for
+  // the batcher (its screening, not this packet's possibly spoofed time, ends the rotation).
   return batcher_->add(*packet_, scan);
 }
 
@@ -125,7 +172,12 @@ CaptureReader::ReadResult CaptureReader::read(Scan& scan, std::chrono::milliseco
   const auto deadline = Clock::now() + timeout;
   for (;;) {
     if (finished_) return ReadResult::kEnd;
-    if (packet_waiting_ && add_packet(scan)) return ReadResult::kRotation;
+    if (switch_to_) {
+      // Deliver what was assembled as the old model, then decode as the new one.
+      if (batcher_ && batcher_->flush(scan)) return ReadResult::kRotation;
+      switch_model(*switch_to_);
+      switch_to_.reset();
+    }
     // Packets held back while the model was probed, one at a time: each may end a rotation.
     if (decided_ && held_next_ < held_.size()) {
       const Held& h = held_[held_next_++];
@@ -139,8 +191,9 @@ CaptureReader::ReadResult CaptureReader::read(Scan& scan, std::chrono::milliseco
       continue;
     }
     if (source_ended_) {
-      finished_ = true;
+      // The reorder window may still hold the start of another rotation: one per call.
       if (batcher_ && batcher_->flush(scan)) return ReadResult::kRotation;
+      finished_ = true;
       return ReadResult::kEnd;
     }
     const auto now = Clock::now();
@@ -156,11 +209,15 @@ CaptureReader::ReadResult CaptureReader::read(Scan& scan, std::chrono::milliseco
       if (!decided_) decide();
       source_ended_ = true;
       continue;
-    } else if (batcher_ && batcher_->in_progress() &&
-               std::chrono::duration<double>(Clock::now() - last_data_).count() >
-                   options_.batcher.flush_timeout_s) {
-      // The source fell silent: deliver the rotation in progress rather than hold it.
-      if (batcher_->flush(scan)) return ReadResult::kRotation;
+    } else if (batcher_ && batcher_->in_progress()) {
+      const double silent_s = std::chrono::duration<double>(Clock::now() - last_data_).count();
+      if (silent_s > options_.batcher.flush_timeout_s) {
+        // The source fell silent: deliver the rotation in progress rather than hold it.
+        if (batcher_->flush(scan)) return ReadResult::kRotation;
+      } else if (silent_s > kReorderWait_s) {
+        // A pause: no reordered packet is on its way, the held-back ones go into the scan.
+        if (batcher_->release_held(scan)) return ReadResult::kRotation;
+      }
     }
     if (Clock::now() >= deadline) return ReadResult::kTimeout;
   }

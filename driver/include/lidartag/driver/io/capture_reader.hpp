@@ -48,8 +48,8 @@ struct CaptureCounts {
   uint64_t decoded = 0;                     // data packets decoded into columns
   std::array<uint64_t, 8> decode_errors{};  // indexed by DecodeStatus (kOk unused)
   uint64_t undecodable = 0;  // data packets with no model to decode them (unknown sensor)
-  // Data packets whose product byte, size or timing contradict the model in use (another model
-  // mid-stream, or an explicitly configured wrong model). Not counted yet: 0.
+  // Data packets whose product byte and timing contradict the model in use (another model
+  // mid-stream, or an explicitly configured wrong model), judged per 64 packets.
   uint64_t model_mismatch = 0;
   uint64_t position_ok = 0;                     // position packets parsed
   uint64_t position_errors = 0;                 // wrong size or bad PPS byte
@@ -92,8 +92,11 @@ class CaptureReader {
   std::optional<Model> model() const { return model_; }  // empty until decided
   std::optional<ReturnMode> return_mode() const { return mode_; }
   const ModelCheck& model_check() const { return check_; }
-  // ModelCheck's complaint when the product byte contradicts the timing, else empty.
-  std::string model_mismatch() const { return check_.mismatch(); }
+  // Empty while the packets fit the model in use. Otherwise what contradicts it: the product byte
+  // against the timing of the first packets (ModelCheck), packets of another model mid-stream
+  // (with the model detected, the reader then decodes them as that model), or a configured model
+  // (or calibration file) that the packets' product byte and timing contradict.
+  std::string model_mismatch() const;
   const CaptureCounts& counts() const { return counts_; }
   SourceStats source_stats() const { return source_->stats(); }
   BatcherStats batcher_stats() const;
@@ -110,14 +113,17 @@ class CaptureReader {
   // Each returns true when `scan` received a finished rotation.
   bool take(const RawPacket& packet, Scan& scan);
   bool handle(std::span<const uint8_t> payload, int64_t time_ns, uint16_t port, Scan& scan);
-  bool add_packet(Scan& scan);
   void decide();
+  // Per data packet after the decision: checks that the packets still fit the model in use.
+  void watch_model(std::span<const uint8_t> payload);
+  // Decodes as `model` from now on (what was assembled with the old one is delivered first).
+  void switch_model(Model model);
 
   std::unique_ptr<PacketSource> source_;
   CaptureReaderOptions options_;
   std::unique_ptr<Decoder> decoder_;
   std::unique_ptr<ScanBatcher> batcher_;
-  std::unique_ptr<DecodedPacket> packet_;
+  std::unique_ptr<PacketColumns> packet_;  // parsed: the batcher decodes it into the scan
   SensorClock clock_;
   ModelCheck check_;
   CaptureCounts counts_;
@@ -126,8 +132,13 @@ class CaptureReader {
   bool decided_ = false;
   bool source_ended_ = false;
   bool finished_ = false;
-  // packet_ is decoded but not added yet: the timeout it revealed ended the rotation first.
-  bool packet_waiting_ = false;
+  // Model watch: a ModelCheck per 64 data packets; two running that contradict the model in use
+  // make the reader switch (model detected) or report (model or calibration configured).
+  ModelCheck epoch_;
+  int mismatched_epochs_ = 0;
+  std::optional<Model> switch_to_;
+  std::optional<Model> expected_;  // what the configuration or the first packets' timing said
+  std::string stream_mismatch_;
   std::vector<Held> held_;  // packets read while probing
   size_t held_next_ = 0;    // the first held packet not handled yet (after the decision)
   std::chrono::steady_clock::time_point last_data_;  // host time of the last data packet
