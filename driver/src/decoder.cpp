@@ -140,7 +140,7 @@ struct LaserConstants {
 // gathered from the payload; per slot the distance in metres and 1/0 for a usable return, as
 // floats for the vectorised loops.
 struct RingEchoes {
-  static constexpr size_t kN = PacketColumns::kMaxColumns;
+  static constexpr size_t kN = ColumnBatch::kMaxColumns;
   std::array<uint16_t, kN> raw[1];
   std::array<ReturnType, kN> type[1];
   std::array<float, kN> distance[2], ok[2];
@@ -175,15 +175,16 @@ void echo_ranges(int n, const uint16_t* __restrict raw, const ReturnType* __rest
 // azimuth, the azimuth and the time, written once per column. Restrict-qualified parameters:
 // GCC drops the restrict of local pointers when it inlines, and then gives up on vectorising
 // for the number of run-time alias checks.
-void ring_rotation(const PacketColumns& pk, int first, int n, const LaserConstants& lc, float t_off,
-                   float t_scale, float* __restrict ca_out, float* __restrict sa_out,
-                   float* __restrict az_out, float* __restrict time_out) {
-  const float* cos_az = pk.cos_az.data() + first;
-  const float* sin_az = pk.sin_az.data() + first;
-  const float* az0 = pk.column_azimuth_deg.data() + first;
-  const float* rate_deg = pk.rate_deg.data() + first;
-  const float* rate_rad = pk.rate_rad.data() + first;
-  const float* t0 = pk.time0_us.data() + first;
+void ring_rotation(const ColumnBatch& b, int n, const LaserConstants& lc, float t_scale,
+                   float* __restrict ca_out, float* __restrict sa_out, float* __restrict az_out,
+                   float* __restrict time_out) {
+  const float* cos_az = b.cos_az.data();
+  const float* sin_az = b.sin_az.data();
+  const float* az0 = b.azimuth_deg.data();
+  const float* rate_deg = b.rate_deg.data();
+  const float* rate_rad = b.rate_rad.data();
+  const float* t0 = b.time0_us.data();
+  const float* t_off = b.time_offset.data();
   const float lt = lc.time_us, az_off = lc.az_offset, cos_off = lc.cos_off, sin_off = lc.sin_off;
   for (int k = 0; k < n; ++k) {
     const float cb = cos_az[k] * cos_off + sin_az[k] * sin_off;  // azimuth - offset
@@ -194,7 +195,7 @@ void ring_rotation(const PacketColumns& pk, int first, int n, const LaserConstan
     ca_out[k] = cb * ce - sb * se;
     sa_out[k] = sb * ce + cb * se;
     az_out[k] = wrap_near(az0[k] + rate_deg[k] * lt - az_off);
-    time_out[k] = t_off + (t0[k] + lt) * t_scale;
+    time_out[k] = t_off[k] + (t0[k] + lt) * t_scale;
   }
 }
 
@@ -439,7 +440,26 @@ void Decoder::write_points(const PacketColumns& pk, int first, int count,
   // Runs of a few columns (VLS-128 packets, the ends of a rotation): per firing, vectorised over
   // the lasers, scattered into the rings. Longer runs: per ring, vectorised over the columns,
   // stored as runs.
-  if (count < kRingKernelMinColumns) {
+  if (count >= kRingKernelMinColumns) {
+    ColumnBatch batch;
+    (void)batch.append(pk, first, count, sink.time_offset);
+    write_batch(batch, sink);
+    return;
+  }
+  // A scan's rings x returns x fields destination streams are more than the hardware prefetcher
+  // follows: ask for the line each stream's next run lands in now, so that its fetch overlaps
+  // this run's work.
+  for (int e = 0; e < pk.returns; ++e) {
+    for (int ring = 0; ring < pk.rings; ++ring) {
+      const size_t c = static_cast<size_t>(e) * sink.return_stride +
+                       static_cast<size_t>(ring) * sink.ring_stride + static_cast<size_t>(count);
+      for (float* f : {sink.x, sink.y, sink.z, sink.range, sink.azimuth_deg, sink.time})
+        __builtin_prefetch(f + c + 16, 1);
+      __builtin_prefetch(sink.intensity + c + 64, 1);
+      __builtin_prefetch(sink.return_type + c + 64, 1);
+    }
+  }
+  {
     FiringPoints pts[2];
     const auto n_lasers = static_cast<size_t>(lasers_per_firing);
     for (int col = first; col < first + count; ++col) {
@@ -474,24 +494,67 @@ void Decoder::write_points(const PacketColumns& pk, int first, int count,
     }
     return;
   }
+}
+
+bool ColumnBatch::append(const PacketColumns& pk, int first, int count, float t_off) {
+  const int n = columns;
+  if (count <= 0 || n + count > kMaxColumns) return false;
+  const int pk_returns = pk.mode == ReturnMode::kDual ? 2 : 1;
+  if (n == 0) {
+    mode = pk.mode;
+    returns = pk_returns;
+  } else if (pk.mode != mode) {
+    return false;
+  }
+  const auto src = static_cast<std::ptrdiff_t>(first), dst = static_cast<std::ptrdiff_t>(n);
+  std::fill_n(payload.begin() + dst, count, pk.payload);
+  std::copy_n(pk.channel_offset.begin() + src, count, channel_offset.begin() + dst);
+  std::copy_n(pk.cos_az.begin() + src, count, cos_az.begin() + dst);
+  std::copy_n(pk.sin_az.begin() + src, count, sin_az.begin() + dst);
+  std::copy_n(pk.column_azimuth_deg.begin() + src, count, azimuth_deg.begin() + dst);
+  std::copy_n(pk.rate_deg.begin() + src, count, rate_deg.begin() + dst);
+  std::copy_n(pk.rate_rad.begin() + src, count, rate_rad.begin() + dst);
+  std::copy_n(pk.time0_us.begin() + src, count, time0_us.begin() + dst);
+  std::fill_n(time_offset.begin() + dst, count, t_off);
+  columns = n + count;
+  return true;
+}
+
+void Decoder::write_batch(const ColumnBatch& b, const PointSink& sink) const {
+  const int count = b.columns;
+  if (count <= 0) return;
+  const bool dual = b.returns == 2;
+  const int lasers_per_firing = 32 / spec_->firings_per_block;
+  const ReturnType single_type =
+      b.mode == ReturnMode::kLast ? ReturnType::kLast : ReturnType::kStrongest;
   RingEchoes echoes;
   const detail::LaserTable& t = lasers_;
   const auto min_r = static_cast<float>(min_range_m_), max_r = static_cast<float>(max_range_m_);
   const double unit = calibration_.distance_unit_m;
-  for (int ring = 0; ring < pk.rings; ++ring) {
+  for (int ring = 0; ring < spec_->lasers; ++ring) {
     const int l = laser_of_ring_[static_cast<size_t>(ring)];
     const auto ul = static_cast<size_t>(l);
     const auto bank = static_cast<size_t>(l / lasers_per_firing);
     const auto ch = static_cast<size_t>(l % lasers_per_firing) * 3;
     const double dist_off = t.dist_offset_m[ul];
     const size_t cell0 = static_cast<size_t>(ring) * sink.ring_stride;
+    // The ring's next run lands in the next line of each field: ask for it now (the rings x
+    // returns x fields streams are more than the hardware prefetcher follows).
+    for (int e = 0; e < b.returns; ++e) {
+      const size_t c =
+          cell0 + static_cast<size_t>(e) * sink.return_stride + static_cast<size_t>(count);
+      for (float* f : {sink.x, sink.y, sink.z, sink.range, sink.azimuth_deg, sink.time})
+        __builtin_prefetch(f + c + 16, 1);
+      __builtin_prefetch(sink.intensity + c + 64, 1);
+      __builtin_prefetch(sink.return_type + c + 64, 1);
+    }
     uint8_t* in0 = sink.intensity + cell0;
     ReturnType* ty0 = sink.return_type + cell0;
     if (!dual) {
       // Gather (scalar: 3-byte strided fields), then convert in a vectorised loop.
       for (int k = 0; k < count; ++k) {
         const auto uk = static_cast<size_t>(k);
-        const uint8_t* c = p + pk.channel_offset[static_cast<size_t>(first + k)][0][bank] + ch;
+        const uint8_t* c = b.payload[uk] + b.channel_offset[uk][0][bank] + ch;
         echoes.raw[0][uk] = read_u16(c);
         in0[k] = c[2];
       }
@@ -499,14 +562,14 @@ void Decoder::write_points(const PacketColumns& pk, int first, int count,
       echo_ranges(count, echoes.raw[0].data(), echoes.type[0].data(), unit, dist_off, min_r, max_r,
                   echoes.distance[0].data(), echoes.ok[0].data(), ty0);
     } else {
-      // A dual run has 12 columns at most, too short for vectors of bytes: one scalar pass.
+      // Sorting the echoes mispredicts less as branches than as selects: one scalar pass.
       uint8_t* in1 = in0 + sink.return_stride;
       ReturnType* ty1 = ty0 + sink.return_stride;
       for (int k = 0; k < count; ++k) {
         const auto uk = static_cast<size_t>(k);
-        const auto& off = pk.channel_offset[static_cast<size_t>(first + k)];
-        const uint8_t* c0 = p + off[0][bank] + ch;
-        const uint8_t* c1 = p + off[1][bank] + ch;
+        const auto& off = b.channel_offset[uk];
+        const uint8_t* c0 = b.payload[uk] + off[0][bank] + ch;
+        const uint8_t* c1 = b.payload[uk] + off[1][bank] + ch;
         uint16_t da = 0, db = 0;
         ReturnType ta{}, tb{};
         sort_echoes(read_u16(c0), c0[2], read_u16(c1), c1[2], da, in0[k], ta, db, in1[k], tb);
@@ -522,9 +585,9 @@ void Decoder::write_points(const PacketColumns& pk, int first, int count,
     // One ring's run, vectorised over the columns and stored as contiguous runs (the layout
     // of a scan: no scatter); the rotation is shared by both echoes of a dual-return cell. Same
     // expressions in the same order as compute_firing(): the results are bit-identical.
-    ring_rotation(pk, first, count, lc, sink.time_offset, sink.time_scale, echoes.ca.data(),
-                  echoes.sa.data(), sink.azimuth_deg + cell0, sink.time + cell0);
-    for (int e = 0; e < pk.returns; ++e) {
+    ring_rotation(b, count, lc, sink.time_scale, echoes.ca.data(), echoes.sa.data(),
+                  sink.azimuth_deg + cell0, sink.time + cell0);
+    for (int e = 0; e < b.returns; ++e) {
       const size_t c = cell0 + static_cast<size_t>(e) * sink.return_stride;
       const auto ue = static_cast<size_t>(e);
       if (e > 0) {

@@ -74,7 +74,8 @@ void ScanBatcher::begin(Scan& scan, int64_t stamp_ns) {
 }
 
 void ScanBatcher::finish(Scan& scan, bool ends_at_cut) {
-  write_run(scan);
+  queue_run(scan);
+  write_batch(scan);
   next_starts_at_cut_ = ends_at_cut;
   if (!open_) return;
   open_ = false;
@@ -312,12 +313,21 @@ bool ScanBatcher::release_oldest(Scan& scan, bool may_end) {
   const auto h = static_cast<size_t>(released_count_++ % kHistory);
   released_stamp_[h] = pk.stamp_ns;
   released_azimuth_[h] = pk.column_azimuth_deg[0];
-  if (run(pk, 0, scan, may_end)) {
+  packet_slot_ = slot;
+  const bool ended = run(pk, 0, scan, may_end);
+  packet_slot_ = -1;
+  if (ended) {
     pending_slot_ = slot;  // its columns after the end wait for the next scan
     return true;
   }
-  busy_[static_cast<size_t>(slot)] = false;
+  done_with(slot);
   return false;
+}
+
+void ScanBatcher::done_with(int slot) {
+  for (int i = 0; i < batch_slot_count_; ++i)
+    if (batch_slots_[static_cast<size_t>(i)] == slot) return;  // freed once the batch is written
+  busy_[static_cast<size_t>(slot)] = false;
 }
 
 void ScanBatcher::take_pending(Scan& scan) {
@@ -325,14 +335,17 @@ void ScanBatcher::take_pending(Scan& scan) {
   const int slot = pending_slot_;
   pending_slot_ = -1;
   // The rest of a packet that already ended a rotation: it cannot end another (see run()).
+  packet_slot_ = slot;
   (void)run((*slots_)[static_cast<size_t>(slot)].columns, pending_column_, scan, false);
-  busy_[static_cast<size_t>(slot)] = false;
+  packet_slot_ = -1;
+  done_with(slot);
 }
 
 bool ScanBatcher::release_held(Scan& scan) {
   take_pending(scan);
   while (window_size_ > 0)
     if (release_oldest(scan, true)) return true;
+  write_batch(scan);  // the rotation in progress is up to date in the scan
   return false;
 }
 
@@ -449,7 +462,7 @@ bool ScanBatcher::run(const PacketColumns& pk, int first, Scan& scan, bool may_e
         return true;
       }
       // Only with a scan smaller than one packet: the column is lost, counted.
-      write_run(scan);
+      queue_run(scan);
       ++stats_.overflows;
       continue;
     }
@@ -459,7 +472,7 @@ bool ScanBatcher::run(const PacketColumns& pk, int first, Scan& scan, bool may_e
     last_column_azimuth_ = az;
     last_column_stamp_ns_ = stamp;
   }
-  write_run(scan);
+  queue_run(scan);
   packet_ = nullptr;
   return false;
 }
@@ -485,7 +498,7 @@ void ScanBatcher::add_column(const PacketColumns& pk, int c, int64_t stamp, Scan
   ++run_columns_;
 }
 
-void ScanBatcher::write_run(Scan& s) {
+void ScanBatcher::queue_run(Scan& s) {
   if (run_columns_ == 0 || !open_ || packet_ == nullptr) {
     run_columns_ = 0;
     return;
@@ -493,30 +506,61 @@ void ScanBatcher::write_run(Scan& s) {
   const PacketColumns& pk = *packet_;
   const int n = run_columns_;
   run_columns_ = 0;
-  if (pk.rings != s.rings || pk.returns > s.returns) return;  // cannot happen: begin() sized it
-  // The decoder writes the run straight into the scan's ring-major storage.
-  const size_t cell = s.at(0, 0, run_scan_column_);
-  const auto ring_stride = static_cast<size_t>(s.column_capacity);
-  const PointSink sink{s.x.data() + cell,
-                       s.y.data() + cell,
-                       s.z.data() + cell,
-                       s.range.data() + cell,
-                       s.azimuth_deg.data() + cell,
-                       s.time_s.data() + cell,
-                       s.intensity.data() + cell,
-                       s.return_type.data() + cell,
-                       ring_stride,
-                       ring_stride * static_cast<size_t>(s.rings),
-                       static_cast<float>(run_time_offset_s_),
-                       1e-6f};
-  pk.decoder->write_points(pk, run_packet_column_, n, sink);
-  for (int r = pk.returns; r < s.returns; ++r) {  // a single-return packet in a dual-return scan
-    for (int ring = 0; ring < s.rings; ++ring) {
-      const auto dst = static_cast<std::ptrdiff_t>(s.at(r, ring, run_scan_column_));
-      std::fill_n(s.range.begin() + dst, n, 0.0f);
-      std::fill_n(s.return_type.begin() + dst, n, ReturnType::kNone);
+  if (pk.rings != s.rings || pk.decoder == nullptr) return;  // cannot happen: begin() sized it
+  const auto t_off = static_cast<float>(run_time_offset_s_);
+  // Runs go to consecutive scan columns; one that does not (a column lost to a full scan) or
+  // does not fit starts a new batch.
+  if (batch_.columns > 0 && (run_scan_column_ != batch_column_ + batch_.columns ||
+                             !batch_.append(pk, run_packet_column_, n, t_off))) {
+    write_batch(s);
+  }
+  if (batch_.columns == 0) {
+    batch_column_ = run_scan_column_;
+    (void)batch_.append(pk, run_packet_column_, n, t_off);
+  }
+  if (packet_slot_ >= 0 &&
+      (batch_slot_count_ == 0 ||
+       batch_slots_[static_cast<size_t>(batch_slot_count_ - 1)] != packet_slot_))
+    batch_slots_[static_cast<size_t>(batch_slot_count_++)] = packet_slot_;
+  decoder_ = pk.decoder;
+  if (batch_.columns >= kBatchColumns) write_batch(s);
+}
+
+void ScanBatcher::write_batch(Scan& s) {
+  const int n = batch_.columns;
+  if (n > 0 && decoder_ != nullptr && batch_.returns <= s.returns &&
+      batch_column_ + n <= s.column_capacity) {
+    // The decoder writes the batch straight into the scan's ring-major storage.
+    const size_t cell = s.at(0, 0, batch_column_);
+    const auto ring_stride = static_cast<size_t>(s.column_capacity);
+    const PointSink sink{s.x.data() + cell,
+                         s.y.data() + cell,
+                         s.z.data() + cell,
+                         s.range.data() + cell,
+                         s.azimuth_deg.data() + cell,
+                         s.time_s.data() + cell,
+                         s.intensity.data() + cell,
+                         s.return_type.data() + cell,
+                         ring_stride,
+                         ring_stride * static_cast<size_t>(s.rings),
+                         0.0f,
+                         1e-6f};
+    decoder_->write_batch(batch_, sink);
+    for (int r = batch_.returns; r < s.returns; ++r) {  // single-return packets, dual scan
+      for (int ring = 0; ring < s.rings; ++ring) {
+        const auto dst = static_cast<std::ptrdiff_t>(s.at(r, ring, batch_column_));
+        std::fill_n(s.range.begin() + dst, n, 0.0f);
+        std::fill_n(s.return_type.begin() + dst, n, ReturnType::kNone);
+      }
     }
   }
+  batch_.columns = 0;
+  // The held packets the batch read are free now, but the one being run.
+  for (int i = 0; i < batch_slot_count_; ++i) {
+    const int slot = batch_slots_[static_cast<size_t>(i)];
+    if (slot != packet_slot_ && slot != pending_slot_) busy_[static_cast<size_t>(slot)] = false;
+  }
+  batch_slot_count_ = 0;
 }
 
 }  // namespace lidartag::velodyne

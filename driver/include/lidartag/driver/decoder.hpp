@@ -64,6 +64,27 @@ struct DecodedPacket : PacketColumns {
   int at(int ret, int col, int ring) const { return (ret * rings + ring) * columns + col; }
 };
 
+// Runs of columns of one or several parsed packets (of one decoder) bound for consecutive columns
+// of one scan, decoded together ring by ring (Decoder::write_batch()): every ring's run is then
+// long, also for packets of few columns (VLS-128: 3, dual 1). The packets' bytes must still be
+// valid when the batch is written.
+struct ColumnBatch {
+  static constexpr int kMaxColumns = 48;
+  int columns = 0;
+  int returns = 1;
+  ReturnMode mode = ReturnMode::kStrongest;
+  // Per column: its packet's bytes and channel offsets, and what compute_firing() needs; the time
+  // offset of its run (written times are time_offset + t_us * PointSink::time_scale).
+  std::array<const uint8_t*, kMaxColumns> payload{};
+  std::array<std::array<std::array<uint16_t, 4>, 2>, kMaxColumns> channel_offset{};
+  std::array<float, kMaxColumns> cos_az{}, sin_az{}, azimuth_deg{}, rate_deg{}, rate_rad{},
+      time0_us{}, time_offset{};
+
+  // Adds `count` columns of `packet` from `first`; false (nothing added) when they do not fit or
+  // the packet's return mode differs from the batch's.
+  bool append(const PacketColumns& packet, int first, int count, float time_offset);
+};
+
 // Where write_points() puts a run of columns: pointers to the run's first cell of return 0,
 // ring 0, per field; cells of the next ring are `ring_stride` further, of return 1
 // `return_stride` further. Times are written as time_offset + t_us * time_scale, t_us from the
@@ -114,6 +135,9 @@ class Decoder {
   // error `out` is left untouched. `payload` must outlive the use of `out`.
   [[nodiscard]] DecodeStatus parse(std::span<const uint8_t> payload, const SensorClock& clock,
                                    int64_t receive_time_ns, PacketColumns& out);
+  // The points of a batch of columns into `sink` (its time_offset unused: the batch has one per
+  // column). Never allocates.
+  void write_batch(const ColumnBatch& batch, const PointSink& sink) const;
   // The points of `count` columns from `first` of a parsed packet into `sink`. Never allocates.
   void write_points(const PacketColumns& packet, int first, int count, const PointSink& sink) const;
 

@@ -93,7 +93,10 @@ class ScanBatcher {
     PacketColumns columns;
     std::array<uint8_t, kDataPacketSize> bytes;
   };
-  static constexpr int kSlots = kReorderWindow + 3;
+  // Columns decoded together into the scan: packets of few columns (VLS-128) are held until
+  // this many are waiting, so that each ring's run fills whole cache lines.
+  static constexpr int kBatchColumns = 16;
+  static constexpr int kSlots = kReorderWindow + 3 + kBatchColumns;
   static constexpr int kHistory = 16;  // released packets remembered to recognise duplicates
   static constexpr int kGaps = 8;      // recent gaps counted as missing packets
 
@@ -127,9 +130,13 @@ class ScanBatcher {
   void begin(Scan& scan, int64_t stamp_ns);
   void finish(Scan& scan, bool ends_at_cut);
   bool crossed_cut(double from_deg, double to_deg) const;
-  // Column bookkeeping; consecutive columns are decoded into the scan as one run.
+  // Column bookkeeping; consecutive columns are decoded into the scan as one run, runs are
+  // batched (write_batch() decodes them).
   void add_column(const PacketColumns& packet, int column, int64_t stamp_ns, Scan& scan);
-  void write_run(Scan& scan);
+  void queue_run(Scan& scan);
+  void write_batch(Scan& scan);
+  // After a held packet's columns were taken: its slot is free unless the batch still reads it.
+  void done_with(int slot);
 
   const ModelSpec& spec_;
   ReturnMode mode_;
@@ -163,6 +170,13 @@ class ScanBatcher {
 
   // The run of columns of the packet being written that waits to be decoded into the scan.
   const PacketColumns* packet_ = nullptr;
+  int packet_slot_ = -1;  // its slot
+  // Runs waiting to be decoded into the scan, from batch_column_ on, and the slots they read.
+  ColumnBatch batch_;
+  const Decoder* decoder_ = nullptr;  // the batch's
+  int batch_column_ = 0;
+  std::array<int, kSlots> batch_slots_{};
+  int batch_slot_count_ = 0;
   int run_columns_ = 0, run_packet_column_ = 0, run_scan_column_ = 0;
   double run_time_offset_s_ = 0;
   BatcherStats stats_{};
