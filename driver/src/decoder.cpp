@@ -141,8 +141,8 @@ struct LaserConstants {
 // floats for the vectorised loops.
 struct RingEchoes {
   static constexpr size_t kN = ColumnBatch::kMaxColumns;
-  std::array<uint16_t, kN> raw[1];
-  std::array<ReturnType, kN> type[1];
+  std::array<uint16_t, kN> raw[2];
+  std::array<ReturnType, kN> type[2];
   std::array<float, kN> distance[2], ok[2];
   std::array<float, kN> ca, sa;  // of each point's azimuth
 };
@@ -562,22 +562,21 @@ void Decoder::write_batch(const ColumnBatch& b, const PointSink& sink) const {
       echo_ranges(count, echoes.raw[0].data(), echoes.type[0].data(), unit, dist_off, min_r, max_r,
                   echoes.distance[0].data(), echoes.ok[0].data(), ty0);
     } else {
-      // Sorting the echoes mispredicts less as branches than as selects: one scalar pass.
+      // Gather and sort the echoes (branches: which case a cell is in mispredicts less than
+      // selects cost), then convert both slots in vectorised loops.
       uint8_t* in1 = in0 + sink.return_stride;
-      ReturnType* ty1 = ty0 + sink.return_stride;
       for (int k = 0; k < count; ++k) {
         const auto uk = static_cast<size_t>(k);
         const auto& off = b.channel_offset[uk];
         const uint8_t* c0 = b.payload[uk] + off[0][bank] + ch;
         const uint8_t* c1 = b.payload[uk] + off[1][bank] + ch;
-        uint16_t da = 0, db = 0;
-        ReturnType ta{}, tb{};
-        sort_echoes(read_u16(c0), c0[2], read_u16(c1), c1[2], da, in0[k], ta, db, in1[k], tb);
-        take_echo(da, ta, unit, dist_off, min_r, max_r, echoes.distance[0][uk], echoes.ok[0][uk],
-                  ty0[k]);
-        take_echo(db, tb, unit, dist_off, min_r, max_r, echoes.distance[1][uk], echoes.ok[1][uk],
-                  ty1[k]);
+        sort_echoes(read_u16(c0), c0[2], read_u16(c1), c1[2], echoes.raw[0][uk], in0[k],
+                    echoes.type[0][uk], echoes.raw[1][uk], in1[k], echoes.type[1][uk]);
       }
+      for (size_t e = 0; e < 2; ++e)
+        echo_ranges(count, echoes.raw[e].data(), echoes.type[e].data(), unit, dist_off, min_r,
+                    max_r, echoes.distance[e].data(), echoes.ok[e].data(),
+                    ty0 + e * sink.return_stride);
     }
     const LaserConstants lc{
         t.cos_el[ul],  t.sin_el[ul],        t.v_sin[ul],   t.v_cos[ul],   t.horiz_offset_m[ul],
