@@ -108,9 +108,10 @@ bool ScanBatcher::fits(const Ref& ref, const PacketColumns& pk) const {
   if (std::abs(azimuth_diff(az, ref.first_azimuth_deg + travel)) <=
       kAzimuthToleranceDeg + kTravelTolerance * std::abs(travel))
     return true;
-  // A restricted field of view: the sensor paused, then goes on from where it stopped.
+  // A restricted field of view: the sensor paused (longer than a packet period), then goes on
+  // from where it stopped.
   const double step = ref.rate_deg_per_us * spec_.firing_period_us;
-  return dt_us > 0 &&
+  return dt_us > 1.5 * period_us &&
          std::abs(azimuth_diff(az, ref.last_azimuth_deg + step)) <= kAzimuthToleranceDeg + step;
 }
 

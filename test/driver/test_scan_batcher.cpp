@@ -6,6 +6,7 @@
 #include <deque>
 #include <memory>
 
+#include "../detector/count_allocations.hpp"
 #include "lidartag/driver/scan_batcher.hpp"
 #include "synthetic_stream.hpp"
 
@@ -519,6 +520,54 @@ TEST(ScanBatcher, ScanThatFillsUpLosesNothingElse) {
   int columns = 0;
   for (const Scan* s : rig.scans) columns += s->columns;
   EXPECT_EQ(columns, 100 * rig.spec.columns_per_packet(ReturnMode::kStrongest));
+}
+
+TEST(ScanBatcher, PerPacketPathNeverAllocates) {
+  // parse() + add() over every kind of packet the screening meets, once the scans are sized.
+  for (ReturnMode mode : {ReturnMode::kStrongest, ReturnMode::kDual}) {
+    for (Model m : all_models()) {
+      const ModelSpec& spec = model_spec(m);
+      const auto stream =
+          testing::make_stream(spec, mode, static_cast<int>(spec.packet_rate_hz(mode)));
+      std::vector<testing::StreamPacket> mixed;
+      for (size_t i = 0; i < stream.size(); ++i) {
+        mixed.push_back(stream[i]);
+        if (i % 5 == 1) mixed.push_back(spoof(spec, stream[i], static_cast<uint32_t>(i)));
+        if (i % 17 == 3) mixed.push_back(stream[i]);  // duplicate
+        if (i % 23 == 7 && i > 3) std::swap(mixed[mixed.size() - 1], mixed[mixed.size() - 2]);
+      }
+      const auto again = stream;  // a replay loop: a new stream
+      Decoder decoder(Calibration::builtin(m));
+      SensorClock clock;
+      ScanBatcher batcher(spec, mode, {});
+      PacketColumns pk;
+      std::array<Scan, 2> scans;
+      for (Scan& s : scans)
+        s.reserve(spec.lasers, mode == ReturnMode::kDual ? 2 : 1,
+                  ScanBatcher::column_capacity(spec));
+      size_t current = 0, rotations = 0;
+      auto feed = [&](const std::vector<testing::StreamPacket>& v) {
+        for (const auto& p : v) {
+          if (decoder.parse(p.bytes, clock, p.time_ns, pk) != DecodeStatus::kOk) continue;
+          if (batcher.add(pk, scans[current])) {
+            current = 1 - current;
+            ++rotations;
+          }
+        }
+      };
+      const long before = lidartag::testing::heap_allocations();
+      feed(mixed);
+      feed(again);
+      while (batcher.flush(scans[current])) {
+        current = 1 - current;
+        ++rotations;
+      }
+      EXPECT_EQ(lidartag::testing::heap_allocations(), before) << spec.name;
+      EXPECT_GE(rotations, 16u) << spec.name;
+      EXPECT_GT(batcher.stats().inconsistent, 0u);
+      EXPECT_GT(batcher.stats().duplicates, 0u);
+    }
+  }
 }
 
 }  // namespace
