@@ -446,19 +446,6 @@ void Decoder::write_points(const PacketColumns& pk, int first, int count,
     write_batch(batch, sink);
     return;
   }
-  // A scan's rings x returns x fields destination streams are more than the hardware prefetcher
-  // follows: ask for the line each stream's next run lands in now, so that its fetch overlaps
-  // this run's work.
-  for (int e = 0; e < pk.returns; ++e) {
-    for (int ring = 0; ring < pk.rings; ++ring) {
-      const size_t c = static_cast<size_t>(e) * sink.return_stride +
-                       static_cast<size_t>(ring) * sink.ring_stride + static_cast<size_t>(count);
-      for (float* f : {sink.x, sink.y, sink.z, sink.range, sink.azimuth_deg, sink.time})
-        __builtin_prefetch(f + c + 16, 1);
-      __builtin_prefetch(sink.intensity + c + 64, 1);
-      __builtin_prefetch(sink.return_type + c + 64, 1);
-    }
-  }
   {
     FiringPoints pts[2];
     const auto n_lasers = static_cast<size_t>(lasers_per_firing);
