@@ -1,14 +1,14 @@
-// Decoding and scan assembly throughput, in points per second and as a multiple of each model's
-// real-time rate (sensor seconds processed per wall second, one core).
+// Decoding and scan assembly throughput per model and return mode: packets and points per second
+// and the multiple of the sensor's real-time rate (sensor seconds processed per second, one core).
 //   build/bin/bench_decoder --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 #include <benchmark/benchmark.h>
 
+#include <array>
 #include <deque>
 #include <memory>
 
 #include "../test/driver/synthetic_stream.hpp"
 #include "lidartag/driver/scan_batcher.hpp"
-#include "lidartag/driver/scan_buffer.hpp"
 
 namespace lidartag::velodyne {
 namespace {
@@ -24,6 +24,8 @@ struct Fixture {
 };
 
 void report(benchmark::State& state, const Fixture& f, size_t packets, size_t points) {
+  state.counters["packets_per_s"] =
+      benchmark::Counter(static_cast<double>(packets), benchmark::Counter::kIsRate);
   state.counters["points_per_s"] =
       benchmark::Counter(static_cast<double>(points), benchmark::Counter::kIsRate);
   // Sensor seconds decoded per second of CPU = multiple of real time.
@@ -49,26 +51,27 @@ void BM_Decode(benchmark::State& state, Model m, ReturnMode mode) {
   report(state, f, packets, points);
 }
 
-// Decode + cut into rotations + hand over through the lock-free buffer, as the daemon does.
+// Packets -> whole rotations in the caller's scans (two, alternating), as the daemon fills the
+// slots of its scan buffer: parse() reads the packet's columns, the batcher has the decoder write
+// them straight into the scan (reorder window and screening included).
 void BM_DecodeAndAssemble(benchmark::State& state, Model m, ReturnMode mode) {
   Fixture f(m, mode);
   Decoder decoder(Calibration::builtin(m));
   SensorClock clock;
-  DecodedPacket out;
-  ScanBuffer buffer(4, 1, f.spec.lasers, mode == ReturnMode::kDual ? 2 : 1,
-                    ScanBatcher::column_capacity(f.spec));
-  ScanBatcher batcher(f.spec, mode, {}, buffer);
+  PacketColumns out;
+  ScanBatcher batcher(f.spec, mode, {});
+  std::array<Scan, 2> scans;
+  size_t current = 0;
   size_t packets = 0, points = 0;
   int64_t shift = 0;
   const int64_t span = f.packets.back().time_ns - f.packets.front().time_ns +
                        static_cast<int64_t>(f.spec.packet_period_us(mode) * 1e3);
   for (auto _ : state) {
     for (const auto& p : f.packets) {
-      (void)decoder.decode(p.bytes, clock, p.time_ns + shift, out);
+      (void)decoder.parse(p.bytes, clock, p.time_ns + shift, out);
       out.stamp_ns = p.time_ns + shift;  // keep time running across iterations
-      batcher.add(out);
+      if (batcher.add(out, scans[current])) current = 1 - current;
       points += static_cast<size_t>(out.columns * out.rings * out.returns);
-      if (Scan* s = buffer.pop()) buffer.release(s);
     }
     shift += span;
     packets += f.packets.size();
@@ -82,15 +85,24 @@ void BM_DecodeAndAssemble(benchmark::State& state, Model m, ReturnMode mode) {
 
 LIDARTAG_MODEL_BENCH(BM_Decode, VLP16, Strongest);
 LIDARTAG_MODEL_BENCH(BM_Decode, VLP16, Dual);
+LIDARTAG_MODEL_BENCH(BM_Decode, PuckHiRes, Strongest);
+LIDARTAG_MODEL_BENCH(BM_Decode, PuckHiRes, Dual);
 LIDARTAG_MODEL_BENCH(BM_Decode, VLP32C, Strongest);
 LIDARTAG_MODEL_BENCH(BM_Decode, VLP32C, Dual);
 LIDARTAG_MODEL_BENCH(BM_Decode, HDL32E, Strongest);
+LIDARTAG_MODEL_BENCH(BM_Decode, HDL32E, Dual);
 LIDARTAG_MODEL_BENCH(BM_Decode, VLS128, Strongest);
 LIDARTAG_MODEL_BENCH(BM_Decode, VLS128, Dual);
 LIDARTAG_MODEL_BENCH(BM_DecodeAndAssemble, VLP16, Strongest);
+LIDARTAG_MODEL_BENCH(BM_DecodeAndAssemble, VLP16, Dual);
+LIDARTAG_MODEL_BENCH(BM_DecodeAndAssemble, PuckHiRes, Strongest);
+LIDARTAG_MODEL_BENCH(BM_DecodeAndAssemble, PuckHiRes, Dual);
 LIDARTAG_MODEL_BENCH(BM_DecodeAndAssemble, VLP32C, Strongest);
+LIDARTAG_MODEL_BENCH(BM_DecodeAndAssemble, VLP32C, Dual);
 LIDARTAG_MODEL_BENCH(BM_DecodeAndAssemble, HDL32E, Strongest);
+LIDARTAG_MODEL_BENCH(BM_DecodeAndAssemble, HDL32E, Dual);
 LIDARTAG_MODEL_BENCH(BM_DecodeAndAssemble, VLS128, Strongest);
+LIDARTAG_MODEL_BENCH(BM_DecodeAndAssemble, VLS128, Dual);
 
 }  // namespace
 }  // namespace lidartag::velodyne

@@ -25,18 +25,12 @@ namespace lidartag::eval {
 
 // Runs a simulator and hands every complete rotation to a callback while the simulation runs
 // (memory stays at a few scans whatever the number of rotations).
-class SimScans final : public velodyne::ScanSink {
+class SimScans final {
  public:
   using OnScan = std::function<void(const Scan& scan, size_t index)>;
 
   explicit SimScans(const sim::Simulator& simulator) : sim_(simulator) {
     const auto& sensor = sim_.scene().sensor;
-    const auto& spec = velodyne::model_spec(sensor.model);
-    const int returns = sensor.return_mode == velodyne::ReturnMode::kDual ? 2 : 1;
-    for (auto& s : pool_) {
-      s = std::make_unique<Scan>();
-      s->reserve(spec.lasers, returns, velodyne::ScanBatcher::column_capacity(spec));
-    }
     calibration_ = velodyne::Calibration::builtin(sensor.model);
   }
 
@@ -49,34 +43,34 @@ class SimScans final : public velodyne::ScanSink {
     velodyne::SensorClock clock;
     velodyne::BatcherOptions bo;
     bo.cut_azimuth_deg = sensor.cut_azimuth_deg;
-    velodyne::ScanBatcher batcher(spec, sensor.return_mode, bo, *this);
+    velodyne::ScanBatcher batcher(spec, sensor.return_mode, bo);
     on_scan_ = &on_scan;
     index_ = 0;
     sim::Truth truth =
         sim_.run(rotations, seed, [&](std::span<const uint8_t> payload, int64_t t, uint16_t port) {
           if (port != velodyne::kDefaultDataPort) return;
-          if (decoder.decode(payload, clock, t, packet_) == velodyne::DecodeStatus::kOk)
-            batcher.add(packet_);
+          if (decoder.decode(payload, clock, t, packet_) == velodyne::DecodeStatus::kOk &&
+              batcher.add(packet_, scans_[next_])) {
+            deliver();
+          }
         });
-    batcher.flush();
+    while (batcher.flush(scans_[next_])) deliver();
     on_scan_ = nullptr;
     return truth;
   }
 
-  Scan* acquire() override {
-    next_ = (next_ + 1) % pool_.size();
-    pool_[next_]->clear();
-    return pool_[next_].get();
-  }
-  void publish(Scan* scan) override {
-    if (scan->complete && on_scan_ != nullptr) (*on_scan_)(*scan, index_++);
+ private:
+  // The rotation just finished goes to the callback; the other scan takes the next one.
+  void deliver() {
+    const Scan& scan = scans_[next_];
+    next_ = 1 - next_;
+    if (scan.complete && on_scan_ != nullptr) (*on_scan_)(scan, index_++);
   }
 
- private:
   const sim::Simulator& sim_;
   velodyne::Calibration calibration_;
   velodyne::DecodedPacket packet_;
-  std::array<std::unique_ptr<Scan>, 3> pool_;
+  std::array<Scan, 2> scans_;  // sized by the batcher on first use
   size_t next_ = 0;
   const OnScan* on_scan_ = nullptr;
   size_t index_ = 0;

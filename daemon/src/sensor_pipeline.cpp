@@ -339,9 +339,7 @@ void SensorPipeline::process(OrderedResults::Slot* slot) {
 
 uint64_t SensorPipeline::dropped_rotations() const {
   const velodyne::ScanBuffer* buffer = buffer_ptr_.load(std::memory_order_acquire);
-  std::lock_guard lock(snapshot_mutex_);
-  return (buffer ? buffer->dropped() : 0) + dropped_no_scan_.load() +
-         snapshot_->batcher.dropped_no_buffer;
+  return (buffer ? buffer->dropped() : 0) + dropped_no_scan_.load();
 }
 
 void SensorPipeline::publish(OrderedResults::Slot* slot) {

@@ -14,6 +14,8 @@ constexpr double kDegToRad = std::numbers::pi / 180.0;
 // Fastest plausible spin (1300 rpm) in degrees per microsecond; larger steps are FOV jumps.
 constexpr double kMaxRateDegPerUs = 1300.0 * 360.0 / 60e6;
 constexpr double kDefaultRateDegPerUs = 600.0 * 360.0 / 60e6;
+// Runs of at least this many columns are decoded ring by ring, shorter ones firing by firing.
+constexpr int kRingKernelMinColumns = 6;
 
 // sin/cos of the azimuth at 0.01 deg steps; linear interpolation between entries is accurate to
 // 4e-9, far below the 0.01 deg resolution of the packets. One spare entry past 360 deg so that an
@@ -53,9 +55,26 @@ struct Firing {
   float azimuth_deg, cos_az, sin_az, rate_deg_per_us, rate_rad_per_us, time_us;
 };
 
+// Dual return: the two blocks' echoes of one cell into the scan's slots. Slot 0 always holds the
+// strongest echo; e0 is the last echo, e1 the strongest or second strongest.
+inline void sort_echoes(uint16_t d0, uint8_t i0, uint16_t d1, uint8_t i1, uint16_t& da, uint8_t& ia,
+                        ReturnType& ta, uint16_t& db, uint8_t& ib, ReturnType& tb) {
+  if (d0 == d1 && i0 == i1) {
+    da = d0, ia = i0, ta = ReturnType::kBoth;
+    db = 0, ib = 0, tb = ReturnType::kNone;
+  } else if (d1 != 0 && (d0 == 0 || i1 > i0)) {
+    da = d1, ia = i1, ta = ReturnType::kStrongest;
+    db = d0, ib = i0, tb = ReturnType::kLast;
+  } else {
+    da = d0, ia = i0, ta = ReturnType::kLast;
+    db = d1, ib = i1, tb = ReturnType::kSecond;
+  }
+}
+
 // Points of one firing, in laser order, branch-free so that it vectorises. The (cos, sin) of a
 // point's azimuth are the firing's, turned by the laser's offset and by eps, the spin during the
 // laser's delay in the sequence (under 0.5 deg: two terms of its series are exact to 1e-10).
+// ring_run() computes the same expressions in the same order (the results are bit-identical).
 void compute_firing(const detail::LaserTable& __restrict t, int base, const PacketContext& cc,
                     const Firing& fr, FiringPoints& __restrict pts) {
   // Invariants in locals: the compiler cannot hoist loads that the stores might alias.
@@ -92,20 +111,108 @@ void compute_firing(const detail::LaserTable& __restrict t, int base, const Pack
   }
 }
 
-// Laser order -> ring order: the column's cells of ring r are r * columns apart.
+// Laser order -> ring order: cell `col` of each laser's ring in the sink.
 void scatter_firing(const FiringPoints& pts, const detail::LaserTable& t, int base, int n,
-                    DecodedPacket& out, int cell0) {
+                    const PointSink& s, size_t first_cell) {
+  const float t_off = s.time_offset, t_scale = s.time_scale;
   for (int j = 0; j < n; ++j) {
     const auto uj = static_cast<size_t>(j);
-    const auto c = static_cast<size_t>(cell0 + t.ring[static_cast<size_t>(base + j)] * out.columns);
-    out.x[c] = pts.x[uj];
-    out.y[c] = pts.y[uj];
-    out.z[c] = pts.z[uj];
-    out.range[c] = pts.range[uj];
-    out.azimuth_deg[c] = pts.azimuth_deg[uj];
-    out.time_us[c] = pts.time_us[uj];
-    out.intensity[c] = pts.intensity[uj];
-    out.return_type[c] = pts.return_type[uj];
+    const size_t c =
+        first_cell + static_cast<size_t>(t.ring[static_cast<size_t>(base + j)]) * s.ring_stride;
+    s.x[c] = pts.x[uj];
+    s.y[c] = pts.y[uj];
+    s.z[c] = pts.z[uj];
+    s.range[c] = pts.range[uj];
+    s.azimuth_deg[c] = pts.azimuth_deg[uj];
+    s.time[c] = t_off + pts.time_us[uj] * t_scale;
+    s.intensity[c] = pts.intensity[uj];
+    s.return_type[c] = pts.return_type[uj];
+  }
+}
+
+// One laser's constants, for the per-ring kernel.
+struct LaserConstants {
+  float cos_el, sin_el, v_sin, v_cos, horiz, time_us, az_offset, cos_off, sin_off;
+  double dist_offset;
+};
+
+// One ring over a run of columns: the raw distances and return types of a single-return run
+// gathered from the payload; per slot the distance in metres and 1/0 for a usable return, as
+// floats for the vectorised loops.
+struct RingEchoes {
+  static constexpr size_t kN = ColumnBatch::kMaxColumns;
+  std::array<uint16_t, kN> raw[2];
+  std::array<ReturnType, kN> type[2];
+  std::array<float, kN> distance[2], ok[2];
+  std::array<float, kN> ca, sa;  // of each point's azimuth
+};
+
+// One echo's distance, validity and return type (the same expressions as compute_firing()).
+inline void take_echo(uint16_t raw, ReturnType type, double unit, double dist_off, float min_r,
+                      float max_r, float& d_out, float& ok_out, ReturnType& type_out) {
+  const auto d = static_cast<float>(raw * unit + dist_off);
+  const bool ok = (raw != 0) & (d >= min_r) & (d <= max_r);
+  d_out = d;
+  ok_out = ok ? 1.0f : 0.0f;
+  type_out = static_cast<ReturnType>(static_cast<uint8_t>(type) * uint8_t{ok});
+}
+
+// Distances of a run of echoes in metres and 1/0 validity (the same expressions as
+// compute_firing()); the return type becomes kNone where there is no usable return.
+void echo_ranges(int n, const uint16_t* __restrict raw, const ReturnType* __restrict type_in,
+                 double unit, double dist_off, float min_r, float max_r, float* __restrict d_out,
+                 float* __restrict ok_out, ReturnType* __restrict type_out) {
+  for (int k = 0; k < n; ++k) {
+    const auto d = static_cast<float>(raw[k] * unit + dist_off);
+    const bool ok = (raw[k] != 0) & (d >= min_r) & (d <= max_r);
+    d_out[k] = d;
+    ok_out[k] = ok ? 1.0f : 0.0f;
+    type_out[k] = static_cast<ReturnType>(static_cast<uint8_t>(type_in[k]) * uint8_t{ok});
+  }
+}
+
+// The rotation shared by every echo of a ring's run of columns: (cos, sin) of each point's
+// azimuth, the azimuth and the time, written once per column. Restrict-qualified parameters:
+// GCC drops the restrict of local pointers when it inlines, and then gives up on vectorising
+// for the number of run-time alias checks.
+void ring_rotation(const ColumnBatch& b, int n, const LaserConstants& lc, float t_scale,
+                   float* __restrict ca_out, float* __restrict sa_out, float* __restrict az_out,
+                   float* __restrict time_out) {
+  const float* cos_az = b.cos_az.data();
+  const float* sin_az = b.sin_az.data();
+  const float* az0 = b.azimuth_deg.data();
+  const float* rate_deg = b.rate_deg.data();
+  const float* rate_rad = b.rate_rad.data();
+  const float* t0 = b.time0_us.data();
+  const float* t_off = b.time_offset.data();
+  const float lt = lc.time_us, az_off = lc.az_offset, cos_off = lc.cos_off, sin_off = lc.sin_off;
+  for (int k = 0; k < n; ++k) {
+    const float cb = cos_az[k] * cos_off + sin_az[k] * sin_off;  // azimuth - offset
+    const float sb = sin_az[k] * cos_off - cos_az[k] * sin_off;
+    const float eps = rate_rad[k] * lt;
+    const float ce = 1.0f - 0.5f * eps * eps;
+    const float se = eps * (1.0f - eps * eps * (1.0f / 6.0f));
+    ca_out[k] = cb * ce - sb * se;
+    sa_out[k] = sb * ce + cb * se;
+    az_out[k] = wrap_near(az0[k] + rate_deg[k] * lt - az_off);
+    time_out[k] = t_off[k] + (t0[k] + lt) * t_scale;
+  }
+}
+
+// The points of one echo of a ring's run of columns from their distances and rotations.
+void ring_points(int n, const LaserConstants& lc, const float* __restrict d_in,
+                 const float* __restrict ok_in, const float* __restrict ca,
+                 const float* __restrict sa, float* __restrict x, float* __restrict y,
+                 float* __restrict z, float* __restrict range) {
+  const float cos_el = lc.cos_el, sin_el = lc.sin_el, v_sin = lc.v_sin, v_cos = lc.v_cos;
+  const float h = lc.horiz;
+  for (int k = 0; k < n; ++k) {
+    const float d = d_in[k], okf = ok_in[k];
+    const float xy = d * cos_el - v_sin;
+    x[k] = (xy * ca[k] + h * sa[k]) * okf;
+    y[k] = (h * ca[k] - xy * sa[k]) * okf;
+    z[k] = (d * sin_el + v_cos) * okf;
+    range[k] = d * okf;
   }
 }
 
@@ -175,6 +282,27 @@ Decoder::Decoder(Calibration calibration, DecoderOptions options)
 
 DecodeStatus Decoder::decode(std::span<const uint8_t> payload, const SensorClock& clock,
                              int64_t receive_time_ns, DecodedPacket& out) {
+  const DecodeStatus status = parse(payload, clock, receive_time_ns, out);
+  if (status != DecodeStatus::kOk) return status;
+  const auto ring_stride = static_cast<size_t>(out.columns);
+  const PointSink sink{out.x.data(),
+                       out.y.data(),
+                       out.z.data(),
+                       out.range.data(),
+                       out.azimuth_deg.data(),
+                       out.time_us.data(),
+                       out.intensity.data(),
+                       out.return_type.data(),
+                       ring_stride,
+                       ring_stride * static_cast<size_t>(out.rings),
+                       0.0f,
+                       1.0f};
+  write_points(out, 0, out.columns, sink);
+  return DecodeStatus::kOk;
+}
+
+DecodeStatus Decoder::parse(std::span<const uint8_t> payload, const SensorClock& clock,
+                            int64_t receive_time_ns, PacketColumns& out) {
   if (payload.size() != kDataPacketSize) return DecodeStatus::kWrongSize;
   const uint8_t* p = payload.data();
   ReturnMode mode = ReturnMode::kStrongest;  // 0x00: firmware without the byte
@@ -261,16 +389,11 @@ DecodeStatus Decoder::decode(std::span<const uint8_t> payload, const SensorClock
   out.mode = mode;
   out.usec_since_hour = usec;
   out.stamp_ns = clock.join(usec, receive_time_ns);
+  out.decoder = this;
+  out.payload = p;
 
-  const ReturnType single_type =
-      mode == ReturnMode::kLast ? ReturnType::kLast : ReturnType::kStrongest;
-  const double unit = calibration_.distance_unit_m;
   const float* sin_t = sin_table_;
   const float* cos_t = cos_table_;
-
-  const PacketContext cc{unit, min_range_m_, max_range_m_, lasers_per_firing};
-  FiringPoints pts[2];
-  const auto n_lasers = static_cast<size_t>(lasers_per_firing);
   for (int g = 0; g < groups; ++g) {
     const auto ug = static_cast<size_t>(g);
     for (int f = 0; f < fpb; ++f) {
@@ -285,16 +408,54 @@ DecodeStatus Decoder::decode(std::span<const uint8_t> payload, const SensorClock
       const float idx = col_az_w * 100.0f;
       const auto ti = std::min(static_cast<size_t>(idx), static_cast<size_t>(kTrigSteps));
       const float tf = idx - static_cast<float>(ti);
-      const Firing firing{col_az_w,
-                          cos_t[ti] + tf * (cos_t[ti + 1] - cos_t[ti]),
-                          sin_t[ti] + tf * (sin_t[ti + 1] - sin_t[ti]),
-                          static_cast<float>(rate[ug]),
-                          static_cast<float>(rate[ug] * kDegToRad),
-                          static_cast<float>(col_t)};
+      out.cos_az[ucol] = cos_t[ti] + tf * (cos_t[ti + 1] - cos_t[ti]);
+      out.sin_az[ucol] = sin_t[ti] + tf * (sin_t[ti + 1] - sin_t[ti]);
+      out.rate_deg[ucol] = static_cast<float>(rate[ug]);
+      out.rate_rad[ucol] = static_cast<float>(rate[ug] * kDegToRad);
+      out.time0_us[ucol] = static_cast<float>(col_t);
+      const int ch0 = f * lasers_per_firing * 3 + 4;
+      for (int e = 0; e < out.returns; ++e)
+        for (int bank = 0; bank < spec.blocks_per_firing; ++bank)
+          out.channel_offset[ucol][static_cast<size_t>(e)][static_cast<size_t>(bank)] =
+              static_cast<uint16_t>(
+                  block_of[ug][static_cast<size_t>(e)][static_cast<size_t>(bank)] *
+                      static_cast<int>(kBlockSize) +
+                  ch0);
+    }
+  }
+  return DecodeStatus::kOk;
+}
+
+void Decoder::write_points(const PacketColumns& pk, int first, int count,
+                           const PointSink& sink) const {
+  if (count <= 0) return;
+  const ModelSpec& spec = *spec_;
+  const bool dual = pk.returns == 2;
+  const int lasers_per_firing = 32 / spec.firings_per_block;
+  const PacketContext cc{calibration_.distance_unit_m, min_range_m_, max_range_m_,
+                         lasers_per_firing};
+  const uint8_t* p = pk.payload;
+  const ReturnType single_type =
+      pk.mode == ReturnMode::kLast ? ReturnType::kLast : ReturnType::kStrongest;
+  // Runs of a few columns (VLS-128 packets, the ends of a rotation): per firing, vectorised over
+  // the lasers, scattered into the rings. Longer runs: per ring, vectorised over the columns,
+  // stored as runs.
+  if (count >= kRingKernelMinColumns) {
+    ColumnBatch batch;
+    (void)batch.append(pk, first, count, sink.time_offset);
+    write_batch(batch, sink);
+    return;
+  }
+  {
+    FiringPoints pts[2];
+    const auto n_lasers = static_cast<size_t>(lasers_per_firing);
+    for (int col = first; col < first + count; ++col) {
+      const auto ucol = static_cast<size_t>(col);
+      const Firing firing{pk.column_azimuth_deg[ucol], pk.cos_az[ucol],   pk.sin_az[ucol],
+                          pk.rate_deg[ucol],           pk.rate_rad[ucol], pk.time0_us[ucol]};
       for (int bank = 0; bank < spec.blocks_per_firing; ++bank) {
         const auto ub = static_cast<size_t>(bank);
-        const size_t ch0 = static_cast<size_t>(f * lasers_per_firing) * 3 + 4;
-        const uint8_t* blk0 = p + static_cast<size_t>(block_of[ug][0][ub]) * kBlockSize + ch0;
+        const uint8_t* blk0 = p + pk.channel_offset[ucol][0][ub];
         const int base = bank * 32;
         if (!dual) {
           for (size_t j = 0; j < n_lasers; ++j) {
@@ -303,36 +464,126 @@ DecodeStatus Decoder::decode(std::span<const uint8_t> payload, const SensorClock
             pts[0].return_type[j] = single_type;
           }
         } else {
-          const uint8_t* blk1 = p + static_cast<size_t>(block_of[ug][1][ub]) * kBlockSize + ch0;
-          for (size_t j = 0; j < n_lasers; ++j) {
-            // Slot 0 always holds the strongest echo. e0 = last, e1 = strongest or second.
-            const uint16_t d0 = read_u16(blk0 + j * 3), d1 = read_u16(blk1 + j * 3);
-            const uint8_t i0 = blk0[j * 3 + 2], i1 = blk1[j * 3 + 2];
-            auto set = [&](uint16_t da, uint8_t ia, ReturnType ta, uint16_t db, uint8_t ib,
-                           ReturnType tb) {
-              pts[0].distance[j] = da;
-              pts[0].intensity[j] = ia;
-              pts[0].return_type[j] = ta;
-              pts[1].distance[j] = db;
-              pts[1].intensity[j] = ib;
-              pts[1].return_type[j] = tb;
-            };
-            if (d0 == d1 && i0 == i1)
-              set(d0, i0, ReturnType::kBoth, 0, 0, ReturnType::kNone);
-            else if (d1 != 0 && (d0 == 0 || i1 > i0))
-              set(d1, i1, ReturnType::kStrongest, d0, i0, ReturnType::kLast);
-            else
-              set(d0, i0, ReturnType::kLast, d1, i1, ReturnType::kSecond);
-          }
+          const uint8_t* blk1 = p + pk.channel_offset[ucol][1][ub];
+          for (size_t j = 0; j < n_lasers; ++j)
+            sort_echoes(read_u16(blk0 + j * 3), blk0[j * 3 + 2], read_u16(blk1 + j * 3),
+                        blk1[j * 3 + 2], pts[0].distance[j], pts[0].intensity[j],
+                        pts[0].return_type[j], pts[1].distance[j], pts[1].intensity[j],
+                        pts[1].return_type[j]);
         }
-        for (int e = 0; e < (dual ? 2 : 1); ++e) {
+        for (int e = 0; e < pk.returns; ++e) {
           compute_firing(lasers_, base, cc, firing, pts[e]);
-          scatter_firing(pts[e], lasers_, base, lasers_per_firing, out, out.at(e, col, 0));
+          scatter_firing(
+              pts[e], lasers_, base, lasers_per_firing, sink,
+              static_cast<size_t>(e) * sink.return_stride + static_cast<size_t>(col - first));
         }
       }
     }
+    return;
   }
-  return DecodeStatus::kOk;
+}
+
+bool ColumnBatch::append(const PacketColumns& pk, int first, int count, float t_off) {
+  const int n = columns;
+  if (count <= 0 || n + count > kMaxColumns) return false;
+  const int pk_returns = pk.mode == ReturnMode::kDual ? 2 : 1;
+  if (n == 0) {
+    mode = pk.mode;
+    returns = pk_returns;
+  } else if (pk.mode != mode) {
+    return false;
+  }
+  const auto src = static_cast<std::ptrdiff_t>(first), dst = static_cast<std::ptrdiff_t>(n);
+  std::fill_n(payload.begin() + dst, count, pk.payload);
+  std::copy_n(pk.channel_offset.begin() + src, count, channel_offset.begin() + dst);
+  std::copy_n(pk.cos_az.begin() + src, count, cos_az.begin() + dst);
+  std::copy_n(pk.sin_az.begin() + src, count, sin_az.begin() + dst);
+  std::copy_n(pk.column_azimuth_deg.begin() + src, count, azimuth_deg.begin() + dst);
+  std::copy_n(pk.rate_deg.begin() + src, count, rate_deg.begin() + dst);
+  std::copy_n(pk.rate_rad.begin() + src, count, rate_rad.begin() + dst);
+  std::copy_n(pk.time0_us.begin() + src, count, time0_us.begin() + dst);
+  std::fill_n(time_offset.begin() + dst, count, t_off);
+  columns = n + count;
+  return true;
+}
+
+void Decoder::write_batch(const ColumnBatch& b, const PointSink& sink) const {
+  const int count = b.columns;
+  if (count <= 0) return;
+  const bool dual = b.returns == 2;
+  const int lasers_per_firing = 32 / spec_->firings_per_block;
+  const ReturnType single_type =
+      b.mode == ReturnMode::kLast ? ReturnType::kLast : ReturnType::kStrongest;
+  RingEchoes echoes;
+  const detail::LaserTable& t = lasers_;
+  const auto min_r = static_cast<float>(min_range_m_), max_r = static_cast<float>(max_range_m_);
+  const double unit = calibration_.distance_unit_m;
+  for (int ring = 0; ring < spec_->lasers; ++ring) {
+    const int l = laser_of_ring_[static_cast<size_t>(ring)];
+    const auto ul = static_cast<size_t>(l);
+    const auto bank = static_cast<size_t>(l / lasers_per_firing);
+    const auto ch = static_cast<size_t>(l % lasers_per_firing) * 3;
+    const double dist_off = t.dist_offset_m[ul];
+    const size_t cell0 = static_cast<size_t>(ring) * sink.ring_stride;
+    // The ring's next run lands in the next line of each field: ask for it now (the rings x
+    // returns x fields streams are more than the hardware prefetcher follows).
+    for (int e = 0; e < b.returns; ++e) {
+      const size_t c =
+          cell0 + static_cast<size_t>(e) * sink.return_stride + static_cast<size_t>(count);
+      for (float* f : {sink.x, sink.y, sink.z, sink.range, sink.azimuth_deg, sink.time})
+        __builtin_prefetch(f + c + 16, 1);
+      __builtin_prefetch(sink.intensity + c + 64, 1);
+      __builtin_prefetch(sink.return_type + c + 64, 1);
+    }
+    uint8_t* in0 = sink.intensity + cell0;
+    ReturnType* ty0 = sink.return_type + cell0;
+    if (!dual) {
+      // Gather (scalar: 3-byte strided fields), then convert in a vectorised loop.
+      for (int k = 0; k < count; ++k) {
+        const auto uk = static_cast<size_t>(k);
+        const uint8_t* c = b.payload[uk] + b.channel_offset[uk][0][bank] + ch;
+        echoes.raw[0][uk] = read_u16(c);
+        in0[k] = c[2];
+      }
+      std::fill_n(echoes.type[0].data(), count, single_type);
+      echo_ranges(count, echoes.raw[0].data(), echoes.type[0].data(), unit, dist_off, min_r, max_r,
+                  echoes.distance[0].data(), echoes.ok[0].data(), ty0);
+    } else {
+      // Gather and sort the echoes (branches: which case a cell is in mispredicts less than
+      // selects cost), then convert both slots in vectorised loops.
+      uint8_t* in1 = in0 + sink.return_stride;
+      for (int k = 0; k < count; ++k) {
+        const auto uk = static_cast<size_t>(k);
+        const auto& off = b.channel_offset[uk];
+        const uint8_t* c0 = b.payload[uk] + off[0][bank] + ch;
+        const uint8_t* c1 = b.payload[uk] + off[1][bank] + ch;
+        sort_echoes(read_u16(c0), c0[2], read_u16(c1), c1[2], echoes.raw[0][uk], in0[k],
+                    echoes.type[0][uk], echoes.raw[1][uk], in1[k], echoes.type[1][uk]);
+      }
+      for (size_t e = 0; e < 2; ++e)
+        echo_ranges(count, echoes.raw[e].data(), echoes.type[e].data(), unit, dist_off, min_r,
+                    max_r, echoes.distance[e].data(), echoes.ok[e].data(),
+                    ty0 + e * sink.return_stride);
+    }
+    const LaserConstants lc{
+        t.cos_el[ul],  t.sin_el[ul],        t.v_sin[ul],   t.v_cos[ul],   t.horiz_offset_m[ul],
+        t.time_us[ul], t.az_offset_deg[ul], t.cos_off[ul], t.sin_off[ul], t.dist_offset_m[ul]};
+    // One ring's run, vectorised over the columns and stored as contiguous runs (the layout
+    // of a scan: no scatter); the rotation is shared by both echoes of a dual-return cell. Same
+    // expressions in the same order as compute_firing(): the results are bit-identical.
+    ring_rotation(b, count, lc, sink.time_scale, echoes.ca.data(), echoes.sa.data(),
+                  sink.azimuth_deg + cell0, sink.time + cell0);
+    for (int e = 0; e < b.returns; ++e) {
+      const size_t c = cell0 + static_cast<size_t>(e) * sink.return_stride;
+      const auto ue = static_cast<size_t>(e);
+      if (e > 0) {
+        std::copy_n(sink.azimuth_deg + cell0, count, sink.azimuth_deg + c);
+        std::copy_n(sink.time + cell0, count, sink.time + c);
+      }
+      ring_points(count, lc, echoes.distance[ue].data(), echoes.ok[ue].data(), echoes.ca.data(),
+                  echoes.sa.data(), sink.x + c, sink.y + c, sink.z + c, sink.range + c);
+    }
+  }
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -12,47 +12,37 @@ namespace {
 // replay loop), not loss.
 constexpr double kMaxGapUs = 1e6;
 
-// n consecutive cells of one ring from a packet into a scan. Plain restrict pointers so that the
-// compiler neither reloads the vectors' data pointers after every store nor assumes aliasing.
-void copy_cells(const DecodedPacket& pk, size_t src, Scan& s, size_t dst, int n, float t_off) {
-  const float* __restrict px = pk.x.data() + src;
-  const float* __restrict py = pk.y.data() + src;
-  const float* __restrict pz = pk.z.data() + src;
-  const float* __restrict pr = pk.range.data() + src;
-  const float* __restrict pa = pk.azimuth_deg.data() + src;
-  const float* __restrict pt = pk.time_us.data() + src;
-  const uint8_t* __restrict pi = pk.intensity.data() + src;
-  const ReturnType* __restrict pty = pk.return_type.data() + src;
-  float* __restrict sx = s.x.data() + dst;
-  float* __restrict sy = s.y.data() + dst;
-  float* __restrict sz = s.z.data() + dst;
-  float* __restrict sr = s.range.data() + dst;
-  float* __restrict sa = s.azimuth_deg.data() + dst;
-  float* __restrict st = s.time_s.data() + dst;
-  uint8_t* __restrict si = s.intensity.data() + dst;
-  ReturnType* __restrict sty = s.return_type.data() + dst;
-  // The 8 x rings destination streams are too many for the hardware prefetcher: ask for the
-  // line the next packet's columns will land in now, so its fetch overlaps this packet's work.
-  for (float* p : {sx, sy, sz, sr, sa, st}) __builtin_prefetch(p + n + 16, 1);
-  __builtin_prefetch(si + n + 64, 1);
-  __builtin_prefetch(sty + n + 64, 1);
-  for (int k = 0; k < n; ++k) {
-    sx[k] = px[k];
-    sy[k] = py[k];
-    sz[k] = pz[k];
-    sr[k] = pr[k];
-    sa[k] = pa[k];
-    st[k] = t_off + pt[k] * 1e-6f;
-    si[k] = pi[k];
-    sty[k] = pty[k];
-  }
+// Screening: the azimuth a packet must have, predicted from the stream's newest packet, within
+// this many degrees, plus this fraction of the predicted travel (rate uncertainty over a gap).
+// (In-packet rates are good to about 0.5 %, packet times to 1 us: a stream's own packets land
+// within a few hundredths of a degree; a stray packet fits by chance once in several hundred.)
+constexpr double kAzimuthToleranceDeg = 0.3;
+constexpr double kTravelTolerance = 0.02;
+// Packets later than this many packet periods are not reordered ones but foreign.
+constexpr double kMaxLatePackets = 16;
+
+// Time of a packet's last column.
+int64_t last_stamp(const PacketColumns& pk) {
+  const auto last = static_cast<size_t>(std::max(pk.columns - 1, 0));
+  return pk.stamp_ns + static_cast<int64_t>(std::llround(pk.column_time_us[last] * 1e3));
+}
+
+// Signed difference of two azimuths, (-180, 180].
+double azimuth_diff(double a, double b) {
+  const double d = wrap360(a - b);
+  return d > 180.0 ? d - 360.0 : d;
 }
 
 }  // namespace
 
-ScanBatcher::ScanBatcher(const ModelSpec& spec, ReturnMode mode, BatcherOptions options,
-                         ScanSink& sink)
-    : spec_(spec), mode_(mode), options_(options), sink_(sink) {}
+ScanBatcher::ScanBatcher(const ModelSpec& spec, ReturnMode mode, BatcherOptions options)
+    : spec_(spec),
+      mode_(mode),
+      options_(options),
+      slots_(std::make_unique<std::array<Held, kSlots>>()),
+      candidates_(std::make_unique<std::array<Held, kNewStreamPackets>>()) {}
+
+ScanBatcher::~ScanBatcher() = default;
 
 int ScanBatcher::column_capacity(const ModelSpec& spec) {
   // One rotation at 300 rpm lasts 200 ms; 10 % margin for clock drift and jitter.
@@ -66,78 +56,347 @@ bool ScanBatcher::crossed_cut(double from_deg, double to_deg) const {
   return to_cut > 0 && to_cut <= step;
 }
 
-void ScanBatcher::begin(double /*column_azimuth*/) {
-  scan_ = sink_.acquire();
-  if (scan_ == nullptr) return;
-  scan_->clear();
-  scan_->sequence = sequence_++;
-  scan_->model = static_cast<uint8_t>(spec_.model);
-  scan_->return_mode = static_cast<uint8_t>(mode_);
-  scan_->starts_at_cut = next_starts_at_cut_;
+void ScanBatcher::begin(Scan& scan, int64_t stamp_ns) {
+  const int returns = mode_ == ReturnMode::kDual ? 2 : 1;
+  // A fresh scan, or one last filled in another return mode: sized here, once.
+  if (scan.rings != spec_.lasers || scan.returns != returns || scan.column_capacity <= 0) {
+    scan.reserve(spec_.lasers, returns, column_capacity(spec_));
+  }
+  scan.clear();
+  scan.sequence = sequence_++;
+  scan.model = static_cast<uint8_t>(spec_.model);
+  scan.return_mode = static_cast<uint8_t>(mode_);
+  scan.starts_at_cut = next_starts_at_cut_;
+  scan.stamp_ns = stamp_ns;
   rate_steps_deg_ = 0;
   rate_time_us_ = 0;
+  open_ = true;
 }
 
-void ScanBatcher::finish(bool ends_at_cut) {
-  copy_run();
+void ScanBatcher::finish(Scan& scan, bool ends_at_cut) {
+  queue_run(scan);
+  write_batch(scan);
   next_starts_at_cut_ = ends_at_cut;
-  if (scan_ == nullptr) return;
-  Scan* s = scan_;
-  scan_ = nullptr;
-  s->ends_at_cut = ends_at_cut;
-  s->complete = s->starts_at_cut && s->ends_at_cut && s->missing_packets == 0 && !overflowed_;
-  if (rate_time_us_ > 0) s->rpm = static_cast<float>(rate_steps_deg_ / rate_time_us_ * 1e6 / 6.0);
+  if (!open_) return;
+  open_ = false;
+  scan.ends_at_cut = ends_at_cut;
+  scan.complete =
+      scan.starts_at_cut && scan.ends_at_cut && scan.missing_packets == 0 && !overflowed_;
+  if (rate_time_us_ > 0) {
+    scan.rpm = static_cast<float>(rate_steps_deg_ / rate_time_us_ * 1e6 / 6.0);
+  }
   overflowed_ = false;
   ++stats_.rotations;
-  ++(s->complete ? stats_.complete : stats_.incomplete);
-  sink_.publish(s);
+  ++(scan.complete ? stats_.complete : stats_.incomplete);
 }
 
-void ScanBatcher::flush() {
-  if (scan_ != nullptr) finish(false);
+// ---- Screening: which packets belong to the stream ------------------------------------------
+
+ScanBatcher::Ref ScanBatcher::ref_of(const PacketColumns& pk) {
+  const auto last = static_cast<size_t>(std::max(pk.columns - 1, 0));
+  return {pk.stamp_ns, pk.column_azimuth_deg[0], pk.column_azimuth_deg[last], pk.rate_deg[last]};
+}
+
+bool ScanBatcher::fits(const Ref& ref, const PacketColumns& pk) const {
+  if (pk.columns <= 0) return false;
+  const double dt_us = static_cast<double>(pk.stamp_ns - ref.stamp_ns) * 1e-3;
+  const double period_us = spec_.packet_period_us(pk.mode);
+  if (dt_us < -kMaxLatePackets * period_us || dt_us > options_.flush_timeout_s * 1e6) return false;
+  // Where the sensor pointed at that time, by the rate measured inside the newest packet.
+  const double travel = ref.rate_deg_per_us * dt_us;
+  const double az = pk.column_azimuth_deg[0];
+  if (std::abs(azimuth_diff(az, ref.first_azimuth_deg + travel)) <=
+      kAzimuthToleranceDeg + kTravelTolerance * std::abs(travel))
+    return true;
+  // A restricted field of view: the sensor paused (longer than a packet period), then goes on
+  // from where it stopped.
+  const double step = ref.rate_deg_per_us * spec_.firing_period_us;
+  return dt_us > 1.5 * period_us &&
+         std::abs(azimuth_diff(az, ref.last_azimuth_deg + step)) <= kAzimuthToleranceDeg + step;
+}
+
+ScanBatcher::Verdict ScanBatcher::screen(const PacketColumns& pk) const {
+  if (!have_head_) return Verdict::kAccept;
+  const float az = pk.column_azimuth_deg[0];
+  // Seen before: in the window, or released not long ago.
+  for (int i = 0; i < window_size_; ++i) {
+    const PacketColumns& h =
+        (*slots_)[static_cast<size_t>(window_[static_cast<size_t>(i)])].columns;
+    if (h.stamp_ns == pk.stamp_ns && h.column_azimuth_deg[0] == az) return Verdict::kDuplicate;
+  }
+  const int remembered = std::min(released_count_, kHistory);
+  for (int i = 0; i < remembered; ++i)
+    if (released_stamp_[static_cast<size_t>(i)] == pk.stamp_ns &&
+        released_azimuth_[static_cast<size_t>(i)] == az)
+      return Verdict::kDuplicate;
+  if (!fits(head_, pk)) {
+    // The newest packet taken may itself have been a stray one that fitted by chance.
+    if (have_previous_head_ && pk.stamp_ns > previous_head_.stamp_ns && fits(previous_head_, pk))
+      return Verdict::kAcceptHeadWasStray;
+    return Verdict::kSuspect;
+  }
+  // Older than what was already written into the rotation: too late to be put in place.
+  if (have_last_ && pk.stamp_ns <= last_column_stamp_ns_) return Verdict::kTooLate;
+  // A sensor's packets never overlap in time: one that does is stray, however well it fits.
+  const int64_t end = last_stamp(pk);
+  for (int i = 0; i < window_size_; ++i) {
+    const PacketColumns& h =
+        (*slots_)[static_cast<size_t>(window_[static_cast<size_t>(i)])].columns;
+    if (pk.stamp_ns <= last_stamp(h) && h.stamp_ns <= end) return Verdict::kSuspect;
+  }
+  return Verdict::kAccept;
+}
+
+void ScanBatcher::hold(const PacketColumns& pk, Held& slot) {
+  slot.columns = pk;
+  if (pk.payload != nullptr) std::copy_n(pk.payload, kDataPacketSize, slot.bytes.begin());
+  slot.columns.payload = slot.bytes.data();
+}
+
+void ScanBatcher::insert(const PacketColumns& pk) {
+  int slot = 0;
+  while (slot < kSlots && busy_[static_cast<size_t>(slot)]) ++slot;
+  if (slot == kSlots) return;  // cannot happen: pump() keeps the window below its slots
+  busy_[static_cast<size_t>(slot)] = true;
+  hold(pk, (*slots_)[static_cast<size_t>(slot)]);
+  // Sorted by time, oldest first; a packet placed before a later one arrived out of order.
+  int i = window_size_;
+  while (i > 0 &&
+         (*slots_)[static_cast<size_t>(window_[static_cast<size_t>(i - 1)])].columns.stamp_ns >
+             pk.stamp_ns) {
+    window_[static_cast<size_t>(i)] = window_[static_cast<size_t>(i - 1)];
+    --i;
+  }
+  if (i < window_size_) ++stats_.reordered;
+  window_[static_cast<size_t>(i)] = slot;
+  ++window_size_;
+  if (!have_head_ || pk.stamp_ns > head_.stamp_ns) {
+    previous_head_ = head_;
+    have_previous_head_ = have_head_;
+    head_ = ref_of(pk);
+  }
+  have_head_ = true;
+  last_packet_stamp_ns_ = std::max(last_packet_stamp_ns_, pk.stamp_ns);
+}
+
+void ScanBatcher::drop_stray_head() {
+  ++stats_.inconsistent;
+  for (int i = 0; i < window_size_; ++i) {
+    const int slot = window_[static_cast<size_t>(i)];
+    if ((*slots_)[static_cast<size_t>(slot)].columns.stamp_ns != head_.stamp_ns) continue;
+    std::copy(window_.begin() + i + 1, window_.begin() + window_size_, window_.begin() + i);
+    --window_size_;
+    busy_[static_cast<size_t>(slot)] = false;
+    break;
+  }
+  head_ = previous_head_;
+  have_previous_head_ = false;
+}
+
+void ScanBatcher::forgive_gap(int64_t stamp_ns) {
+  for (Gap& g : gaps_) {
+    if (g.missing > 0 && stamp_ns > g.from_ns && stamp_ns < g.to_ns) {
+      --g.missing;
+      if (stats_.missing_packets > 0) --stats_.missing_packets;
+      return;
+    }
+  }
+}
+
+bool ScanBatcher::add(const PacketColumns& pk, Scan& scan) {
+  if (pk.columns <= 0 || pk.decoder == nullptr) {
+    ++stats_.inconsistent;  // not a parsed packet
+    return pump(scan);
+  }
+  bool delivered = false;
+  switch (screen(pk)) {
+    case Verdict::kDuplicate:
+      ++stats_.duplicates;
+      ++stats_.late_packets;
+      break;
+    case Verdict::kTooLate:
+      ++stats_.reordered;
+      ++stats_.late_packets;
+      forgive_gap(pk.stamp_ns);  // it did arrive
+      break;
+    case Verdict::kAcceptHeadWasStray:
+      drop_stray_head();
+      [[fallthrough]];
+    case Verdict::kAccept:
+      // The stream is alive: what looked like the start of another one was not.
+      stats_.inconsistent += static_cast<uint64_t>(candidate_count_);
+      candidate_count_ = 0;
+      if (pk.mode != mode_) {
+        if (have_head_ && pk.stamp_ns < head_.stamp_ns) {  // a late packet of the old mode
+          ++stats_.reordered;
+          ++stats_.late_packets;
+          break;
+        }
+        // Another return mode changes the layout of the scan: close the rotation in progress;
+        // this packet starts the next one, in a scan of the new layout.
+        delivered = close_stream(scan, false);
+        mode_ = pk.mode;
+        ++stats_.mode_changes;
+      }
+      insert(pk);
+      break;
+    case Verdict::kSuspect: {
+      auto& c = *candidates_;
+      if (candidate_count_ == 0 ||
+          fits(ref_of(c[static_cast<size_t>(candidate_count_ - 1)].columns), pk)) {
+        hold(pk, c[static_cast<size_t>(candidate_count_++)]);
+        if (candidate_count_ == kNewStreamPackets) delivered = adopt_new_stream(scan);
+      } else if (candidate_count_ == 1) {
+        // One odd packet then another that disagrees with it: the first was the stray one.
+        ++stats_.inconsistent;
+        hold(pk, c[0]);
+      } else {
+        ++stats_.inconsistent;
+      }
+      break;
+    }
+  }
+  if (delivered) return true;
+  return pump(scan);
+}
+
+bool ScanBatcher::close_stream(Scan& scan, bool jump) {
+  take_pending(scan);
+  // What the window holds goes into the rotation in progress (a cut among those few packets
+  // does not end it: the rotation ends here anyway, incomplete).
+  while (window_size_ > 0) (void)release_oldest(scan, false);
+  const bool delivered = open_;
+  if (jump) {
+    ++stats_.azimuth_jumps;
+    if (open_) ++scan.azimuth_jumps;
+  }
+  finish(scan, false);
   next_starts_at_cut_ = false;
   have_last_ = false;
+  have_head_ = have_previous_head_ = false;
+  return delivered;
 }
 
-void ScanBatcher::poll(int64_t now_ns) {
-  if (scan_ != nullptr &&
-      static_cast<double>(now_ns - last_packet_stamp_ns_) > options_.flush_timeout_s * 1e9)
-    flush();
+bool ScanBatcher::adopt_new_stream(Scan& scan) {
+  // Several packets agree with each other and none of the old stream came meanwhile. Right after
+  // the stream in time: its azimuth jumped (a field of view restricted between packets), the
+  // rotation goes on. Otherwise the sensor restarted, its clock jumped or a replay looped.
+  const PacketColumns& first = (*candidates_)[0].columns;
+  const double dt_us = static_cast<double>(first.stamp_ns - head_.stamp_ns) * 1e-3;
+  const bool continues =
+      have_head_ && dt_us > 0 && dt_us <= kNewStreamPackets * spec_.packet_period_us(first.mode);
+  const bool delivered = continues ? false : close_stream(scan, true);
+  const int n = candidate_count_;
+  candidate_count_ = 0;
+  for (int i = 0; i < n; ++i) {
+    const PacketColumns& pk = (*candidates_)[static_cast<size_t>(i)].columns;
+    if (pk.mode != mode_) {
+      mode_ = pk.mode;
+      ++stats_.mode_changes;
+    }
+    insert(pk);
+  }
+  return delivered;
 }
 
-void ScanBatcher::add(const DecodedPacket& pk) {
-  if (pk.mode != mode_) {
-    // Another return mode changes the layout of the scan: close the rotation in progress.
-    flush();
-    mode_ = pk.mode;
-    ++stats_.mode_changes;
+bool ScanBatcher::pump(Scan& scan) {
+  take_pending(scan);
+  while (window_size_ > kReorderWindow)
+    if (release_oldest(scan, true)) return true;
+  return false;
+}
+
+bool ScanBatcher::release_oldest(Scan& scan, bool may_end) {
+  const int slot = window_[0];
+  std::copy(window_.begin() + 1, window_.begin() + window_size_, window_.begin());
+  --window_size_;
+  const PacketColumns& pk = (*slots_)[static_cast<size_t>(slot)].columns;
+  const auto h = static_cast<size_t>(released_count_++ % kHistory);
+  released_stamp_[h] = pk.stamp_ns;
+  released_azimuth_[h] = pk.column_azimuth_deg[0];
+  packet_slot_ = slot;
+  const bool ended = run(pk, 0, scan, may_end);
+  packet_slot_ = -1;
+  if (ended) {
+    pending_slot_ = slot;  // its columns after the end wait for the next scan
+    return true;
   }
-  if (have_last_ && pk.stamp_ns <= last_column_stamp_ns_ &&
-      static_cast<double>(last_column_stamp_ns_ - pk.stamp_ns) < kMaxGapUs * 1e3) {
-    // A duplicate, or a packet overtaken by a later one (whose gap was already counted).
-    ++stats_.late_packets;
-    return;
+  done_with(slot);
+  return false;
+}
+
+void ScanBatcher::done_with(int slot) {
+  for (int i = 0; i < batch_slot_count_; ++i)
+    if (batch_slots_[static_cast<size_t>(i)] == slot) return;  // freed once the batch is written
+  busy_[static_cast<size_t>(slot)] = false;
+}
+
+void ScanBatcher::take_pending(Scan& scan) {
+  if (pending_slot_ < 0) return;
+  const int slot = pending_slot_;
+  pending_slot_ = -1;
+  // The rest of a packet that already ended a rotation: it cannot end another (see run()).
+  packet_slot_ = slot;
+  (void)run((*slots_)[static_cast<size_t>(slot)].columns, pending_column_, scan, false);
+  packet_slot_ = -1;
+  done_with(slot);
+}
+
+bool ScanBatcher::release_held(Scan& scan) {
+  take_pending(scan);
+  while (window_size_ > 0)
+    if (release_oldest(scan, true)) return true;
+  write_batch(scan);  // the rotation in progress is up to date in the scan
+  return false;
+}
+
+bool ScanBatcher::flush(Scan& scan) {
+  take_pending(scan);
+  while (window_size_ > 0)
+    if (release_oldest(scan, true)) return true;
+  // Candidates of a new stream that never got enough company.
+  stats_.inconsistent += static_cast<uint64_t>(candidate_count_);
+  candidate_count_ = 0;
+  const bool delivered = open_;
+  finish(scan, false);
+  next_starts_at_cut_ = false;
+  have_last_ = false;
+  have_head_ = have_previous_head_ = false;
+  return delivered;
+}
+
+bool ScanBatcher::poll(int64_t now_ns, Scan& scan) {
+  if (in_progress() &&
+      static_cast<double>(now_ns - last_packet_stamp_ns_) > options_.flush_timeout_s * 1e9) {
+    return flush(scan);
   }
-  last_packet_stamp_ns_ = pk.stamp_ns;
+  return false;
+}
+
+// ---- Assembly: released packets into the scan ----------------------------------------------
+
+bool ScanBatcher::run(const PacketColumns& pk, int first, Scan& scan, bool may_end) {
   packet_ = &pk;
   const double fp = spec_.firing_period_us;
   const int per_packet = spec_.columns_per_packet(pk.mode);
-  for (int c = 0; c < pk.columns; ++c) {
+  for (int c = first; c < pk.columns; ++c) {
     const auto uc = static_cast<size_t>(c);
     const double az = pk.column_azimuth_deg[uc];
     const int64_t stamp =
         pk.stamp_ns + static_cast<int64_t>(std::llround(pk.column_time_us[uc] * 1e3));
     uint32_t missing = 0;
-    bool cut = false;
-    if (have_last_) {
+    bool cut = false, jump = false;
+    if (c == first && pending_evaluated_) {
+      // The column that ended the previous rotation: compared with its predecessor already.
+      pending_evaluated_ = false;
+      missing = pending_missing_;
+    } else if (have_last_) {
       const double dt = static_cast<double>(stamp - last_column_stamp_ns_) * 1e-3;  // us
       const double step = wrap360(az - last_column_azimuth_);
       if (dt <= 0 || dt > kMaxGapUs) {
         // Discontinuity: restart, clock reset or replay loop.
         ++stats_.azimuth_jumps;
-        if (scan_ != nullptr) ++scan_->azimuth_jumps;
-        finish(false);
-        dropping_ = false;
+        jump = true;
       } else {
         const double rate = last_rate_deg_per_us_;
         const double normal_step = rate * fp;
@@ -146,6 +405,7 @@ void ScanBatcher::add(const DecodedPacket& pk) {
           const double lost_columns = std::max(0.0, std::round(dt / fp) - 1.0);
           missing = static_cast<uint32_t>(std::ceil(lost_columns / per_packet));
           stats_.missing_packets += missing;
+          gaps_[static_cast<size_t>(gap_next_++ % kGaps)] = {last_column_stamp_ns_, stamp, missing};
         } else if (dt > 1.5 * fp) {
           // Time gap, azimuth continuous: the sensor paused outside its field of view.
           ++stats_.fov_gaps;
@@ -162,51 +422,63 @@ void ScanBatcher::add(const DecodedPacket& pk) {
         cut = crossed_cut(last_column_azimuth_, az);
       }
     }
-    if (cut) {
-      // A loss that straddles the cut leaves both rotations short.
-      if (scan_ != nullptr) scan_->missing_packets += missing;
-      finish(true);
-      dropping_ = false;
-    }
-    if (scan_ == nullptr && !dropping_) {
-      begin(az);
-      if (scan_ == nullptr) {
-        dropping_ = true;  // no free scan: the columns up to the next cut are lost
-        ++stats_.dropped_no_buffer;
-      } else {
-        scan_->stamp_ns = stamp;
+    if (jump || cut) {
+      if (!open_) {
+        if (cut) next_starts_at_cut_ = true;
+      } else if (may_end) {
+        if (jump) {
+          ++scan.azimuth_jumps;
+        } else {
+          // A loss that straddles the cut leaves both rotations short.
+          scan.missing_packets += missing;
+        }
+        finish(scan, cut);
+        pending_column_ = c;
+        pending_missing_ = missing;
+        pending_evaluated_ = true;
+        have_last_ = true;
+        last_column_azimuth_ = az;
+        last_column_stamp_ns_ = stamp;
+        packet_ = nullptr;
+        return true;
       }
+      // Otherwise a second end inside one packet (azimuths that cross the cut twice, or a cut in
+      // the packet that followed a discontinuity): physically a rotation shorter than a packet.
+      // The columns stay in the rotation in progress, which did not start at the cut anyway.
     }
-    if (scan_ == nullptr) {
-      have_last_ = true;
-      last_column_azimuth_ = az;
-      last_column_stamp_ns_ = stamp;
+    if (!open_) begin(scan, stamp);
+    if (scan.columns >= scan.column_capacity) {
+      if (may_end) {
+        scan.missing_packets += missing;
+        overflowed_ = true;
+        ++stats_.overflows;
+        finish(scan, false);
+        pending_column_ = c;
+        pending_missing_ = 0;
+        pending_evaluated_ = true;
+        have_last_ = true;
+        last_column_azimuth_ = az;
+        last_column_stamp_ns_ = stamp;
+        packet_ = nullptr;
+        return true;
+      }
+      // Only with a scan smaller than one packet: the column is lost, counted.
+      queue_run(scan);
+      ++stats_.overflows;
       continue;
     }
-    scan_->missing_packets += missing;
-    if (scan_->columns >= scan_->column_capacity) {
-      overflowed_ = true;
-      ++stats_.overflows;
-      finish(false);
-      begin(az);
-      if (scan_ == nullptr) {
-        dropping_ = true;
-        ++stats_.dropped_no_buffer;
-        continue;
-      }
-      scan_->stamp_ns = stamp;
-    }
-    add_column(pk, c, stamp);
+    scan.missing_packets += missing;
+    add_column(pk, c, stamp, scan);
     have_last_ = true;
     last_column_azimuth_ = az;
     last_column_stamp_ns_ = stamp;
   }
-  copy_run();
+  queue_run(scan);
   packet_ = nullptr;
+  return false;
 }
 
-void ScanBatcher::add_column(const DecodedPacket& pk, int c, int64_t stamp) {
-  Scan& s = *scan_;
+void ScanBatcher::add_column(const PacketColumns& pk, int c, int64_t stamp, Scan& s) {
   const int col = s.columns++;
   const auto ucol = static_cast<size_t>(col);
   const double t0 = static_cast<double>(stamp - s.stamp_ns) * 1e-9;  // column start from scan start
@@ -227,30 +499,69 @@ void ScanBatcher::add_column(const DecodedPacket& pk, int c, int64_t stamp) {
   ++run_columns_;
 }
 
-void ScanBatcher::copy_run() {
-  if (run_columns_ == 0 || scan_ == nullptr || packet_ == nullptr) {
+void ScanBatcher::queue_run(Scan& s) {
+  if (run_columns_ == 0 || !open_ || packet_ == nullptr) {
     run_columns_ = 0;
     return;
   }
-  const DecodedPacket& pk = *packet_;
-  Scan& s = *scan_;
+  const PacketColumns& pk = *packet_;
   const int n = run_columns_;
   run_columns_ = 0;
-  const int rings = std::min(s.rings, pk.rings);
+  if (pk.rings != s.rings || pk.decoder == nullptr) return;  // cannot happen: begin() sized it
   const auto t_off = static_cast<float>(run_time_offset_s_);
-  // Both layouts are ring-major: each ring's columns are one contiguous run on either side.
-  for (int r = 0; r < s.returns; ++r) {
-    for (int ring = 0; ring < rings; ++ring) {
-      const size_t dst = s.at(r, ring, run_scan_column_);
-      if (r >= pk.returns) {  // a single-return packet in a dual-return scan
-        std::fill_n(s.range.begin() + static_cast<std::ptrdiff_t>(dst), n, 0.0f);
-        std::fill_n(s.return_type.begin() + static_cast<std::ptrdiff_t>(dst), n, ReturnType::kNone);
-        continue;
+  // Runs go to consecutive scan columns; one that does not (a column lost to a full scan) or
+  // does not fit starts a new batch.
+  if (batch_.columns > 0 && (run_scan_column_ != batch_column_ + batch_.columns ||
+                             !batch_.append(pk, run_packet_column_, n, t_off))) {
+    write_batch(s);
+  }
+  if (batch_.columns == 0) {
+    batch_column_ = run_scan_column_;
+    (void)batch_.append(pk, run_packet_column_, n, t_off);
+  }
+  if (packet_slot_ >= 0 &&
+      (batch_slot_count_ == 0 ||
+       batch_slots_[static_cast<size_t>(batch_slot_count_ - 1)] != packet_slot_))
+    batch_slots_[static_cast<size_t>(batch_slot_count_++)] = packet_slot_;
+  decoder_ = pk.decoder;
+  if (batch_.columns >= kBatchColumns) write_batch(s);
+}
+
+void ScanBatcher::write_batch(Scan& s) {
+  const int n = batch_.columns;
+  if (n > 0 && decoder_ != nullptr && batch_.returns <= s.returns &&
+      batch_column_ + n <= s.column_capacity) {
+    // The decoder writes the batch straight into the scan's ring-major storage.
+    const size_t cell = s.at(0, 0, batch_column_);
+    const auto ring_stride = static_cast<size_t>(s.column_capacity);
+    const PointSink sink{s.x.data() + cell,
+                         s.y.data() + cell,
+                         s.z.data() + cell,
+                         s.range.data() + cell,
+                         s.azimuth_deg.data() + cell,
+                         s.time_s.data() + cell,
+                         s.intensity.data() + cell,
+                         s.return_type.data() + cell,
+                         ring_stride,
+                         ring_stride * static_cast<size_t>(s.rings),
+                         0.0f,
+                         1e-6f};
+    decoder_->write_batch(batch_, sink);
+    for (int r = batch_.returns; r < s.returns; ++r) {  // single-return packets, dual scan
+      for (int ring = 0; ring < s.rings; ++ring) {
+        const auto dst = static_cast<std::ptrdiff_t>(s.at(r, ring, batch_column_));
+        std::fill_n(s.range.begin() + dst, n, 0.0f);
+        std::fill_n(s.return_type.begin() + dst, n, ReturnType::kNone);
       }
-      const auto src = static_cast<size_t>(pk.at(r, run_packet_column_, ring));
-      copy_cells(pk, src, s, dst, n, t_off);
     }
   }
+  batch_.columns = 0;
+  // The held packets the batch read are free now, but the one being run.
+  for (int i = 0; i < batch_slot_count_; ++i) {
+    const int slot = batch_slots_[static_cast<size_t>(i)];
+    if (slot != packet_slot_ && slot != pending_slot_) busy_[static_cast<size_t>(slot)] = false;
+  }
+  batch_slot_count_ = 0;
 }
 
 }  // namespace lidartag::velodyne

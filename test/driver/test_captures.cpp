@@ -18,19 +18,20 @@ std::string capture(const std::string& name) {
   return std::string(LIDARTAG_SHARED_DIR) + "/captures/" + name;
 }
 
-class KeepAll : public ScanSink {
+// Every rotation in a scan of its own (sized by the batcher on first use), kept.
+class KeepAll {
  public:
-  KeepAll(int rings, int returns, int capacity) : r_(rings), n_(returns), c_(capacity) {}
-  Scan* acquire() override {
-    pool_.push_back(std::make_unique<Scan>());
-    pool_.back()->reserve(r_, n_, c_);
-    return pool_.back().get();
+  KeepAll() { fresh(); }
+  Scan& current() { return *pool_.back(); }
+  void keep(bool finished) {
+    if (!finished) return;
+    scans.push_back(pool_.back().get());
+    fresh();
   }
-  void publish(Scan* s) override { scans.push_back(s); }
   std::vector<Scan*> scans;
 
  private:
-  int r_, n_, c_;
+  void fresh() { pool_.push_back(std::make_unique<Scan>()); }
   std::deque<std::unique_ptr<Scan>> pool_;
 };
 
@@ -81,11 +82,10 @@ Decoded decode_capture(const std::string& path) {
   const ModelSpec& spec = model_spec(d.model);
   Decoder decoder(Calibration::builtin(d.model));
   SensorClock clock;
-  d.sink = std::make_unique<KeepAll>(spec.lasers, d.mode == ReturnMode::kDual ? 2 : 1,
-                                     ScanBatcher::column_capacity(spec));
+  d.sink = std::make_unique<KeepAll>();
   BatcherOptions bo;
   bo.cut_azimuth_deg = kCut;
-  ScanBatcher batcher(spec, d.mode, bo, *d.sink);
+  ScanBatcher batcher(spec, d.mode, bo);
   DecodedPacket out;
   double prev_az = -1;
   std::vector<double> steps;
@@ -108,7 +108,7 @@ Decoded decode_capture(const std::string& path) {
       ++d.decode_errors;
       continue;
     }
-    batcher.add(out);
+    d.sink->keep(batcher.add(out, d.sink->current()));
     for (size_t b = 0; b < kBlocks; ++b) {
       const double az = read_u16(data[i].data() + b * kBlockSize + 2) * 0.01;
       if (prev_az >= 0) {
@@ -120,7 +120,7 @@ Decoded decode_capture(const std::string& path) {
       prev_az = az;
     }
   }
-  batcher.flush();
+  while (batcher.flush(d.sink->current())) d.sink->keep(true);
   d.stats = batcher.stats();
   // Median step between blocks of distinct azimuth; such blocks are one block duration apart.
   std::nth_element(steps.begin(), steps.begin() + static_cast<long>(steps.size() / 2), steps.end());

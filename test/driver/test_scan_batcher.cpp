@@ -1,58 +1,59 @@
 // Whole rotations: cut at the point, loss, duplicates, reordering, FOV gaps, restarts, timeouts.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <deque>
 #include <memory>
 
+#include "../detector/count_allocations.hpp"
 #include "lidartag/driver/scan_batcher.hpp"
 #include "synthetic_stream.hpp"
 
 namespace lidartag::velodyne {
 namespace {
 
-// Collects every rotation; can be told to have no free scan.
-class CollectingSink : public ScanSink {
- public:
-  CollectingSink(int rings, int returns, int capacity)
-      : rings_(rings), returns_(returns), capacity_(capacity) {}
-  Scan* acquire() override {
-    if (refuse) return nullptr;
-    pool_.push_back(std::make_unique<Scan>());
-    pool_.back()->reserve(rings_, returns_, capacity_);
-    return pool_.back().get();
-  }
-  void publish(Scan* s) override { scans.push_back(s); }
-  std::vector<Scan*> scans;
-  bool refuse = false;
-
- private:
-  int rings_, returns_, capacity_;
-  std::deque<std::unique_ptr<Scan>> pool_;
-};
-
+// Feeds the batcher a fresh scan after every finished rotation and keeps them all; scans of
+// `capacity` columns (0: sized by the batcher on first use).
 struct Rig {
   const ModelSpec& spec;
   ReturnMode mode;
   Decoder decoder;
   SensorClock clock;
-  CollectingSink sink;
   ScanBatcher batcher;
   DecodedPacket pk;
-  Rig(Model m, ReturnMode md, BatcherOptions o = {}, int capacity = 0)
+  int capacity;
+  std::deque<std::unique_ptr<Scan>> all;  // the scan in progress is the last one
+  std::vector<Scan*> scans;               // finished rotations, in order
+  Rig(Model m, ReturnMode md, BatcherOptions o = {}, int capacity_columns = 0)
       : spec(model_spec(m)),
         mode(md),
         decoder(Calibration::builtin(m)),
-        sink(spec.lasers, md == ReturnMode::kDual ? 2 : 1,
-             capacity > 0 ? capacity : ScanBatcher::column_capacity(spec)),
-        batcher(spec, md, o, sink) {}
+        batcher(spec, md, o),
+        capacity(capacity_columns) {
+    fresh();
+  }
+  void fresh() {
+    all.push_back(std::make_unique<Scan>());
+    if (capacity > 0) all.back()->reserve(spec.lasers, mode == ReturnMode::kDual ? 2 : 1, capacity);
+  }
+  Scan& current() { return *all.back(); }
+  void keep(bool finished) {
+    if (!finished) return;
+    scans.push_back(&current());
+    fresh();
+  }
   void feed(const testing::StreamPacket& p) {
     ASSERT_EQ(decoder.decode(p.bytes, clock, p.time_ns, pk), DecodeStatus::kOk);
-    batcher.add(pk);
+    keep(batcher.add(pk, current()));
   }
   void feed_all(const std::vector<testing::StreamPacket>& v) {
     for (const auto& p : v) feed(p);
   }
+  void flush() {
+    while (batcher.flush(current())) keep(true);  // what the reorder window held, then the rest
+  }
+  void poll(int64_t now_ns) { keep(batcher.poll(now_ns, current())); }
 };
 
 double ahead_of_cut(double az, double cut) {
@@ -69,8 +70,8 @@ TEST(ScanBatcher, CutsWholeRotationsAtTheAzimuthInsideAPacket) {
     const auto stream =
         testing::make_stream(rig.spec, ReturnMode::kStrongest, per_rotation_packets * 3 + 5);
     rig.feed_all(stream);
-    rig.batcher.flush();
-    const auto& scans = rig.sink.scans;
+    rig.flush();
+    const auto& scans = rig.scans;
     ASSERT_EQ(scans.size(), 4u) << rig.spec.name;  // partial, 2 whole, partial
     EXPECT_FALSE(scans[0]->complete);
     EXPECT_FALSE(scans[0]->starts_at_cut);
@@ -115,8 +116,8 @@ TEST(ScanBatcher, CutsWholeRotationsAtTheAzimuthInsideAPacket) {
 TEST(ScanBatcher, PerPointTimeAndAzimuthAreMonotonicPerRing) {
   Rig rig(Model::kVLP32C, ReturnMode::kStrongest);
   rig.feed_all(testing::make_stream(rig.spec, ReturnMode::kStrongest, 400));
-  ASSERT_GE(rig.sink.scans.size(), 2u);
-  const Scan& s = *rig.sink.scans[1];
+  ASSERT_GE(rig.scans.size(), 2u);
+  const Scan& s = *rig.scans[1];
   ASSERT_TRUE(s.complete);
   for (int ring = 0; ring < s.rings; ++ring) {
     double prev_t = -1, prev_az = -1, ref = -1;
@@ -140,28 +141,200 @@ TEST(ScanBatcher, LostPacketsAreCountedAndMarkTheRotationIncomplete) {
   // Rotation 1 spans packets 36..111 (start azimuth 10, cut 180, 75.4 packets a turn).
   stream.erase(stream.begin() + 100, stream.begin() + 103);
   rig.feed_all(stream);
-  rig.batcher.flush();
-  ASSERT_GE(rig.sink.scans.size(), 3u);
-  EXPECT_EQ(rig.sink.scans[1]->missing_packets, 3u);
-  EXPECT_FALSE(rig.sink.scans[1]->complete);
-  EXPECT_TRUE(rig.sink.scans[2]->complete);
+  rig.flush();
+  ASSERT_GE(rig.scans.size(), 3u);
+  EXPECT_EQ(rig.scans[1]->missing_packets, 3u);
+  EXPECT_FALSE(rig.scans[1]->complete);
+  EXPECT_TRUE(rig.scans[2]->complete);
   EXPECT_EQ(rig.batcher.stats().missing_packets, 3u);
 }
 
-TEST(ScanBatcher, DuplicatesAndLatePacketsAreDroppedAndCounted) {
+TEST(ScanBatcher, DuplicatesAreDroppedAndAReorderedPairIsPutInPlace) {
   Rig rig(Model::kHDL32E, ReturnMode::kStrongest);
   auto stream = testing::make_stream(rig.spec, ReturnMode::kStrongest, 500);
   stream.insert(stream.begin() + 200, stream[199]);  // duplicate
   std::swap(stream[300], stream[301]);               // reordered pair
   rig.feed_all(stream);
-  rig.batcher.flush();
-  EXPECT_EQ(rig.batcher.stats().late_packets, 2u);  // the duplicate and the overtaken packet
-  EXPECT_EQ(rig.batcher.stats().missing_packets, 1u);
+  rig.flush();
+  const BatcherStats& st = rig.batcher.stats();
+  EXPECT_EQ(st.duplicates, 1u);
+  EXPECT_EQ(st.reordered, 1u);     // put back in place by the reorder window
+  EXPECT_EQ(st.late_packets, 1u);  // only the duplicate was dropped
+  EXPECT_EQ(st.missing_packets, 0u);
+  EXPECT_EQ(st.inconsistent, 0u);
   size_t complete = 0;
-  for (const Scan* s : rig.sink.scans) complete += s->complete ? 1u : 0u;
-  // 500 packets of 552.96 us = 2.76 rotations; the duplicate costs nothing, the reorder one.
-  EXPECT_EQ(rig.batcher.stats().rotations, 4u);
-  EXPECT_EQ(complete, 1u);
+  for (const Scan* s : rig.scans) complete += s->complete ? 1u : 0u;
+  // 500 packets of 552.96 us = 2.76 rotations: partial, two whole ones, partial.
+  EXPECT_EQ(st.rotations, 4u);
+  EXPECT_EQ(complete, 2u);
+}
+
+// Clean rotations of a stream, for comparison with a disturbed one.
+std::vector<Scan*> complete_of(const Rig& rig) {
+  std::vector<Scan*> v;
+  for (Scan* s : rig.scans)
+    if (s->complete) v.push_back(s);
+  return v;
+}
+
+// Cell-by-cell equality of two rotations (the disturbance must leave no trace).
+void expect_same_rotation(const Scan& a, const Scan& b) {
+  ASSERT_EQ(a.columns, b.columns);
+  ASSERT_EQ(a.stamp_ns, b.stamp_ns);
+  for (int r = 0; r < a.returns; ++r)
+    for (int ring = 0; ring < a.rings; ++ring)
+      for (int c = 0; c < a.columns; ++c) {
+        const size_t i = a.at(r, ring, c);
+        ASSERT_EQ(a.x[i], b.x[i]);
+        ASSERT_EQ(a.range[i], b.range[i]);
+        ASSERT_EQ(a.time_s[i], b.time_s[i]);
+      }
+}
+
+TEST(ScanBatcher, PacketsReorderedByOneToThreeKeepRotationsComplete) {
+  for (int shift : {1, 2, 3}) {
+    Rig clean(Model::kVLP16, ReturnMode::kStrongest);
+    Rig rig(Model::kVLP16, ReturnMode::kStrongest);
+    const auto stream = testing::make_stream(rig.spec, ReturnMode::kStrongest, 300);
+    clean.feed_all(stream);
+    clean.flush();
+    // Every 10th packet arrives `shift` packets late.
+    auto late = stream;
+    int moved = 0;
+    for (size_t i = 20; i + static_cast<size_t>(shift) < late.size(); i += 10) {
+      std::rotate(late.begin() + static_cast<long>(i), late.begin() + static_cast<long>(i) + 1,
+                  late.begin() + static_cast<long>(i) + shift + 1);
+      ++moved;
+    }
+    rig.feed_all(late);
+    rig.flush();
+    const BatcherStats& st = rig.batcher.stats();
+    EXPECT_EQ(st.reordered, static_cast<uint64_t>(moved)) << "shift " << shift;
+    EXPECT_EQ(st.missing_packets, 0u);
+    EXPECT_EQ(st.late_packets, 0u);
+    const auto a = complete_of(clean), b = complete_of(rig);
+    ASSERT_EQ(a.size(), 3u);
+    ASSERT_EQ(b.size(), a.size()) << "shift " << shift;
+    for (size_t i = 0; i < a.size(); ++i) expect_same_rotation(*a[i], *b[i]);
+  }
+}
+
+TEST(ScanBatcher, APacketLaterThanTheWindowIsReorderedNotMissing) {
+  Rig rig(Model::kVLP16, ReturnMode::kStrongest);
+  auto stream = testing::make_stream(rig.spec, ReturnMode::kStrongest, 300);
+  // Packet 100 arrives 8 packets late: beyond the reorder window, so its columns cannot be put
+  // in place; it did arrive, so it is not counted as missing.
+  std::rotate(stream.begin() + 100, stream.begin() + 101, stream.begin() + 109);
+  rig.feed_all(stream);
+  rig.flush();
+  const BatcherStats& st = rig.batcher.stats();
+  EXPECT_EQ(st.reordered, 1u);
+  EXPECT_EQ(st.late_packets, 1u);
+  EXPECT_EQ(st.missing_packets, 0u);
+  // The rotation that lacks its columns is not complete.
+  ASSERT_GE(rig.scans.size(), 3u);
+  EXPECT_FALSE(rig.scans[1]->complete);
+  EXPECT_EQ(rig.scans[1]->missing_packets, 1u);
+}
+
+TEST(ScanBatcher, DuplicatesAreCountedOnceAndChangeNothing) {
+  Rig clean(Model::kVLP32C, ReturnMode::kStrongest);
+  Rig rig(Model::kVLP32C, ReturnMode::kStrongest);
+  const auto stream = testing::make_stream(rig.spec, ReturnMode::kStrongest, 600);
+  clean.feed_all(stream);
+  clean.flush();
+  std::vector<testing::StreamPacket> twice;
+  for (size_t i = 0; i < stream.size(); ++i) {
+    twice.push_back(stream[i]);
+    if (i % 7 == 3) twice.push_back(stream[i]);                 // right away
+    if (i % 11 == 5 && i >= 3) twice.push_back(stream[i - 3]);  // a little later
+  }
+  rig.feed_all(twice);
+  rig.flush();
+  const BatcherStats& st = rig.batcher.stats();
+  EXPECT_EQ(st.duplicates, twice.size() - stream.size());
+  EXPECT_EQ(st.late_packets, st.duplicates);
+  EXPECT_EQ(st.reordered, 0u);
+  EXPECT_EQ(st.missing_packets, 0u);
+  EXPECT_EQ(st.rotations, clean.batcher.stats().rotations);
+  const auto a = complete_of(clean), b = complete_of(rig);
+  ASSERT_EQ(b.size(), a.size());
+  for (size_t i = 0; i < a.size(); ++i) expect_same_rotation(*a[i], *b[i]);
+}
+
+// A well-formed packet of the same model with a random azimuth, stamped like its neighbours.
+testing::StreamPacket spoof(const ModelSpec& spec, const testing::StreamPacket& like,
+                            uint32_t seed) {
+  testing::StreamOptions o;
+  o.start_azimuth_deg = static_cast<double>((seed * 2654435761u) % 36000u) * 0.01;
+  o.start_ns = like.time_ns + 1000 * static_cast<int64_t>(seed % 500);
+  return testing::make_stream(spec, ReturnMode::kStrongest, 1, o)[0];
+}
+
+TEST(ScanBatcher, SpoofedPacketsDoNotMultiplyRotations) {
+  Rig clean(Model::kVLP32C, ReturnMode::kStrongest);
+  Rig rig(Model::kVLP32C, ReturnMode::kStrongest);
+  const auto stream = testing::make_stream(rig.spec, ReturnMode::kStrongest, 1507);  // 1 s
+  clean.feed_all(stream);
+  clean.flush();
+  // 20 % of what arrives is foreign: well-formed, random in-range azimuths.
+  std::vector<testing::StreamPacket> mixed;
+  uint64_t spoofed = 0;
+  for (size_t i = 0; i < stream.size(); ++i) {
+    mixed.push_back(stream[i]);
+    if (i % 4 == 1) {
+      mixed.push_back(spoof(rig.spec, stream[i], static_cast<uint32_t>(i)));
+      ++spoofed;
+    }
+  }
+  rig.feed_all(mixed);
+  rig.flush();
+  const BatcherStats& st = rig.batcher.stats();
+  EXPECT_EQ(st.rotations, clean.batcher.stats().rotations);
+  EXPECT_EQ(st.inconsistent, spoofed);
+  EXPECT_EQ(st.azimuth_jumps, 0u);
+  EXPECT_EQ(st.missing_packets, 0u);
+  const auto a = complete_of(clean), b = complete_of(rig);
+  ASSERT_EQ(a.size(), 9u);
+  ASSERT_EQ(b.size(), a.size());
+  for (size_t i = 0; i < a.size(); ++i) expect_same_rotation(*a[i], *b[i]);
+}
+
+TEST(ScanBatcher, ASecondCoherentStreamOnThePortIsRejectedWhileTheFirstLives) {
+  // Another sensor's packets agree with each other but not with the stream: as long as the
+  // stream goes on they are foreign, never a restart.
+  Rig clean(Model::kVLP16, ReturnMode::kStrongest);
+  Rig rig(Model::kVLP16, ReturnMode::kStrongest);
+  const auto stream = testing::make_stream(rig.spec, ReturnMode::kStrongest, 400);
+  testing::StreamOptions other;
+  other.start_azimuth_deg = 200.0;
+  other.start_ns = stream[0].time_ns + 300'000;
+  const auto foreign = testing::make_stream(rig.spec, ReturnMode::kStrongest, 400, other);
+  clean.feed_all(stream);
+  clean.flush();
+  for (size_t i = 0; i < stream.size(); ++i) {
+    rig.feed(stream[i]);
+    rig.feed(foreign[i]);
+  }
+  rig.flush();
+  EXPECT_EQ(rig.batcher.stats().inconsistent, foreign.size());
+  EXPECT_EQ(rig.batcher.stats().rotations, clean.batcher.stats().rotations);
+  EXPECT_EQ(complete_of(rig).size(), complete_of(clean).size());
+}
+
+TEST(ScanBatcher, ReplayLoopIsANewStreamNotStrayPackets) {
+  Rig rig(Model::kVLP32C, ReturnMode::kStrongest);
+  const auto stream = testing::make_stream(rig.spec, ReturnMode::kStrongest, 700);
+  rig.feed_all(stream);
+  rig.feed_all(stream);  // the capture starts over: time and azimuth jump back
+  rig.flush();
+  const BatcherStats& st = rig.batcher.stats();
+  EXPECT_EQ(st.azimuth_jumps, 1u);
+  EXPECT_EQ(st.inconsistent, 0u);
+  EXPECT_EQ(st.duplicates, 0u);
+  // Each pass: partial, two whole rotations (700 packets = 4.6 turns from 10 deg), partial.
+  EXPECT_EQ(complete_of(rig).size(), 2u * (complete_of(rig).size() / 2));
+  EXPECT_GE(complete_of(rig).size(), 6u);
 }
 
 TEST(ScanBatcher, RestrictedFieldOfViewGivesCompleteRotations) {
@@ -188,7 +361,7 @@ TEST(ScanBatcher, RestrictedFieldOfViewGivesCompleteRotations) {
       fov.push_back(q);
     }
     rig.feed_all(fov);
-    rig.batcher.flush();
+    rig.flush();
     EXPECT_EQ(rig.batcher.stats().missing_packets, 0u) << "cut " << cut;
     EXPECT_GE(rig.batcher.stats().fov_gaps, 3u);
     EXPECT_GE(rig.batcher.stats().complete, 3u) << "cut " << cut;
@@ -204,9 +377,9 @@ TEST(ScanBatcher, SensorRestartEndsTheRotationIncomplete) {
   auto b = testing::make_stream(rig.spec, ReturnMode::kStrongest, 120, later);
   rig.feed_all(a);
   rig.feed_all(b);
-  rig.batcher.flush();
+  rig.flush();
   EXPECT_EQ(rig.batcher.stats().azimuth_jumps, 1u);
-  for (const Scan* s : rig.sink.scans) EXPECT_FALSE(s->complete && s->azimuth_jumps > 0);
+  for (const Scan* s : rig.scans) EXPECT_FALSE(s->complete && s->azimuth_jumps > 0);
 }
 
 TEST(ScanBatcher, StreamThatStopsIsFlushedAfterTheTimeout) {
@@ -215,11 +388,11 @@ TEST(ScanBatcher, StreamThatStopsIsFlushedAfterTheTimeout) {
   Rig rig(Model::kVLP16, ReturnMode::kStrongest, o);
   const auto stream = testing::make_stream(rig.spec, ReturnMode::kStrongest, 30);
   rig.feed_all(stream);
-  rig.batcher.poll(stream.back().time_ns + 100'000'000);
-  EXPECT_TRUE(rig.sink.scans.empty());
-  rig.batcher.poll(stream.back().time_ns + 300'000'000);
-  ASSERT_EQ(rig.sink.scans.size(), 1u);
-  EXPECT_FALSE(rig.sink.scans[0]->ends_at_cut);
+  rig.poll(stream.back().time_ns + 100'000'000);
+  EXPECT_TRUE(rig.scans.empty());
+  rig.poll(stream.back().time_ns + 300'000'000);
+  ASSERT_EQ(rig.scans.size(), 1u);
+  EXPECT_FALSE(rig.scans[0]->ends_at_cut);
 }
 
 TEST(ScanBatcher, RpmChangeChangesColumnsPerRotation) {
@@ -236,7 +409,7 @@ TEST(ScanBatcher, RpmChangeChangesColumnsPerRotation) {
   rig.feed_all(a);
   rig.feed_all(b);
   std::vector<const Scan*> complete;
-  for (const Scan* s : rig.sink.scans)
+  for (const Scan* s : rig.scans)
     if (s->complete) complete.push_back(s);
   ASSERT_GE(complete.size(), 3u);
   EXPECT_NEAR(complete.front()->rpm, 300, 2);
@@ -248,8 +421,8 @@ TEST(ScanBatcher, RpmChangeChangesColumnsPerRotation) {
 TEST(ScanBatcher, DualReturnScansCarryBothEchoes) {
   Rig rig(Model::kVLP16, ReturnMode::kDual);
   rig.feed_all(testing::make_stream(rig.spec, ReturnMode::kDual, 400));
-  ASSERT_GE(rig.sink.scans.size(), 2u);
-  const Scan& s = *rig.sink.scans[1];
+  ASSERT_GE(rig.scans.size(), 2u);
+  const Scan& s = *rig.scans[1];
   EXPECT_TRUE(s.complete);
   EXPECT_EQ(s.returns, 2);
   size_t second = 0;
@@ -262,15 +435,139 @@ TEST(ScanBatcher, ScanThatFillsUpIsCutAndCounted) {
   Rig rig(Model::kVLP16, ReturnMode::kStrongest, {}, 500);
   rig.feed_all(testing::make_stream(rig.spec, ReturnMode::kStrongest, 100));
   EXPECT_GE(rig.batcher.stats().overflows, 1u);
-  for (const Scan* s : rig.sink.scans) EXPECT_LE(s->columns, 500);
+  for (const Scan* s : rig.scans) EXPECT_LE(s->columns, 500);
 }
 
-TEST(ScanBatcher, NoFreeScanDropsTheRotationWithoutBlocking) {
+TEST(ScanBatcher, AssemblesIntoTheCallersScanAndSizesItOnFirstUse) {
+  // The scan the caller passes is the rotation: no pool, no copy. An empty scan is reserved for
+  // the model; the columns after a cut wait in the batcher and open the next scan passed in.
+  const ModelSpec& spec = model_spec(Model::kVLP32C);
+  Decoder decoder(Calibration::builtin(Model::kVLP32C));
+  SensorClock clock;
+  ScanBatcher batcher(spec, ReturnMode::kStrongest, {});
+  DecodedPacket pk;
+  Scan a, b;
+  const auto stream = testing::make_stream(spec, ReturnMode::kStrongest, 400);
+  std::vector<int> ends;  // packet index of each finished rotation
+  Scan* current = &a;
+  for (size_t i = 0; i < stream.size(); ++i) {
+    ASSERT_EQ(decoder.decode(stream[i].bytes, clock, stream[i].time_ns, pk), DecodeStatus::kOk);
+    if (batcher.add(pk, *current)) {
+      ends.push_back(static_cast<int>(i));
+      EXPECT_EQ(current->rings, spec.lasers);
+      EXPECT_EQ(current->column_capacity, ScanBatcher::column_capacity(spec));
+      if (ends.size() >= 2) {
+        EXPECT_TRUE(current->complete);
+        // The other scan's last column and this one's first are consecutive firings.
+        EXPECT_TRUE(batcher.in_progress());
+      }
+      current = current == &a ? &b : &a;
+    }
+  }
+  ASSERT_GE(ends.size(), 3u);
+  // 400 packets of 663.552 us at 600 rpm: the cut at 180 deg every 150.7 packets.
+  EXPECT_NEAR(ends[2] - ends[1], 151, 1);
+  EXPECT_TRUE(batcher.flush(*current));
+  EXPECT_FALSE(current->ends_at_cut);
+  EXPECT_FALSE(batcher.in_progress());
+  EXPECT_FALSE(batcher.flush(*current));  // nothing left
+}
+
+TEST(ScanBatcher, ReturnModeChangeEndsTheRotationAndResizesTheNextScan) {
   Rig rig(Model::kVLP16, ReturnMode::kStrongest);
-  rig.sink.refuse = true;
-  rig.feed_all(testing::make_stream(rig.spec, ReturnMode::kStrongest, 200));
-  EXPECT_TRUE(rig.sink.scans.empty());
-  EXPECT_EQ(rig.batcher.stats().dropped_no_buffer, 4u);  // partial, two whole, partial
+  const auto single = testing::make_stream(rig.spec, ReturnMode::kStrongest, 100);
+  rig.feed_all(single);
+  testing::StreamOptions later;
+  later.start_ns = single.back().time_ns + 1'000'000;
+  rig.feed_all(testing::make_stream(rig.spec, ReturnMode::kDual, 300, later));
+  rig.flush();
+  EXPECT_EQ(rig.batcher.stats().mode_changes, 1u);
+  // Single: 10 -> 180 deg, 180 -> 128 deg (ended by the change); dual: 10 -> 180, a whole turn,
+  // the flushed rest.
+  ASSERT_EQ(rig.scans.size(), 5u);
+  EXPECT_EQ(rig.scans[1]->returns, 1);
+  EXPECT_FALSE(rig.scans[1]->ends_at_cut);
+  EXPECT_EQ(rig.scans[2]->returns, 2);
+  EXPECT_EQ(rig.scans[2]->return_mode, static_cast<uint8_t>(ReturnMode::kDual));
+  EXPECT_FALSE(rig.scans[2]->starts_at_cut);
+  EXPECT_TRUE(rig.scans[3]->complete);
+  EXPECT_EQ(rig.scans[3]->returns, 2);
+}
+
+TEST(ScanBatcher, APacketEndsAtMostOneRotation) {
+  // Block azimuths that cross the cut several times inside one packet (garbage, or a spoofed
+  // packet) cannot deliver rotations shorter than a packet.
+  Rig rig(Model::kVLP32C, ReturnMode::kStrongest);
+  auto stream = testing::make_stream(rig.spec, ReturnMode::kStrongest, 200);
+  auto& bad = stream[60].bytes;
+  for (size_t b = 0; b < kBlocks; ++b) {
+    write_u16(bad.data() + b * kBlockSize + 2, static_cast<uint16_t>(b % 2 == 0 ? 17900 : 18100));
+  }
+  rig.feed_all(stream);
+  rig.flush();
+  size_t short_ones = 0;
+  for (const Scan* s : rig.scans) short_ones += s->columns < 12 ? 1u : 0u;
+  EXPECT_EQ(short_ones, 0u);
+  EXPECT_LE(rig.batcher.stats().rotations, 4u);
+}
+
+TEST(ScanBatcher, ScanThatFillsUpLosesNothingElse) {
+  // The columns after an overflow go on into the next scan: every column is delivered once.
+  Rig rig(Model::kVLP16, ReturnMode::kStrongest, {}, 500);
+  const auto stream = testing::make_stream(rig.spec, ReturnMode::kStrongest, 100);
+  rig.feed_all(stream);
+  rig.flush();
+  int columns = 0;
+  for (const Scan* s : rig.scans) columns += s->columns;
+  EXPECT_EQ(columns, 100 * rig.spec.columns_per_packet(ReturnMode::kStrongest));
+}
+
+TEST(ScanBatcher, PerPacketPathNeverAllocates) {
+  // parse() + add() over every kind of packet the screening meets, once the scans are sized.
+  for (ReturnMode mode : {ReturnMode::kStrongest, ReturnMode::kDual}) {
+    for (Model m : all_models()) {
+      const ModelSpec& spec = model_spec(m);
+      const auto stream =
+          testing::make_stream(spec, mode, static_cast<int>(spec.packet_rate_hz(mode)));
+      std::vector<testing::StreamPacket> mixed;
+      for (size_t i = 0; i < stream.size(); ++i) {
+        mixed.push_back(stream[i]);
+        if (i % 5 == 1) mixed.push_back(spoof(spec, stream[i], static_cast<uint32_t>(i)));
+        if (i % 17 == 3) mixed.push_back(stream[i]);  // duplicate
+        if (i % 23 == 7 && i > 3) std::swap(mixed[mixed.size() - 1], mixed[mixed.size() - 2]);
+      }
+      const auto again = stream;  // a replay loop: a new stream
+      Decoder decoder(Calibration::builtin(m));
+      SensorClock clock;
+      ScanBatcher batcher(spec, mode, {});
+      PacketColumns pk;
+      std::array<Scan, 2> scans;
+      for (Scan& s : scans)
+        s.reserve(spec.lasers, mode == ReturnMode::kDual ? 2 : 1,
+                  ScanBatcher::column_capacity(spec));
+      size_t current = 0, rotations = 0;
+      auto feed = [&](const std::vector<testing::StreamPacket>& v) {
+        for (const auto& p : v) {
+          if (decoder.parse(p.bytes, clock, p.time_ns, pk) != DecodeStatus::kOk) continue;
+          if (batcher.add(pk, scans[current])) {
+            current = 1 - current;
+            ++rotations;
+          }
+        }
+      };
+      const long before = lidartag::testing::heap_allocations();
+      feed(mixed);
+      feed(again);
+      while (batcher.flush(scans[current])) {
+        current = 1 - current;
+        ++rotations;
+      }
+      EXPECT_EQ(lidartag::testing::heap_allocations(), before) << spec.name;
+      EXPECT_GE(rotations, 16u) << spec.name;
+      EXPECT_GT(batcher.stats().inconsistent, 0u);
+      EXPECT_GT(batcher.stats().duplicates, 0u);
+    }
+  }
 }
 
 }  // namespace

@@ -475,9 +475,15 @@ TEST(CaptureMutation, EachRecognisableCorruptionIsCounted) {
        },
        [](const Outcome& o) { return o.source.truncated == 1 && o.counts.decoded == 300; }},
       {"duplicate", [&](Capture& c) { c.records.insert(c.records.begin() + 100, c.records[100]); },
-       [](const Outcome& o) { return o.batcher.late_packets == 1 && o.counts.decoded == 301; }},
+       [](const Outcome& o) {
+         return o.batcher.duplicates == 1 && o.batcher.late_packets == 1 && o.counts.decoded == 301;
+       }},
+      // Put back in place by the reorder window: counted, neither dropped nor missing.
       {"reorder", [&](Capture& c) { std::swap(c.records[110], c.records[111]); },
-       [](const Outcome& o) { return o.batcher.late_packets == 1; }},
+       [](const Outcome& o) {
+         return o.batcher.reordered == 1 && o.batcher.late_packets == 0 &&
+                o.batcher.missing_packets == 0;
+       }},
       {"drop",
        [&](Capture& c) { c.records.erase(c.records.begin() + 120, c.records.begin() + 125); },
        [](const Outcome& o) { return o.batcher.missing_packets == 5 && o.counts.decoded == 295; }},
@@ -519,6 +525,49 @@ TEST(CaptureMutation, UnmutatedCaptureGivesItsNormalResult) {
   EXPECT_EQ(o.source.truncated + o.source.malformed + o.source.ignored, 0u);
   EXPECT_EQ(o.batcher.missing_packets + o.batcher.late_packets + o.batcher.azimuth_jumps, 0u);
   EXPECT_GE(o.complete, 10u);
+  EXPECT_GE(o.detections.size(), 2 * o.complete);
+}
+
+// 20 % of the data packets are foreign: well-formed packets of the same sensor from elsewhere in
+// the capture (random in-range azimuths), stamped like their neighbours. They are counted and
+// dropped: no extra rotations, no jumps, the same complete rotations and both tags in each.
+TEST(CaptureMutation, SpoofedPacketsDoNotMultiplyRotationsOrLoseTags) {
+  const std::string path = kPcaps + "demo.pcap";
+  const Capture c = split(read_bytes(path));
+  detector::Detector det(options({0.8, 0.6}, {"tag16h5"}));
+  Temp clean_file("spoof_clean.pcap");
+  test::write_file(clean_file.path, c.bytes());
+  const Outcome clean = run(clean_file.path, c.records.size(), det, "clean");
+  Capture spoofed;
+  spoofed.global = c.global;
+  std::mt19937 rng(7);
+  size_t added = 0;
+  for (size_t i = 0; i < c.records.size(); ++i) {
+    spoofed.records.push_back(c.records[i]);
+    const Bytes& r = c.records[i];
+    if (r.size() != kRecordHeader + kNetHeaders + kDataPacketSize || i % 4 != 1) continue;
+    Bytes fake = c.records[std::uniform_int_distribution<size_t>(0, c.records.size() - 1)(rng)];
+    if (fake.size() != r.size()) continue;
+    // The neighbour's capture time and sensor time, a little later.
+    const int64_t t = record_time_us(r) + 100;
+    set_record_time_us(fake, t);
+    uint8_t* payload = fake.data() + kRecordHeader + kNetHeaders;
+    set_le32(payload + kTimestampOffset,
+             le32(r.data() + kRecordHeader + kNetHeaders + kTimestampOffset) + 100);
+    spoofed.records.push_back(fake);
+    ++added;
+  }
+  Temp spoof_file("spoofed.pcap");
+  test::write_file(spoof_file.path, spoofed.bytes());
+  const Outcome o = run(spoof_file.path, spoofed.records.size(), det, "spoofed");
+  EXPECT_GE(added * 4 + 8, c.records.size());  // a fifth of what arrives
+  EXPECT_EQ(o.batcher.inconsistent, added);
+  EXPECT_EQ(o.batcher.azimuth_jumps, 0u);
+  EXPECT_EQ(o.batcher.missing_packets, 0u);
+  EXPECT_EQ(o.rotations, clean.rotations);
+  EXPECT_EQ(o.complete, clean.complete);
+  EXPECT_GE(o.complete, 9u);
+  EXPECT_EQ(o.detections, clean.detections);
   EXPECT_GE(o.detections.size(), 2 * o.complete);
 }
 

@@ -5,8 +5,10 @@
 
 #include <cmath>
 #include <filesystem>
+#include <thread>
 #include <vector>
 
+#include "../driver/synthetic_stream.hpp"
 #include "lidartag/driver/io/calibration_file.hpp"
 #include "lidartag/driver/io/pcap_writer.hpp"
 
@@ -179,6 +181,170 @@ TEST(CaptureReader, TrafficThatNeverCompletesTheProbeIsNotHeldWithoutBound) {
     EXPECT_EQ(c.data_packets + c.position_packets, n);
     EXPECT_EQ(c.undecodable, c.data_packets);
     EXPECT_FALSE(reader.model());
+  }
+}
+
+// A synthetic sensor stream on the data port, then silence (each call waits its timeout) until
+// `ended` is set, then the end.
+class StreamSource final : public PacketSource {
+ public:
+  explicit StreamSource(std::vector<testing::StreamPacket> packets)
+      : packets_(std::move(packets)) {}
+  ReadStatus next(RawPacket& out, std::chrono::milliseconds timeout) override {
+    if (sent_ < packets_.size()) {
+      const auto& p = packets_[sent_++];
+      out.payload = p.bytes;
+      out.receive_time_ns = p.time_ns;
+      out.destination_port = kDefaultDataPort;
+      ++stats_.packets;
+      return ReadStatus::kPacket;
+    }
+    if (ended) return ReadStatus::kEnd;
+    std::this_thread::sleep_for(timeout);
+    return ReadStatus::kTimeout;
+  }
+  SourceStats stats() const override { return stats_; }
+  bool ended = false;
+
+ private:
+  std::vector<testing::StreamPacket> packets_;
+  size_t sent_ = 0;
+  SourceStats stats_{};
+};
+
+TEST(CaptureReader, ReadFillsTheCallersScanAndKeepsTheRotationInProgressAcrossTimeouts) {
+  const ModelSpec& spec = model_spec(Model::kVLP16);
+  // 10 deg -> the cut at 180, then a third of a turn: one partial rotation, one in progress.
+  auto stream = testing::make_stream(spec, ReturnMode::kStrongest, 75);
+  CaptureReaderOptions options;
+  options.model = Model::kVLP16;
+  options.batcher.flush_timeout_s = 60;  // the silence below does not end the rotation
+  auto owned = std::make_unique<StreamSource>(stream);
+  StreamSource& source = *owned;
+  CaptureReader reader(std::move(owned), options);
+  Scan a, b;  // empty: sized by the reader
+  ASSERT_EQ(reader.read(a, 10s), CaptureReader::ReadResult::kRotation);
+  EXPECT_EQ(a.rings, 16);
+  EXPECT_FALSE(a.starts_at_cut);
+  EXPECT_TRUE(a.ends_at_cut);
+  // The rest of the stream goes into b, then the source is silent: b holds it, in progress.
+  ASSERT_EQ(reader.read(b, 200ms), CaptureReader::ReadResult::kTimeout);
+  const int columns = b.columns;
+  EXPECT_EQ(a.columns + columns, 75 * spec.columns_per_packet(ReturnMode::kStrongest));
+  EXPECT_EQ(reader.read(b, 10ms), CaptureReader::ReadResult::kTimeout);
+  EXPECT_EQ(b.columns, columns);
+  // The source ends: the rotation in progress is delivered, then nothing more.
+  source.ended = true;
+  ASSERT_EQ(reader.read(b, 10s), CaptureReader::ReadResult::kRotation);
+  EXPECT_FALSE(b.ends_at_cut);
+  EXPECT_EQ(b.columns, columns);
+  EXPECT_EQ(reader.read(a, 10ms), CaptureReader::ReadResult::kEnd);
+  EXPECT_EQ(reader.read(a, 10ms), CaptureReader::ReadResult::kEnd);
+}
+
+TEST(CaptureReader, ASilentSourceDeliversTheRotationInProgress) {
+  const ModelSpec& spec = model_spec(Model::kVLP16);
+  auto stream = testing::make_stream(spec, ReturnMode::kStrongest, 75);
+  CaptureReaderOptions options;
+  options.model = Model::kVLP16;
+  options.batcher.flush_timeout_s = 0.05;
+  CaptureReader reader(std::make_unique<StreamSource>(stream), options);
+  Scan a, b;
+  ASSERT_EQ(reader.read(a, 10s), CaptureReader::ReadResult::kRotation);
+  const auto before = std::chrono::steady_clock::now();
+  CaptureReader::ReadResult r = CaptureReader::ReadResult::kTimeout;
+  int calls = 0;
+  for (; calls < 100 && r == CaptureReader::ReadResult::kTimeout; ++calls) r = reader.read(b, 20ms);
+  ASSERT_EQ(r, CaptureReader::ReadResult::kRotation);
+  EXPECT_GE(std::chrono::steady_clock::now() - before, 50ms) << calls << " calls";
+  EXPECT_FALSE(b.ends_at_cut);
+  EXPECT_GT(b.columns, 0);
+  EXPECT_EQ(reader.batcher_stats().rotations, 2u);
+}
+
+TEST(CaptureReader, ReadReturnsAtTheDeadlineWhilePacketsKeepComing) {
+  // A source that never runs dry must not keep read() (and the daemon's receiver loop, which
+  // checks for a stop request between calls) from returning.
+  const ModelSpec& spec = model_spec(Model::kVLS128);
+  auto source =
+      std::make_unique<StreamSource>(testing::make_stream(spec, ReturnMode::kStrongest, 200));
+  CaptureReaderOptions options;
+  options.model = Model::kVLS128;
+  CaptureReader reader(std::move(source), options);
+  Scan a;
+  EXPECT_EQ(reader.read(a, 0ms), CaptureReader::ReadResult::kTimeout);
+  EXPECT_EQ(reader.counts().decoded, 1u);  // one packet per call at a zero timeout
+  EXPECT_EQ(reader.read(a, 0ms), CaptureReader::ReadResult::kTimeout);
+  EXPECT_EQ(reader.counts().decoded, 2u);
+}
+
+TEST(CaptureReader, AnotherModelMidStreamIsNoticedAndDecodedAsThatModel) {
+  // VLP-16 packets after VLP-32C packets on the same port, the model detected.
+  const auto first = testing::make_stream(model_spec(Model::kVLP32C), ReturnMode::kStrongest, 1507);
+  testing::StreamOptions later;
+  later.start_ns = first.back().time_ns + 100'000'000;
+  later.start_azimuth_deg = 77.0;
+  const auto second =
+      testing::make_stream(model_spec(Model::kVLP16), ReturnMode::kStrongest, 754 * 2, later);
+  auto stream = first;
+  stream.insert(stream.end(), second.begin(), second.end());
+  auto owned = std::make_unique<StreamSource>(stream);
+  owned->ended = true;
+  CaptureReader reader(std::move(owned), {});
+  size_t vlp32c_complete = 0, vlp16_complete = 0, after_switch_other = 0;
+  bool switched = false;
+  while (const Scan* scan = reader.next()) {
+    if (scan->rings == 16) switched = true;
+    if (switched && scan->rings != 16) ++after_switch_other;
+    if (!scan->complete) continue;
+    (scan->rings == 32 ? vlp32c_complete : vlp16_complete) += 1;
+    EXPECT_EQ(scan->model,
+              static_cast<uint8_t>(scan->rings == 32 ? Model::kVLP32C : Model::kVLP16));
+  }
+  EXPECT_EQ(reader.model(), Model::kVLP16);
+  EXPECT_GE(vlp32c_complete, 8u);
+  EXPECT_GE(vlp16_complete, 15u);  // 2 s at 600 rpm: the first fraction decoded as a VLP-32C
+  EXPECT_EQ(after_switch_other, 0u);
+  EXPECT_GT(reader.counts().model_mismatch, 0u);
+  EXPECT_NE(reader.model_mismatch().find("vlp32c -> vlp16"), std::string::npos)
+      << reader.model_mismatch();
+}
+
+TEST(CaptureReader, AConfiguredModelThePacketsContradictIsReported) {
+  const auto stream = testing::make_stream(model_spec(Model::kVLP16), ReturnMode::kStrongest, 754);
+  auto owned = std::make_unique<StreamSource>(stream);
+  owned->ended = true;
+  CaptureReaderOptions options;
+  options.model = Model::kVLP32C;  // wrong
+  CaptureReader reader(std::move(owned), options);
+  size_t rotations = 0;
+  while (const Scan* scan = reader.next()) {
+    ++rotations;
+    EXPECT_EQ(scan->rings, 32);  // decoded as told
+  }
+  EXPECT_GT(rotations, 0u);
+  EXPECT_EQ(reader.model(), Model::kVLP32C);
+  EXPECT_GE(reader.counts().model_mismatch, 600u);
+  EXPECT_NE(reader.model_mismatch().find("configured model vlp32c"), std::string::npos)
+      << reader.model_mismatch();
+  EXPECT_NE(reader.model_mismatch().find("fit vlp16"), std::string::npos);
+}
+
+TEST(CaptureReader, TheRightModelIsNotReported) {
+  for (Model m : all_models()) {
+    const auto stream = testing::make_stream(model_spec(m), ReturnMode::kStrongest, 1000);
+    for (bool configured : {false, true}) {
+      auto owned = std::make_unique<StreamSource>(stream);
+      owned->ended = true;
+      CaptureReaderOptions options;
+      if (configured) options.model = m;
+      CaptureReader reader(std::move(owned), options);
+      while (reader.next() != nullptr) {
+      }
+      EXPECT_EQ(reader.counts().model_mismatch, 0u) << model_spec(m).name;
+      EXPECT_EQ(reader.model_mismatch(), "") << model_spec(m).name;
+      EXPECT_EQ(reader.model(), m);
+    }
   }
 }
 

@@ -39,21 +39,20 @@ inline Capture simulate(const Scene& scene, int rotations, uint64_t seed) {
   return c;
 }
 
-// Keeps every published rotation.
-class CollectSink : public velodyne::ScanSink {
+// Keeps every finished rotation, each in a scan of its own (sized by the batcher).
+class CollectSink {
  public:
-  CollectSink(int rings, int returns, int columns)
-      : rings_(rings), returns_(returns), columns_(columns) {}
-  Scan* acquire() override {
-    pool_.push_back(std::make_unique<Scan>());
-    pool_.back()->reserve(rings_, returns_, columns_);
-    return pool_.back().get();
+  CollectSink() { fresh(); }
+  Scan& current() { return *pool_.back(); }
+  void keep(bool finished) {
+    if (!finished) return;
+    scans.push_back(pool_.back().get());
+    fresh();
   }
-  void publish(Scan* scan) override { scans.push_back(scan); }
   std::vector<Scan*> scans;
 
  private:
-  int rings_, returns_, columns_;
+  void fresh() { pool_.push_back(std::make_unique<Scan>()); }
   std::deque<std::unique_ptr<Scan>> pool_;
 };
 
@@ -70,11 +69,10 @@ inline Decoded decode(const Capture& c, const Scene& scene) {
   Decoder decoder(Calibration::builtin(scene.sensor.model));
   SensorClock clock;
   Decoded d;
-  const int returns = scene.sensor.return_mode == ReturnMode::kDual ? 2 : 1;
-  d.sink = std::make_unique<CollectSink>(spec.lasers, returns, ScanBatcher::column_capacity(spec));
+  d.sink = std::make_unique<CollectSink>();
   BatcherOptions bo;
   bo.cut_azimuth_deg = scene.sensor.cut_azimuth_deg;
-  ScanBatcher batcher(spec, scene.sensor.return_mode, bo, *d.sink);
+  ScanBatcher batcher(spec, scene.sensor.return_mode, bo);
   auto packet = std::make_unique<DecodedPacket>();
   for (const Packet& p : c.packets) {
     if (p.port != kDefaultDataPort) continue;
@@ -83,9 +81,9 @@ inline Decoded decode(const Capture& c, const Scene& scene) {
       ++d.bad_packets;
       continue;
     }
-    batcher.add(*packet);
+    d.sink->keep(batcher.add(*packet, d.sink->current()));
   }
-  batcher.flush();
+  while (batcher.flush(d.sink->current())) d.sink->keep(true);
   for (Scan* s : d.sink->scans)
     if (s->complete) d.complete.push_back(s);
   return d;

@@ -52,9 +52,14 @@ velodyne::CaptureReaderOptions reader_options(const CaptureArgs& args) {
 }
 
 void warn_model_mismatch(const velodyne::CaptureReader& reader, const CaptureArgs& args) {
+  // Empty when the packets fit the model (a --model that the timing fits included).
   const std::string mismatch = reader.model_mismatch();
-  if (mismatch.empty() || !args.model.empty()) return;
-  spdlog::warn("{} (decoding as {}, the product byte's model; use --model to override)", mismatch,
+  if (mismatch.empty()) return;
+  if (!args.model.empty()) {
+    spdlog::warn("{} (decoded as --model {} as told)", mismatch, args.model);
+    return;
+  }
+  spdlog::warn("{} (decoded as {}; use --model to override)", mismatch,
                reader.model() ? velodyne::model_spec(*reader.model()).name : "nothing");
 }
 

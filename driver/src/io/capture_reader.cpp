@@ -11,43 +11,12 @@ using namespace std::chrono_literals;
 namespace {
 // Packets held back while probing: this many, or 4 x probe_packets when that is more.
 constexpr size_t kMinHeld = 1024;
+// Host time without packets after which the batcher's reorder window is released (many packet
+// periods of every model).
+constexpr double kReorderWait_s = 0.005;
+// Data packets per model check after the decision.
+constexpr size_t kModelEpochPackets = 64;
 }  // namespace
-
-// A fixed set of scans: the batcher fills one at a time and publishes it into a queue that
-// next() drains. Scans are sized for the current return mode when handed to the batcher.
-class CaptureReader::Pool final : public ScanSink {
- public:
-  Pool(size_t size, int rings, int columns) : rings_(rings), columns_(columns) {
-    for (size_t i = 0; i < size; ++i) {
-      scans_.push_back(std::make_unique<Scan>());
-      free_.push_back(scans_.back().get());
-    }
-  }
-  void set_returns(int returns) { returns_ = returns; }
-  Scan* acquire() override {
-    if (free_.empty()) return nullptr;
-    Scan* s = free_.back();
-    free_.pop_back();
-    if (s->rings != rings_ || s->returns != returns_ || s->column_capacity != columns_) {
-      s->reserve(rings_, returns_, columns_);  // first use, or the return mode changed
-    }
-    return s;
-  }
-  void publish(Scan* scan) override { ready_.push_back(scan); }
-  void release(Scan* scan) { free_.push_back(scan); }
-  Scan* pop() {
-    if (ready_.empty()) return nullptr;
-    Scan* s = ready_.front();
-    ready_.pop_front();
-    return s;
-  }
-
- private:
-  std::vector<std::unique_ptr<Scan>> scans_;
-  std::vector<Scan*> free_;
-  std::deque<Scan*> ready_;
-  int rings_, columns_, returns_ = 1;
-};
 
 CaptureReader::CaptureReader(const std::string& path, CaptureReaderOptions options)
     : CaptureReader(std::make_unique<PcapSource>(path, options.source), options) {}
@@ -55,8 +24,7 @@ CaptureReader::CaptureReader(const std::string& path, CaptureReaderOptions optio
 CaptureReader::CaptureReader(std::unique_ptr<PacketSource> source, CaptureReaderOptions options)
     : source_(std::move(source)),
       options_(std::move(options)),
-      packet_(std::make_unique<DecodedPacket>()) {
-  if (options_.scan_pool < 2) options_.scan_pool = 2;
+      packet_(std::make_unique<PacketColumns>()) {
   if (options_.model) decide();  // loads the calibration now: errors surface at setup
 }
 
@@ -70,41 +38,84 @@ BatcherStats CaptureReader::batcher_stats() const {
   return batcher_ ? batcher_->stats() : BatcherStats{};
 }
 
+std::string CaptureReader::model_mismatch() const {
+  if (!stream_mismatch_.empty()) return stream_mismatch_;
+  // A configured model that the timing fits settles a product byte that says otherwise.
+  if (options_.model && check_.timing_model() == options_.model) return {};
+  return check_.mismatch();
+}
+
+void CaptureReader::watch_model(std::span<const uint8_t> payload) {
+  if (!model_ || switch_to_) return;
+  epoch_.add(payload);
+  if (epoch_.packets() < kModelEpochPackets) return;
+  // The product byte's model if the timing fits it, else the model the timing fits.
+  const std::optional<Model> fits = epoch_.timing_model();
+  const double period_us = epoch_.median_packet_period_us();
+  epoch_ = ModelCheck{};
+  // Compared with what the first packets (or the configuration) said: a capture whose product
+  // byte contradicts its timing from the start is ModelCheck's complaint, not a change.
+  if (!fits || *fits == *model_ || fits == expected_) {
+    mismatched_epochs_ = 0;
+    return;
+  }
+  counts_.model_mismatch += kModelEpochPackets;
+  if (++mismatched_epochs_ < 2) return;  // sustained, not a burst of stray packets
+  const std::string now(model_spec(*model_).name), seen(model_spec(*fits).name);
+  if (options_.model || !options_.calibration_file.empty()) {
+    // Configured: decode as told, but say so (once; the counter keeps counting).
+    if (stream_mismatch_.empty())
+      stream_mismatch_ =
+          std::string(options_.model ? "configured model " : "calibration file's model ") + now +
+          " but the packets' product byte and timing (" +
+          std::to_string(static_cast<int>(period_us)) + " us per packet) fit " + seen;
+    return;
+  }
+  stream_mismatch_ = "model changed mid-stream: " + now + " -> " + seen +
+                     " (product byte and packet timing); decoding as " + seen;
+  switch_to_ = *fits;
+  expected_ = *fits;
+}
+
+void CaptureReader::switch_model(Model model) {
+  model_ = model;
+  decoder_ = std::make_unique<Decoder>(Calibration::builtin(model), options_.decoder);
+  batcher_.reset();  // the next packet makes one for the new model; scans are reshaped by it
+  mismatched_epochs_ = 0;
+}
+
 void CaptureReader::decide() {
   decided_ = true;
   model_ = options_.model;
   if (!model_) model_ = check_.product_model();
   if (!model_) model_ = check_.timing_model();
+  expected_ = options_.model ? options_.model : check_.timing_model();
   if (model_) {
     Calibration calibration = options_.calibration_file.empty()
                                   ? Calibration::builtin(*model_)
                                   : load_calibration_file(options_.calibration_file, *model_);
     decoder_ = std::make_unique<Decoder>(std::move(calibration), options_.decoder);
-    const ModelSpec& spec = model_spec(*model_);
-    pool_ =
-        std::make_unique<Pool>(options_.scan_pool, spec.lasers, ScanBatcher::column_capacity(spec));
   }
-  // Decode what was held back while probing, in arrival order.
-  std::vector<Held> held = std::move(held_);
-  held_.clear();
-  for (const Held& h : held) handle(h.payload, h.time_ns, h.port);
+  // What was held back while probing is decoded next, in arrival order (by read()).
+  held_next_ = 0;
 }
 
-void CaptureReader::take(const RawPacket& p) {
+bool CaptureReader::take(const RawPacket& p, Scan& scan) {
   if (counts_.first_time_ns == 0) counts_.first_time_ns = p.receive_time_ns;
   counts_.last_time_ns = p.receive_time_ns;
-  if (p.destination_port == options_.source.data_port) check_.add(p.payload);
-  if (decided_) {
-    handle(p.payload, p.receive_time_ns, p.destination_port);
-    return;
+  if (p.destination_port == options_.source.data_port) {
+    check_.add(p.payload);
+    if (decided_) watch_model(p.payload);
+    last_data_ = std::chrono::steady_clock::now();
   }
+  if (decided_) return handle(p.payload, p.receive_time_ns, p.destination_port, scan);
   // Traffic that never completes the probe (position packets only, datagrams of another size on
   // the data port) must not be held without bound: past the limit the oldest goes on undecoded
   // (position packets as usual, data packets counted as undecodable), its buffer reused.
   if (held_.size() >= std::max<size_t>(kMinHeld, 4 * options_.probe_packets)) {
     Held oldest = std::move(held_.front());
     held_.erase(held_.begin());
-    handle(oldest.payload, oldest.time_ns, oldest.port);
+    (void)handle(oldest.payload, oldest.time_ns, oldest.port, scan);  // no decoder: no rotation
     oldest.payload.assign(p.payload.begin(), p.payload.end());
     oldest.time_ns = p.receive_time_ns;
     oldest.port = p.destination_port;
@@ -113,66 +124,116 @@ void CaptureReader::take(const RawPacket& p) {
     held_.push_back({{p.payload.begin(), p.payload.end()}, p.receive_time_ns, p.destination_port});
   }
   if (check_.packets() >= options_.probe_packets) decide();
+  return false;
 }
 
-void CaptureReader::handle(std::span<const uint8_t> payload, int64_t time_ns, uint16_t port) {
+bool CaptureReader::handle(std::span<const uint8_t> payload, int64_t time_ns, uint16_t port,
+                           Scan& scan) {
   if (port == options_.source.position_port) {
     ++counts_.position_packets;
     PositionPacket position;
     if (parse_position_packet(payload, position) != PositionStatus::kOk) {
       ++counts_.position_errors;
-      return;
+      return false;
     }
     ++counts_.position_ok;
     counts_.pps = position.pps;
     counts_.last_nmea = std::string(position.sentence());
     if (position.has_gprmc) ++counts_.gprmc_valid;
     clock_.update(position);
-    return;
+    return false;
   }
-  if (port != options_.source.data_port) return;
+  if (port != options_.source.data_port) return false;
   ++counts_.data_packets;
   if (!decoder_) {
     ++counts_.undecodable;
-    return;
+    return false;
   }
-  const DecodeStatus status = decoder_->decode(payload, clock_, time_ns, *packet_);
+  // Header and column azimuths only: the batcher has the decoder write the points straight into
+  // the scan (from `payload`, valid during this call; what the batcher holds back it copies).
+  const DecodeStatus status = decoder_->parse(payload, clock_, time_ns, *packet_);
   if (status != DecodeStatus::kOk) {
     const auto index = static_cast<size_t>(status);
     if (index < counts_.decode_errors.size()) ++counts_.decode_errors[index];
-    return;
+    return false;
   }
   ++counts_.decoded;
   if (!batcher_) {
-    mode_ = packet_->mode;
-    batcher_ =
-        std::make_unique<ScanBatcher>(decoder_->spec(), packet_->mode, options_.batcher, *pool_);
+    batcher_ = std::make_unique<ScanBatcher>(decoder_->spec(), packet_->mode, options_.batcher);
   }
   mode_ = packet_->mode;
-  pool_->set_returns(packet_->returns);
-  batcher_->poll(packet_->stamp_ns);
-  batcher_->add(*packet_);
+  // A pause in the packets' own clock longer than flush_timeout_s makes the stream a new one for
+  // the batcher (its screening, not this packet's possibly spoofed time, ends the rotation).
+  return batcher_->add(*packet_, scan);
+}
+
+CaptureReader::ReadResult CaptureReader::read(Scan& scan, std::chrono::milliseconds timeout) {
+  using Clock = std::chrono::steady_clock;
+  const auto deadline = Clock::now() + timeout;
+  for (;;) {
+    if (finished_) return ReadResult::kEnd;
+    if (switch_to_) {
+      // Deliver what was assembled as the old model, then decode as the new one.
+      if (batcher_ && batcher_->flush(scan)) return ReadResult::kRotation;
+      switch_model(*switch_to_);
+      switch_to_.reset();
+    }
+    // Packets held back while the model was probed, one at a time: each may end a rotation.
+    if (decided_ && held_next_ < held_.size()) {
+      const Held& h = held_[held_next_++];
+      const bool done = handle(h.payload, h.time_ns, h.port, scan);
+      if (held_next_ == held_.size()) {
+        held_.clear();
+        held_.shrink_to_fit();
+        held_next_ = 0;
+      }
+      if (done) return ReadResult::kRotation;
+      continue;
+    }
+    if (source_ended_) {
+      // The reorder window may still hold the start of another rotation: one per call.
+      if (batcher_ && batcher_->flush(scan)) return ReadResult::kRotation;
+      finished_ = true;
+      return ReadResult::kEnd;
+    }
+    const auto now = Clock::now();
+    // Rounded up: a source that waits the whole timeout returns after the deadline, not just
+    // before it (which would take another call).
+    const auto left = std::chrono::ceil<std::chrono::milliseconds>(deadline - now);
+    RawPacket packet;
+    const ReadStatus status =
+        source_->next(packet, std::max(left, std::chrono::milliseconds::zero()));
+    if (status == ReadStatus::kPacket) {
+      if (take(packet, scan)) return ReadResult::kRotation;
+    } else if (status == ReadStatus::kEnd || status == ReadStatus::kError) {
+      if (!decided_) decide();
+      source_ended_ = true;
+      continue;
+    } else if (batcher_ && batcher_->in_progress()) {
+      const double silent_s = std::chrono::duration<double>(Clock::now() - last_data_).count();
+      if (silent_s > options_.batcher.flush_timeout_s) {
+        // The source fell silent: deliver the rotation in progress rather than hold it.
+        if (batcher_->flush(scan)) return ReadResult::kRotation;
+      } else if (silent_s > kReorderWait_s) {
+        // A pause: no reordered packet is on its way, the held-back ones go into the scan.
+        if (batcher_->release_held(scan)) return ReadResult::kRotation;
+      }
+    }
+    if (Clock::now() >= deadline) return ReadResult::kTimeout;
+  }
 }
 
 const Scan* CaptureReader::next() {
-  if (out_ != nullptr) {
-    pool_->release(out_);
-    out_ = nullptr;
-  }
+  Scan& scan = own_[own_next_];
   for (;;) {
-    if (pool_) {
-      out_ = pool_->pop();
-      if (out_ != nullptr) return out_;
-    }
-    if (finished_) return nullptr;
-    RawPacket packet;
-    const ReadStatus status = source_->next(packet, 1000ms);
-    if (status == ReadStatus::kPacket) {
-      take(packet);
-    } else if (status == ReadStatus::kEnd || status == ReadStatus::kError) {
-      if (!decided_) decide();
-      if (batcher_) batcher_->flush();
-      finished_ = true;
+    switch (read(scan, 1000ms)) {
+      case ReadResult::kRotation:
+        own_next_ = 1 - own_next_;
+        return &scan;
+      case ReadResult::kTimeout:
+        continue;
+      case ReadResult::kEnd:
+        return nullptr;
     }
   }
 }

@@ -24,12 +24,14 @@ enum class DecodeStatus : uint8_t {
 };
 std::string_view decode_status_name(DecodeStatus s);
 
-// The points of one data packet. Cells are indexed [ret][ring][col] (ring-major like Scan, so that
-// the batcher copies each ring's columns as one run); ring 0 is the lowest beam.
-struct DecodedPacket {
+class Decoder;
+
+// What Decoder::parse() reads of a data packet: its header, its columns' azimuths and times, and
+// what write_points() needs to decode the points of any run of its columns later, from `payload`
+// (which must then still be valid: a copy of this struct may point it at a copy of the bytes).
+struct PacketColumns {
   static constexpr int kMaxColumns = 24;
   static constexpr int kMaxRings = 128;
-  static constexpr int kMaxCells = 2 * 384;  // returns x columns x rings, all models
 
   int columns = 0;
   int rings = 0;
@@ -41,11 +43,58 @@ struct DecodedPacket {
   std::array<float, kMaxColumns> column_azimuth_deg{};  // firing azimuth, [0, 360)
   std::array<double, kMaxColumns> column_time_us{};     // from the packet's first firing
 
+  const Decoder* decoder = nullptr;  // the one that parsed it (owns the calibration)
+  const uint8_t* payload = nullptr;  // kDataPacketSize bytes
+  // Per column, what every point of the column shares: the firing azimuth's cos/sin, the spin
+  // rate (deg and rad per us), the firing time (us, float) and, per echo and bank, the payload
+  // offset of the column's channel 0.
+  std::array<float, kMaxColumns> cos_az{}, sin_az{}, rate_deg{}, rate_rad{}, time0_us{};
+  std::array<std::array<std::array<uint16_t, 4>, 2>, kMaxColumns> channel_offset{};
+};
+
+// A data packet with its points (Decoder::decode()). Cells are indexed [ret][ring][col]
+// (ring-major like Scan); ring 0 is the lowest beam.
+struct DecodedPacket : PacketColumns {
+  static constexpr int kMaxCells = 2 * 384;  // returns x columns x rings, all models
+
   std::array<float, kMaxCells> x{}, y{}, z{}, range{}, azimuth_deg{}, time_us{};
   std::array<uint8_t, kMaxCells> intensity{};
   std::array<ReturnType, kMaxCells> return_type{};
 
   int at(int ret, int col, int ring) const { return (ret * rings + ring) * columns + col; }
+};
+
+// Runs of columns of one or several parsed packets (of one decoder) bound for consecutive columns
+// of one scan, decoded together ring by ring (Decoder::write_batch()): every ring's run is then
+// long, also for packets of few columns (VLS-128: 3, dual 1). The packets' bytes must still be
+// valid when the batch is written.
+struct ColumnBatch {
+  static constexpr int kMaxColumns = 48;
+  int columns = 0;
+  int returns = 1;
+  ReturnMode mode = ReturnMode::kStrongest;
+  // Per column: its packet's bytes and channel offsets, and what compute_firing() needs; the time
+  // offset of its run (written times are time_offset + t_us * PointSink::time_scale).
+  std::array<const uint8_t*, kMaxColumns> payload{};
+  std::array<std::array<std::array<uint16_t, 4>, 2>, kMaxColumns> channel_offset{};
+  std::array<float, kMaxColumns> cos_az{}, sin_az{}, azimuth_deg{}, rate_deg{}, rate_rad{},
+      time0_us{}, time_offset{};
+
+  // Adds `count` columns of `packet` from `first`; false (nothing added) when they do not fit or
+  // the packet's return mode differs from the batch's.
+  bool append(const PacketColumns& packet, int first, int count, float time_offset);
+};
+
+// Where write_points() puts a run of columns: pointers to the run's first cell of return 0,
+// ring 0, per field; cells of the next ring are `ring_stride` further, of return 1
+// `return_stride` further. Times are written as time_offset + t_us * time_scale, t_us from the
+// packet's first firing.
+struct PointSink {
+  float *x, *y, *z, *range, *azimuth_deg, *time;
+  uint8_t* intensity;
+  ReturnType* return_type;
+  size_t ring_stride, return_stride;
+  float time_offset, time_scale;
 };
 
 namespace detail {
@@ -71,8 +120,8 @@ struct DecoderOptions {
   double max_range_m = 0.0;
 };
 
-// Decodes data packets of one sensor. Holds the calibration, per-laser constants and the last measured
-// rotation rate (used where a packet's own azimuths cannot give it).
+// Decodes data packets of one sensor. Holds the calibration, per-laser constants and the last
+// measured rotation rate (used where a packet's own azimuths cannot give it).
 class Decoder {
  public:
   // `calibration.model` is the model decoded; the calibration must match it (lasers count).
@@ -81,6 +130,16 @@ class Decoder {
   // Decodes `payload` into `out`; `clock` turns the packet timestamp into absolute time.
   [[nodiscard]] DecodeStatus decode(std::span<const uint8_t> payload, const SensorClock& clock,
                                     int64_t receive_time_ns, DecodedPacket& out);
+  // Checks `payload` and reads its header and column azimuths and times, not its points: the
+  // batcher then has write_points() put each column straight where it belongs in the scan. On an
+  // error `out` is left untouched. `payload` must outlive the use of `out`.
+  [[nodiscard]] DecodeStatus parse(std::span<const uint8_t> payload, const SensorClock& clock,
+                                   int64_t receive_time_ns, PacketColumns& out);
+  // The points of a batch of columns into `sink` (its time_offset unused: the batch has one per
+  // column). Never allocates.
+  void write_batch(const ColumnBatch& batch, const PointSink& sink) const;
+  // The points of `count` columns from `first` of a parsed packet into `sink`. Never allocates.
+  void write_points(const PacketColumns& packet, int first, int count, const PointSink& sink) const;
 
   const Calibration& calibration() const { return calibration_; }
   const ModelSpec& spec() const { return *spec_; }

@@ -9,7 +9,6 @@
 #include <vector>
 
 #include "lidartag/driver/scan.hpp"
-#include "lidartag/driver/scan_batcher.hpp"
 
 namespace lidartag::velodyne {
 
@@ -33,7 +32,7 @@ class IndexQueue {
   alignas(64) std::atomic<size_t> dequeue_{0};
 };
 
-class ScanBuffer final : public ScanSink {
+class ScanBuffer final {
  public:
   // `depth` rotations may wait for consumers; each of up to `consumers` threads holds at most one
   // scan at a time (between pop and release). Every scan is reserved here, once.
@@ -41,8 +40,8 @@ class ScanBuffer final : public ScanSink {
 
   // Producer side (one thread). acquire() waits only for a consumer's release() that is half done
   // (a scan that is free but not yet visible); nullptr when every scan is really taken.
-  Scan* acquire() override;
-  void publish(Scan* scan) override;
+  Scan* acquire();
+  void publish(Scan* scan);
 
   // Consumer side (any number of threads). pop() returns nullptr when nothing is ready.
   Scan* pop();

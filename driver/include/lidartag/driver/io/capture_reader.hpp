@@ -1,11 +1,12 @@
 // Capture -> rotations: the plumbing shared by `lidartag info/dump/detect` and the daemon's replay.
 // PacketSource -> (data: ModelCheck, Decoder with a SensorClock; position: parse_position_packet,
-// SensorClock::update) -> ScanBatcher -> a small pool of scans handed out one at a time.
+// SensorClock::update) -> ScanBatcher -> the caller's scan (read()), or the reader's own two scans
+// handed out one at a time (next()).
 #pragma once
 
 #include <array>
+#include <chrono>
 #include <cstdint>
-#include <deque>
 #include <memory>
 #include <optional>
 #include <string>
@@ -38,8 +39,6 @@ struct CaptureReaderOptions {
   // decoded in order). ModelCheck needs about ten for the timing. At most max(1024, 4 x this)
   // packets are held; traffic that never completes the probe goes on undecoded past that.
   size_t probe_packets = 32;
-  // Scans allocated for rotations in flight: one being filled, the one handed out, and a queue.
-  size_t scan_pool = 4;
 };
 
 // What the reader saw, by kind.
@@ -48,12 +47,15 @@ struct CaptureCounts {
   uint64_t position_packets = 0;            // payloads on the position port
   uint64_t decoded = 0;                     // data packets decoded into columns
   std::array<uint64_t, 8> decode_errors{};  // indexed by DecodeStatus (kOk unused)
-  uint64_t undecodable = 0;            // data packets with no model to decode them (unknown sensor)
-  uint64_t position_ok = 0;            // position packets parsed
-  uint64_t position_errors = 0;        // wrong size or bad PPS byte
-  uint64_t gprmc_valid = 0;            // position packets with a valid GPRMC fix
-  PpsStatus pps = PpsStatus::kAbsent;  // of the last parsed position packet
-  std::string last_nmea;               // the last NMEA sentence seen
+  uint64_t undecodable = 0;  // data packets with no model to decode them (unknown sensor)
+  // Data packets whose product byte and timing contradict the model in use (another model
+  // mid-stream, or an explicitly configured wrong model), judged per 64 packets.
+  uint64_t model_mismatch = 0;
+  uint64_t position_ok = 0;                     // position packets parsed
+  uint64_t position_errors = 0;                 // wrong size or bad PPS byte
+  uint64_t gprmc_valid = 0;                     // position packets with a valid GPRMC fix
+  PpsStatus pps = PpsStatus::kAbsent;           // of the last parsed position packet
+  std::string last_nmea;                        // the last NMEA sentence seen
   int64_t first_time_ns = 0, last_time_ns = 0;  // receive times of the first and last packet
 };
 
@@ -67,16 +69,34 @@ class CaptureReader {
   CaptureReader(const CaptureReader&) = delete;
   CaptureReader& operator=(const CaptureReader&) = delete;
 
-  // The next rotation (complete or not: see Scan::complete), valid until the next call; nullptr
-  // once the source has ended and everything was flushed. May throw CalibrationError once, when
-  // the model is decided from the data and the calibration file does not fit it.
+  enum class ReadResult : uint8_t {
+    kRotation,  // `scan` holds a whole rotation (complete or not); pass another scan next time
+    kTimeout,   // no rotation ended within the timeout: the one in progress stays in `scan`, call
+                // again with the same scan
+    kEnd,       // the source ended (or failed) and everything was delivered: nothing more
+  };
+  // Assembles the next rotation straight into `scan`: returns kRotation as soon as one ends, or
+  // kTimeout once `timeout` has passed (also while packets keep coming without ending one). A
+  // scan whose shape does not fit the model is reserved for it (a first use, a return-mode
+  // change), so the caller's scans may start empty. The rotation in progress is delivered,
+  // incomplete, when the source has been silent for BatcherOptions::flush_timeout_s (host time).
+  // May throw CalibrationError once, when the model is decided from the data and the calibration
+  // file does not fit it.
+  [[nodiscard]] ReadResult read(Scan& scan, std::chrono::milliseconds timeout);
+
+  // The next rotation (complete or not: see Scan::complete) in one of the reader's own scans,
+  // valid until the next call; nullptr once the source has ended and everything was flushed.
+  // read() underneath, waiting through timeouts; do not mix the two on one reader.
   const Scan* next();
 
   std::optional<Model> model() const { return model_; }  // empty until decided
   std::optional<ReturnMode> return_mode() const { return mode_; }
   const ModelCheck& model_check() const { return check_; }
-  // ModelCheck's complaint when the product byte contradicts the timing, else empty.
-  std::string model_mismatch() const { return check_.mismatch(); }
+  // Empty while the packets fit the model in use. Otherwise what contradicts it: the product byte
+  // against the timing of the first packets (ModelCheck), packets of another model mid-stream
+  // (with the model detected, the reader then decodes them as that model), or a configured model
+  // (or calibration file) that the packets' product byte and timing contradict.
+  std::string model_mismatch() const;
   const CaptureCounts& counts() const { return counts_; }
   SourceStats source_stats() const { return source_->stats(); }
   BatcherStats batcher_stats() const;
@@ -89,27 +109,41 @@ class CaptureReader {
     int64_t time_ns;
     uint16_t port;
   };
-  class Pool;
 
-  void take(const RawPacket& packet);
-  void handle(std::span<const uint8_t> payload, int64_t time_ns, uint16_t port);
+  // Each returns true when `scan` received a finished rotation.
+  bool take(const RawPacket& packet, Scan& scan);
+  bool handle(std::span<const uint8_t> payload, int64_t time_ns, uint16_t port, Scan& scan);
   void decide();
+  // Per data packet after the decision: checks that the packets still fit the model in use.
+  void watch_model(std::span<const uint8_t> payload);
+  // Decodes as `model` from now on (what was assembled with the old one is delivered first).
+  void switch_model(Model model);
 
   std::unique_ptr<PacketSource> source_;
   CaptureReaderOptions options_;
-  std::unique_ptr<Pool> pool_;
   std::unique_ptr<Decoder> decoder_;
   std::unique_ptr<ScanBatcher> batcher_;
-  std::unique_ptr<DecodedPacket> packet_;
+  std::unique_ptr<PacketColumns> packet_;  // parsed: the batcher decodes it into the scan
   SensorClock clock_;
   ModelCheck check_;
   CaptureCounts counts_;
   std::optional<Model> model_;
   std::optional<ReturnMode> mode_;
   bool decided_ = false;
+  bool source_ended_ = false;
   bool finished_ = false;
+  // Model watch: a ModelCheck per 64 data packets; two running that contradict the model in use
+  // make the reader switch (model detected) or report (model or calibration configured).
+  ModelCheck epoch_;
+  int mismatched_epochs_ = 0;
+  std::optional<Model> switch_to_;
+  std::optional<Model> expected_;  // what the configuration or the first packets' timing said
+  std::string stream_mismatch_;
   std::vector<Held> held_;  // packets read while probing
-  Scan* out_ = nullptr;     // the scan handed out by next()
+  size_t held_next_ = 0;    // the first held packet not handled yet (after the decision)
+  std::chrono::steady_clock::time_point last_data_;  // host time of the last data packet
+  std::array<Scan, 2> own_;  // next()'s scans: one handed out, one being filled
+  size_t own_next_ = 0;
 };
 
 }  // namespace lidartag::velodyne
