@@ -3,7 +3,6 @@
 // a table by default, one JSON object per rotation with --json.
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -24,6 +23,7 @@
 #include "lidartag/driver/io/capture_reader.hpp"
 #include "lidartag/driver/io/errors.hpp"
 #include "lidartag/driver/io/pcd.hpp"
+#include "lidartag/progress.hpp"
 #ifdef LIDARTAG_HAVE_CONFIG
 #include "lidartag/daemon/config.hpp"
 #endif
@@ -138,30 +138,6 @@ void load_pcd_scan(const DetectArgs& args, Scan& scan) {
                             std::to_string(ro.rings) + " distinct elevations)");
 }
 
-// "[#####.....]  45%" on stderr, redrawn in place; only when stderr is a terminal.
-class Progress {
- public:
-  explicit Progress(uintmax_t total_bytes) : total_(total_bytes), on_(::isatty(STDERR_FILENO)) {}
-  void update(uintmax_t done, size_t rotations) {
-    if (!on_ || total_ == 0) return;
-    const int pct = static_cast<int>(std::min<uintmax_t>(100, done * 100 / total_));
-    if (pct == last_) return;
-    last_ = pct;
-    const int filled = pct * 30 / 100;
-    std::fprintf(stderr, "\r[%s%s] %3d%%  %zu rotations", std::string(size_t(filled), '#').c_str(),
-                 std::string(size_t(30 - filled), '.').c_str(), pct, rotations);
-    std::fflush(stderr);
-  }
-  void done() {
-    if (on_ && last_ >= 0) std::fprintf(stderr, "\r%60s\r", "");
-  }
-
- private:
-  uintmax_t total_;
-  bool on_;
-  int last_ = -1;
-};
-
 nlohmann::json vec(const Eigen::Vector3d& v) {
   return nlohmann::json::array({v.x(), v.y(), v.z()});
 }
@@ -264,6 +240,7 @@ void print_rotation(size_t n, const Scan& scan, const det::ScanResult& r) {
 
 struct Totals {
   size_t rotations = 0;
+  size_t skipped = 0;  // incomplete rotations left out (no --partial)
   std::map<std::pair<std::string, int>, size_t> found;
   std::array<double, det::kStageCount> ms{};
   std::array<uint64_t, det::kRejectionCount> rejected{};
@@ -284,6 +261,9 @@ struct Totals {
       fmt::print("{} {} id {} in {}", it == found.begin() ? ":" : ",", it->first.first,
                  it->first.second, it->second);
     if (!found.empty()) fmt::print(" rotations\n");
+    if (skipped > 0)
+      fmt::print("skipped {} incomplete rotation{} (--partial detects in them)\n", skipped,
+                 skipped == 1 ? "" : "s");
     if (rotations == 0) return;
     const auto n = static_cast<double>(rotations);
     double total = 0.0;
@@ -330,13 +310,18 @@ int run_detect(const DetectArgs& args) {
     Progress progress(std::filesystem::file_size(args.capture.capture, ec));
     size_t n = 0;
     while (const Scan* scan = reader.next()) {
-      if (scan->complete || args.partial) report(n++, *scan);
-      // Pcap records: 16 bytes of record header and 42 of Ethernet/IPv4/UDP per packet.
-      const auto s = reader.source_stats();
-      progress.update(s.bytes + 58 * (s.packets + s.ignored), n);
+      if (scan->complete || args.partial) {
+        report(n++, *scan);
+      } else {
+        ++totals.skipped;
+      }
+      progress.update(capture_bytes_read(reader), fmt::format("{} rotations", n));
     }
     progress.done();
     warn_model_mismatch(reader, args.capture);
+    if (!args.json) totals.print();
+    require_rotations(reader, args.capture, n, totals.skipped, "detects in them");
+    return 0;
   }
   if (!args.json) totals.print();
   return 0;

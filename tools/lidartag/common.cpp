@@ -1,6 +1,9 @@
 #include "lidartag/common.hpp"
 
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
+
+#include <stdexcept>
 
 #include "lidartag/driver/io/udp_frame.hpp"
 
@@ -11,7 +14,8 @@ void add_capture_options(CLI::App& app, CaptureArgs& args) {
       ->required()
       ->check(CLI::ExistingFile);
   const std::string names = velodyne::model_names();
-  app.add_option("--model", args.model, "Decode as this model (" + names + ")")
+  app.add_option("--model", args.model,
+                 "Decode as this model (" + names + "; any case, '-' optional: VLP-32C)")
       ->check(CLI::Validator(
           [names](std::string& name) -> std::string {
             return velodyne::model_from_name(name) ? std::string()
@@ -50,11 +54,51 @@ velodyne::CaptureReaderOptions reader_options(const CaptureArgs& args) {
   return options;
 }
 
+uint64_t capture_bytes_read(const velodyne::CaptureReader& reader) {
+  // Pcap records: 16 bytes of record header and 42 of Ethernet/IPv4/UDP per packet.
+  const auto s = reader.source_stats();
+  return s.bytes + 58 * (s.packets + s.ignored);
+}
+
 void warn_model_mismatch(const velodyne::CaptureReader& reader, const CaptureArgs& args) {
   const std::string mismatch = reader.model_mismatch();
-  if (mismatch.empty() || !args.model.empty()) return;
-  spdlog::warn("{} (decoding as {}, the product byte's model; use --model to override)", mismatch,
-               reader.model() ? velodyne::model_spec(*reader.model()).name : "nothing");
+  const auto decoded_as = reader.model();
+  const std::string_view decoded_name =
+      decoded_as ? velodyne::model_spec(*decoded_as).name : std::string_view("nothing");
+  if (args.model.empty()) {
+    if (!mismatch.empty())
+      spdlog::warn("{} (decoding as {}, the product byte's model; use --model to override)",
+                   mismatch, decoded_name);
+    return;
+  }
+  if (!mismatch.empty()) {
+    spdlog::warn("--model {}: {}", args.model, mismatch);
+    return;
+  }
+  // An explicit model the packets' timing contradicts (when ModelCheck does not report it).
+  const auto timing = reader.model_check().timing_model();
+  if (timing && decoded_as && *timing != *decoded_as)
+    spdlog::warn(
+        "--model {} but the packet timing ({:.0f} us per packet) fits {}: points are probably "
+        "garbage; leave --model out or name the right model",
+        args.model, reader.model_check().median_packet_period_us(),
+        velodyne::model_spec(*timing).name);
+}
+
+void require_rotations(const velodyne::CaptureReader& reader, const CaptureArgs& args, size_t used,
+                       size_t skipped, const char* partial_effect) {
+  if (used > 0) return;
+  if (skipped > 0)
+    throw std::runtime_error(fmt::format(
+        "{}: no complete rotation, only {} incomplete one{} (a truncated or very short capture?); "
+        "--partial {}",
+        args.capture, skipped, skipped == 1 ? "" : "s", partial_effect));
+  const auto s = reader.source_stats();
+  throw std::runtime_error(fmt::format(
+      "{}: no rotation: {} data packets on port {}, {} decoded, {} other packets ignored (check "
+      "--data-port, --sensor, --model)",
+      args.capture, reader.counts().data_packets, args.data_port, reader.counts().decoded,
+      s.ignored));
 }
 
 }  // namespace lidartag::cli

@@ -1,0 +1,254 @@
+// The command-line conventions every program keeps (issue 12, item 5): results on stdout and
+// everything else on stderr, --version, one exit status convention, model names in any case, a
+// truncated capture pointing to --partial, dump refusing to mix old and new files, progress only
+// on a terminal.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+
+#include "lidartag/version.hpp"
+#include "run_tool.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using lidartag::testing::run_command;
+using lidartag::testing::run_split;
+using lidartag::testing::run_tool;
+using Result = lidartag::testing::ToolResult;
+
+const std::string kCli = LIDARTAG_CLI;
+const std::string kDaemon = LIDARTAGD;
+const std::string kSpy = LIDARTAG_SPY;
+const std::string kDemo = LIDARTAG_SOURCE_DIR "/pcaps/demo.pcap";
+
+class TempDir {
+ public:
+  TempDir()
+      : path_(fs::temp_directory_path() / ("lidartag_hygiene_" + std::to_string(::getpid()))) {
+    fs::remove_all(path_);
+    fs::create_directories(path_);
+  }
+  ~TempDir() { fs::remove_all(path_); }
+  std::string operator/(const std::string& name) const { return (path_ / name).string(); }
+  std::string str() const { return path_.string(); }
+
+ private:
+  fs::path path_;
+};
+
+void write_file(const std::string& path, const std::string& text) {
+  std::ofstream(path, std::ios::binary | std::ios::trunc) << text;
+}
+
+std::string read_file(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+bool contains(const std::string& text, const std::string& part) {
+  return text.find(part) != std::string::npos;
+}
+
+TEST(CliVersion, EveryProgramPrintsTheBuiltVersionOnStdout) {
+  EXPECT_EQ(std::string(lidartag::kVersion), LIDARTAG_PROJECT_VERSION);
+  for (const auto& [program, name] :
+       {std::pair{kCli, "lidartag"}, {kDaemon, "lidartagd"}, {kSpy, "lidartag-spy"}}) {
+    const Result r = run_split(program + " --version");
+    EXPECT_EQ(r.exit_code, 0) << name;
+    EXPECT_EQ(r.out, std::string(name) + " " + lidartag::kVersionString + "\n");
+    EXPECT_EQ(r.err, "") << name;
+  }
+  // In a git checkout the commit is named.
+  if (fs::exists(LIDARTAG_SOURCE_DIR "/.git") && run_command("git --version").exit_code == 0) {
+    EXPECT_NE(std::string(lidartag::kGitDescribe), "");
+  }
+}
+
+// The version script outside a git checkout, and inside someone else's: the project version only.
+TEST(CliVersion, WithoutItsOwnGitCheckoutTheProjectVersionAlone) {
+  TempDir dir;
+  const std::string outer = dir / "outer", source = dir / "outer/lidartag-src";
+  fs::create_directories(source);
+  const std::string script = std::string(LIDARTAG_SOURCE_DIR) + "/cmake/WriteVersion.cmake";
+  const std::string tmpl = std::string(LIDARTAG_SOURCE_DIR) + "/cmake/version.hpp.in";
+  auto generate = [&](const std::string& out) {
+    return run_command("cmake -DSOURCE_DIR=" + source + " -DTEMPLATE=" + tmpl + " -DOUTPUT=" + out +
+                       " -DLIDARTAG_VERSION=9.8.7 -P " + script + " 2>&1");
+  };
+  ASSERT_EQ(generate(dir / "plain.hpp").exit_code, 0);
+  const std::string plain = read_file(dir / "plain.hpp");
+  EXPECT_TRUE(contains(plain, "kVersion = \"9.8.7\"")) << plain;
+  EXPECT_TRUE(contains(plain, "kGitDescribe = \"\"")) << plain;
+  EXPECT_TRUE(contains(plain, "kVersionString = \"9.8.7\"")) << plain;
+  if (run_command("git --version").exit_code != 0) GTEST_SKIP() << "no git";
+  ASSERT_EQ(run_command("cd " + outer +
+                        " && git init -q && git -c user.name=t -c user.email=t@t commit -q "
+                        "--allow-empty -m x 2>&1")
+                .exit_code,
+            0);
+  ASSERT_EQ(generate(dir / "nested.hpp").exit_code, 0);
+  EXPECT_TRUE(contains(read_file(dir / "nested.hpp"), "kVersionString = \"9.8.7\""));
+}
+
+TEST(CliOutput, WarningsGoToStderrSoJsonStaysParseable) {
+  // The demo is a VLP-32C: --model vlp16 contradicts its packet timing.
+  const Result r = run_split(kCli + " detect " + kDemo + " --model vlp16 --json");
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  std::istringstream lines(r.out);
+  std::string line;
+  size_t n = 0;
+  while (std::getline(lines, line)) {
+    EXPECT_FALSE(nlohmann::json::parse(line, nullptr, false).is_discarded()) << line;
+    ++n;
+  }
+  EXPECT_GT(n, 0u);
+  EXPECT_TRUE(contains(r.err, "lidartag: warning: --model vlp16 but the packet timing")) << r.err;
+  EXPECT_TRUE(contains(r.err, "fits vlp32c")) << r.err;
+  EXPECT_FALSE(contains(r.out, "warning")) << r.out;
+}
+
+TEST(CliOutput, ExplicitModelContradictingTheTimingIsWarnedByEveryCaptureCommand) {
+  TempDir dir;
+  for (const std::string& command : {"detect " + kDemo + " --model VLP16",
+                                     "dump " + kDemo + " --model vlp16 --out " + (dir / "scans")}) {
+    const Result r = run_split(kCli + " " + command);
+    EXPECT_EQ(r.exit_code, 0) << command << r.err;
+    EXPECT_TRUE(contains(r.err, "but the packet timing (664 us per packet) fits vlp32c"))
+        << command << ": " << r.err;
+  }
+  // The right model, in any spelling: no warning.
+  const Result right = run_split(kCli + " detect " + kDemo + " --model VLP-32C");
+  EXPECT_EQ(right.exit_code, 0);
+  EXPECT_EQ(right.err, "");
+}
+
+TEST(CliModelNames, AnyCaseAndPunctuation) {
+  for (const char* name : {"VLP-32C", "Vlp32c", "vlp_32c", "ultra-puck"}) {
+    const Result r = run_tool(std::string("info --model ") + name + " " + kDemo);
+    EXPECT_EQ(r.exit_code, 0) << name << r.out;
+    EXPECT_TRUE(contains(r.out, "model:          vlp32c (from --model)")) << name << r.out;
+  }
+  const Result found =
+      run_tool("detect " + kDemo + " --model VLP-32C --tag-size 0.8 --tag-size 0.6", false);
+  EXPECT_TRUE(contains(found.out, "tag16h5 id 0 in 10, tag16h5 id 1 in 10")) << found.out;
+  const Result bad = run_tool("info --model VLP-64 " + kDemo);
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_TRUE(contains(bad.out, "vlp16, puck-hires, vlp32c, hdl32e, vls128")) << bad.out;
+}
+
+TEST(CliTruncatedCapture, TheMessageNamesPartial) {
+  TempDir dir;
+  // The first 100 kB of the demo: a part of its first rotation, the last record cut short.
+  const std::string demo = read_file(kDemo);
+  ASSERT_GT(demo.size(), 100000u);
+  const std::string cut = dir / "cut.pcap";
+  write_file(cut, demo.substr(0, 100000));
+
+  Result r = run_split(kCli + " detect " + cut);
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_TRUE(contains(r.err, "no complete rotation")) << r.err;
+  EXPECT_TRUE(contains(r.err, "--partial detects in them")) << r.err;
+  r = run_split(kCli + " detect --partial --json " + cut);
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(contains(r.out, "\"scan\":0")) << r.out;
+
+  r = run_split(kCli + " dump " + cut + " --out " + (dir / "a"));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_TRUE(contains(r.err, "--partial writes them")) << r.err;
+  r = run_split(kCli + " dump --partial " + cut + " --out " + (dir / "b"));
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(fs::exists(dir / "b/scan_000000.pcd"));
+
+  // Nothing on the data port at all: the counts say why.
+  r = run_split(kCli + " detect " + cut + " --data-port 9");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_TRUE(contains(r.err, "no rotation: 0 data packets on port 9")) << r.err;
+}
+
+TEST(CliDump, RefusesANonEmptyFolderAndForceRemovesOnlyItsOwnFiles) {
+  TempDir dir;
+  const std::string out = dir / "scans";
+  fs::create_directories(out);
+  write_file(out + "/notes.txt", "keep me");
+  write_file(out + "/scan_000042.pcd", "an old rotation");
+  write_file(out + "/scan_0001.pcd", "not a name dump writes");
+
+  Result r = run_split(kCli + " dump " + kDemo + " --out " + out);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_TRUE(contains(r.err, "is not empty (1 scan_*.pcd file, 2 other entries)")) << r.err;
+  EXPECT_TRUE(contains(r.err, "--force")) << r.err;
+  EXPECT_TRUE(fs::exists(out + "/scan_000042.pcd"));
+  EXPECT_FALSE(fs::exists(out + "/scan_000000.pcd"));
+
+  r = run_split(kCli + " dump " + kDemo + " --out " + out + " --force");
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(read_file(out + "/notes.txt"), "keep me");
+  EXPECT_TRUE(fs::exists(out + "/scan_0001.pcd"));
+  EXPECT_FALSE(fs::exists(out + "/scan_000042.pcd"));
+  for (int i = 0; i < 10; ++i)
+    EXPECT_TRUE(fs::exists(out + "/scan_00000" + std::to_string(i) + ".pcd")) << i;
+  EXPECT_FALSE(fs::exists(out + "/scan_000010.pcd"));
+  EXPECT_TRUE(contains(r.out, "wrote 10 PCD files")) << r.out;
+
+  // A new folder, or an empty one, needs no --force.
+  fs::create_directories(dir / "empty");
+  EXPECT_EQ(run_split(kCli + " dump " + kDemo + " --out " + (dir / "empty")).exit_code, 0);
+  EXPECT_EQ(run_split(kCli + " dump " + kDemo + " --out " + (dir / "new/deeper")).exit_code, 0);
+}
+
+// `script` runs a command on a pseudo-terminal: there the bar is drawn, in a pipe never.
+TEST(CliProgress, DrawnOnATerminalOnly) {
+  if (run_command("script --version 2>&1").exit_code != 0) GTEST_SKIP() << "no script(1)";
+  TempDir dir;
+  const std::string scene = LIDARTAG_SOURCE_DIR "/pcaps/demo.yaml";
+  const std::string commands[] = {
+      "sim " + scene + " --rotations 2 --out " + (dir / "sim.pcap"),
+      "dump " + kDemo + " --force --out " + (dir / "scans"),
+      "detect " + kDemo + " --json",
+  };
+  for (const std::string& command : commands) {
+    const Result tty =
+        run_command("script -qec '" + kCli + " " + command + " >/dev/null' /dev/null");
+    EXPECT_EQ(tty.exit_code, 0) << command << tty.out;
+    EXPECT_TRUE(contains(tty.out, "\r[")) << command << ": " << tty.out;
+    EXPECT_TRUE(contains(tty.out, "%")) << command;
+    const Result pipe = run_split(kCli + " " + command);
+    EXPECT_EQ(pipe.exit_code, 0) << command;
+    EXPECT_FALSE(contains(pipe.err, "\r")) << command;
+    EXPECT_FALSE(contains(pipe.out, "\r")) << command;
+  }
+}
+
+TEST(CliExitCodes, SameConventionInEveryProgram) {
+  TempDir dir;
+  write_file(dir / "bad.yaml", "detector:\n  features:\n    zeta: 0.5\n");
+  // A configuration error: 2 in both programs.
+  const Result cli = run_split(kCli + " detect " + kDemo + " --config " + (dir / "bad.yaml"));
+  EXPECT_EQ(cli.exit_code, 2) << cli.err;
+  EXPECT_TRUE(contains(cli.err, "detector.features.zeta")) << cli.err;
+  const Result daemon = run_split(kDaemon + " --config " + (dir / "bad.yaml") + " --print-config");
+  EXPECT_EQ(daemon.exit_code, 2) << daemon.err;
+  // A usage error: 2.
+  EXPECT_EQ(run_split(kCli + " detect " + kDemo + " --no-such-option").exit_code, 2);
+  EXPECT_EQ(run_split(kDaemon + " --no-such-option").exit_code, 2);
+  // A runtime failure (an input that cannot be read): 1.
+  write_file(dir / "garbage.pcap", "x");
+  EXPECT_EQ(run_split(kCli + " detect " + (dir / "garbage.pcap")).exit_code, 1);
+  EXPECT_EQ(
+      run_split(kDaemon + " --replay " + (dir / "garbage.pcap") + " --lcm-url memq://").exit_code,
+      1);
+  // Help and version: 0.
+  EXPECT_EQ(run_split(kCli + " --help").exit_code, 0);
+  EXPECT_EQ(run_split(kCli + " tag --help").exit_code, 0);
+  EXPECT_EQ(run_split(kDaemon + " --help").exit_code, 0);
+}
+
+}  // namespace
