@@ -8,6 +8,9 @@ packages=(
   libspdlog-dev libfmt-dev libyaml-cpp-dev libcli11-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   iproute2 util-linux
+  # lidartag tag/render: Cairo (PDF, SVG, PNG); the tests rasterise with poppler and librsvg;
+  # man pages by help2man at build time
+  libcairo2-dev zlib1g-dev poppler-utils librsvg2-bin help2man
   # bench_accuracy: the plot docs/accuracy.png
   gnuplot-nox
   # lidartagd: LCM type jar and lcm-spy (Java 17), the lcm-spy screenshot under Xvfb, systemd-analyze
