@@ -252,3 +252,89 @@ TEST(CliExitCodes, SameConventionInEveryProgram) {
 }
 
 }  // namespace
+
+#if LIDARTAG_HAVE_MAN
+TEST(CliManPages, OnePerProgramAndCommandWithEveryOption) {
+  const std::string dir = LIDARTAG_MAN_DIR;
+  // Every command of `lidartag --help` has a page, with every option of its own --help.
+  const Result help = run_command(kCli + " --help");
+  std::vector<std::string> pages = {"lidartag", "lidartagd"};
+  const size_t subs = help.out.find("Subcommands:");
+  ASSERT_NE(subs, std::string::npos);
+  std::istringstream lines(help.out.substr(subs));
+  std::string line;
+  std::getline(lines, line);
+  while (std::getline(lines, line))
+    if (line.size() > 2 && line[2] != ' ')
+      pages.push_back("lidartag-" + line.substr(2, line.find(' ', 2) - 2));
+  EXPECT_GE(pages.size(), 7u);
+  for (const std::string& page : pages) {
+    SCOPED_TRACE(page);
+    const std::string file = dir + "/" + page + ".1";
+    ASSERT_TRUE(fs::exists(file)) << file;
+    const std::string roff = read_file(file);
+    std::string title = page;
+    for (char& c : title) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+    EXPECT_TRUE(contains(roff, ".TH " + title + " \"1\"")) << roff.substr(0, 300);
+    EXPECT_TRUE(contains(roff, ".SH \"EXIT STATUS\"")) << page;
+    EXPECT_TRUE(contains(roff, ".SH \"SEE ALSO\"")) << page;
+    const std::string program = page == "lidartagd" ? kDaemon : kCli;
+    const std::string sub = page.rfind("lidartag-", 0) == 0 ? page.substr(9) : "";
+    const Result own = run_command(program + " " + sub + " --help");
+    std::istringstream options(own.out);
+    size_t count = 0;
+    while (std::getline(options, line)) {
+      if (line.rfind("  --", 0) != 0) continue;
+      std::string option = line.substr(2, line.find_first_of(" ,", 2) - 2);
+      // roff escapes every '-'.
+      std::string escaped;
+      for (char c : option) escaped += c == '-' ? std::string("\\-") : std::string(1, c);
+      EXPECT_TRUE(contains(roff, escaped)) << option;
+      ++count;
+    }
+    EXPECT_GE(count, 1u);
+  }
+}
+#endif
+
+#if LIDARTAG_HAVE_COMPLETION
+// Runs the generated completion function in bash as if TAB was pressed after `words`.
+std::string complete(const std::string& program, const std::string& words) {
+  const std::string script = std::string(LIDARTAG_COMPLETION_DIR) + "/" + program;
+  const Result r = run_command("bash -c 'source " + script + "; COMP_WORDS=(" + words +
+                               "); COMP_CWORD=$((${#COMP_WORDS[@]} - 1)); _" + program +
+                               "; printf \"%s\\n\" \"${COMPREPLY[@]}\"' 2>&1");
+  return r.out;
+}
+
+TEST(CliCompletion, CommandsOptionsAndValues) {
+  EXPECT_EQ(complete("lidartag", "lidartag de"), "detect\n");
+  EXPECT_EQ(complete("lidartag", "lidartag t"), "tag\n");
+  EXPECT_EQ(complete("lidartag", "lidartag tag --con"), "--convention\n");
+  EXPECT_EQ(complete("lidartag", "lidartag tag tag16h5 --convention \"\""), "outer\nblack\n");
+  EXPECT_EQ(complete("lidartag", "lidartag detect x.pcap --model vlp3"), "vlp32c\n");
+  EXPECT_EQ(complete("lidartag", "lidartag tag --page A"), "A5\nA4\nA3\nA2\nA1\nA0\n");
+  EXPECT_TRUE(contains(complete("lidartag", "lidartag tag tag3"), "tag36h10\ntag36h11\n"));
+  EXPECT_TRUE(contains(complete("lidartag", "lidartag detect --family tag2"), "tag25h9\n"));
+  EXPECT_EQ(complete("lidartag", "lidartag tag --outer-size 1"), "\n");  // a length: nothing
+  EXPECT_EQ(complete("lidartagd", "lidartagd --log-level w"), "warn\n");
+  EXPECT_EQ(complete("lidartagd", "lidartagd --repl"), "--replay\n--replay-lcm\n");
+  EXPECT_EQ(complete("lidartagd", "lidartagd --vers"), "--version\n");
+  // Files where a file goes.
+  TempDir dir;
+  write_file(dir / "scan.pcap", "");
+  EXPECT_EQ(complete("lidartag", "lidartag detect " + (dir / "sc")), (dir / "scan.pcap") + "\n");
+  // Every option of every command completes.
+  for (const char* sub : {"detect", "dump", "info", "sim", "tag"}) {
+    const std::string all = complete("lidartag", std::string("lidartag ") + sub + " --");
+    const Result help = run_command(kCli + " " + sub + " --help");
+    std::istringstream lines(help.out);
+    std::string line;
+    while (std::getline(lines, line)) {
+      if (line.rfind("  --", 0) != 0) continue;
+      const std::string option = line.substr(2, line.find_first_of(" ,", 2) - 2);
+      EXPECT_TRUE(contains(all, option + "\n")) << sub << " " << option;
+    }
+  }
+}
+#endif

@@ -344,7 +344,8 @@ const Registrar kDetect(
           ->check(CLI::PositiveNumber);
       app.add_option("--family", args->families,
                      "Tag family (tag16h5, tag25h9, tag36h10, tag36h11, tag16h6 or "
-                     "FILE.json[:NAME]); repeat for several (default tag16h5, or the config's)");
+                     "FILE.json[:NAME]); repeat for several (default tag16h5, or the config's)")
+          ->type_name("FAMILY");
       app.add_flag("--clusters", args->clusters,
                    "Explain every cluster with enough features to be a tag: what each stage "
                    "measured and why it was dropped");

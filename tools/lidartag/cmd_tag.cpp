@@ -196,15 +196,20 @@ const Registrar kTag(
           ->required()
           ->type_name("FAMILY");
       app.add_option("--id", a->ids, "Ids to draw: 3, 0-9, 0,4,7-9 or all; one marker each")
+          ->type_name("IDS")
           ->capture_default_str();
-      auto* outer = app.add_option(
-          "--outer-size", a->outer_size,
-          "Size of the full printed marker, white ring included (lidartag's convention: what "
-          "detect --tag-size takes), e.g. 1.2m, 200mm, 8in; metres without a unit");
+      auto* outer =
+          app.add_option("--outer-size", a->outer_size,
+                         "Size of the full printed marker, white ring included (lidartag's "
+                         "convention: what "
+                         "detect --tag-size takes), e.g. 1.2m, 200mm, 8in; metres without a unit")
+              ->type_name("LENGTH");
       auto* black =
           app.add_option("--black-size", a->black_size,
-                         "Size of the black square's edge (AprilTag 3's tag size convention)");
-      auto* size = app.add_option("--size", a->size, "Marker size in the --convention named");
+                         "Size of the black square's edge (AprilTag 3's tag size convention)")
+              ->type_name("LENGTH");
+      auto* size = app.add_option("--size", a->size, "Marker size in the --convention named")
+                       ->type_name("LENGTH");
       app.add_option("--convention", a->convention,
                      "What --size measures: outer (white ring included) or black (the black "
                      "square)")
@@ -218,16 +223,19 @@ const Registrar kTag(
           ->required();
       app.add_option("--format", a->format, "Output format when the file name does not say")
           ->check(CLI::IsMember({"pdf", "svg", "png"}));
+      std::string papers;
+      for (const auto& p : draw::named_paper_sizes()) papers += p.name + ",";
       app.add_option("--page", a->page,
-                     "Paper: " + draw::paper_size_names() +
-                         ", WxH in mm (600x900) or inches (24x36in), or fit (the page is the "
-                         "content)")
+                     "Paper: a named size, WxH in mm (600x900) or inches (24x36in), or fit (the "
+                     "page is the content)")
+          ->type_name("{" + papers + "fit}|WxH")
           ->capture_default_str();
       app.add_option("--orientation", a->orientation,
                      "Paper orientation; auto takes whichever needs fewer pages")
           ->check(CLI::IsMember({"auto", "portrait", "landscape"}))
           ->capture_default_str();
       app.add_option("--margin", a->margin, "Unprinted border on every side")
+          ->type_name("LENGTH")
           ->capture_default_str();
       app.add_option("--dpi", a->dpi, "PNG resolution, dots per inch")
           ->check(CLI::Range(10.0, 2400.0))

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <stdexcept>
 
 #include "lidartag/driver/io/udp_frame.hpp"
@@ -14,14 +15,17 @@ void add_capture_options(CLI::App& app, CaptureArgs& args) {
       ->required()
       ->check(CLI::ExistingFile);
   const std::string names = velodyne::model_names();
+  std::string set = names;
+  set.erase(std::remove(set.begin(), set.end(), ' '), set.end());
   app.add_option("--model", args.model,
-                 "Decode as this model (" + names + "; any case, '-' optional: VLP-32C)")
+                 "Decode as this model (any case, '-' optional: VLP-32C; ultra-puck, "
+                 "alpha-prime, puck are names too)")
       ->check(CLI::Validator(
           [names](std::string& name) -> std::string {
             return velodyne::model_from_name(name) ? std::string()
                                                    : "unknown model '" + name + "' (" + names + ")";
           },
-          "MODEL"));
+          "{" + set + "}"));
   app.add_option("--calibration", args.calibration, "ros-drivers calibration file (YAML)")
       ->check(CLI::ExistingFile);
   app.add_option("--cut", args.cut_deg, "Azimuth where rotations are cut, degrees")

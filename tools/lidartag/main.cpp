@@ -21,7 +21,7 @@ int main(int argc, char** argv) {
   spdlog::set_default_logger(log);
   spdlog::set_pattern("lidartag: %l: %v");
 
-  CLI::App app{"lidartag: Velodyne driver and LiDARTag tools"};
+  CLI::App app{"lidartag: Velodyne driver and LiDARTag tools", "lidartag"};
   app.require_subcommand(1);
   app.set_version_flag("--version", std::string("lidartag ") + lidartag::kVersionString,
                        "Print the version and exit");
