@@ -147,8 +147,9 @@ bool explained(const det::ClusterDiagnostic& c) {
   return c.rejection != det::Rejection::kFewFeatures;
 }
 
-nlohmann::json cluster_json(const det::ClusterDiagnostic& c) {
+nlohmann::json cluster_json(size_t index, const det::ClusterDiagnostic& c) {
   nlohmann::json o;
+  o["index"] = index;  // what `lidartag render --cluster` takes
   o["result"] = std::string(det::rejection_name(c.rejection));
   o["stage"] = std::string(det::rejection_stage(c.rejection));
   o["box"] = nlohmann::json::array({c.min_x, c.max_x, c.min_y, c.max_y});
@@ -200,8 +201,8 @@ nlohmann::json rotation_json(size_t n, const Scan& scan, const det::ScanResult& 
   j["rejected"] = rejected;
   if (!r.diagnostics.empty()) {
     nlohmann::json clusters = nlohmann::json::array();
-    for (const auto& c : r.diagnostics)
-      if (explained(c)) clusters.push_back(cluster_json(c));
+    for (size_t i = 0; i < r.diagnostics.size(); ++i)
+      if (explained(r.diagnostics[i])) clusters.push_back(cluster_json(i, r.diagnostics[i]));
     j["cluster_diagnostics"] = clusters;
   }
   return j;
@@ -222,12 +223,13 @@ void print_rotation(size_t n, const Scan& scan, const det::ScanResult& r) {
         d.family, d.id, d.size_m, d.position.x(), d.position.y(), d.position.z(), q.w(), q.x(),
         q.y(), q.z(), d.score, d.margin, d.points);
   }
-  for (const auto& c : r.diagnostics) {
+  for (size_t i = 0; i < r.diagnostics.size(); ++i) {
+    const auto& c = r.diagnostics[i];
     if (!explained(c)) continue;
     fmt::print(
-        "  cluster x [{:.2f}, {:.2f}] y [{:.2f}, {:.2f}] rings {}-{}: {} features, {} points, "
+        "  cluster {} x [{:.2f}, {:.2f}] y [{:.2f}, {:.2f}] rings {}-{}: {} features, {} points, "
         "{} boundary",
-        c.min_x, c.max_x, c.min_y, c.max_y, c.min_ring, c.max_ring, c.features, c.points,
+        i, c.min_x, c.max_x, c.min_y, c.max_y, c.min_ring, c.max_ring, c.features, c.points,
         c.boundary_points);
     if (c.outlier_ratio >= 0) fmt::print(", outliers {:.2f}", c.outlier_ratio);
     if (c.side_m >= 0) fmt::print(", side {:.3f} m", c.side_m);
