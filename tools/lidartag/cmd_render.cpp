@@ -1,0 +1,305 @@
+// `lidartag render CAPTURE|PCD [--rotation N] [--cluster K] [-o PREFIX] ...`: pictures of what
+// the detector made of one rotation: a bird's-eye view with the detections and the rejected
+// clusters coloured by the stage that dropped them, and a close-up in its plane of each tag found
+// and of each cluster that reached the plane fit but was rejected (or of the one asked for).
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <limits>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "lidartag/commands.hpp"
+#include "lidartag/common.hpp"
+#include "lidartag/detector/detector.hpp"
+#include "lidartag/detector/ring_regression.hpp"
+#include "lidartag/detector/tag_family.hpp"
+#include "lidartag/draw/birds_eye.hpp"
+#include "lidartag/draw/close_up.hpp"
+#include "lidartag/draw/units.hpp"
+#include "lidartag/driver/io/capture_reader.hpp"
+#include "lidartag/driver/io/errors.hpp"
+#include "lidartag/driver/io/pcd.hpp"
+#include "lidartag/exit_codes.hpp"
+#ifdef LIDARTAG_HAVE_CONFIG
+#include "lidartag/daemon/config.hpp"
+#endif
+
+namespace lidartag::cli {
+namespace {
+
+namespace det = lidartag::detector;
+namespace fs = std::filesystem;
+
+struct RenderArgs {
+  CaptureArgs capture;
+  std::string config;
+  std::vector<double> tag_sizes;
+  std::vector<std::string> families;
+  int rotation = 0;
+  bool partial = false;
+  double range_m = 0;
+  int cluster = -1;
+  std::string out;
+  int size_px = 1000;
+  int rings = 0;
+  double resolution_deg = 0.2;
+};
+
+det::DetectorOptions detector_options(const RenderArgs& args) {
+  det::DetectorOptions options;
+  if (!args.config.empty()) {
+#ifdef LIDARTAG_HAVE_CONFIG
+    options = daemon::load_detector_config(args.config);
+#else
+    throw UsageError("--config needs the lidartag_config library (daemon/), not built");
+#endif
+  }
+  if (!args.tag_sizes.empty()) options.tag_sizes_m = args.tag_sizes;
+  if (!args.families.empty()) options.families = args.families;
+  options.cluster_diagnostics = true;
+  options.keep_tag_points = true;
+  return options;
+}
+
+bool is_pcd(const std::string& path) {
+  std::string ext = fs::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return ext == ".pcd";
+}
+
+// A PCD file as one scan, as `detect` reads it: its own rings, or rings regressed from the
+// elevations (--model's beam table or --rings).
+void load_pcd_scan(const RenderArgs& args, Scan& scan) {
+  const std::string& path = args.capture.capture;
+  const velodyne::PcdCloud pcd = velodyne::read_pcd(path);
+  const bool has_ring = pcd.has("ring"), has_intensity = pcd.has("intensity");
+  std::vector<det::CloudPoint> cloud;
+  int max_ring = -1;
+  size_t skipped = 0;
+  for (size_t i = 0; i < pcd.size(); ++i) {
+    const double x = pcd.field("x")[i], y = pcd.field("y")[i], z = pcd.field("z")[i];
+    const double ring = has_ring ? pcd.field("ring")[i] : 0.0;
+    constexpr double kMax = std::numeric_limits<float>::max();
+    if (!(std::fabs(x) <= kMax && std::fabs(y) <= kMax && std::fabs(z) <= kMax) ||
+        !(ring >= 0 && ring < 256 && ring == std::floor(ring))) {
+      ++skipped;
+      continue;
+    }
+    det::CloudPoint p;
+    p.x = static_cast<float>(x);
+    p.y = static_cast<float>(y);
+    p.z = static_cast<float>(z);
+    p.intensity =
+        has_intensity ? static_cast<float>(std::clamp(pcd.field("intensity")[i], 0.0, 255.0)) : 0;
+    p.ring = static_cast<int>(ring);
+    max_ring = std::max(max_ring, p.ring);
+    cloud.push_back(p);
+  }
+  if (skipped > 0)
+    spdlog::warn("{}: {} points with bad coordinates or rings skipped", path, skipped);
+  const auto model =
+      args.capture.model.empty() ? std::nullopt : velodyne::model_from_name(args.capture.model);
+  if (has_ring) {
+    const int rings = model ? velodyne::model_spec(*model).lasers : max_ring + 1;
+    if (!det::organise_rings(cloud, rings, args.resolution_deg, scan))
+      throw velodyne::IoError(path + ": no points with a ring number");
+    return;
+  }
+  det::RingRegressionOptions ro;
+  ro.horizontal_resolution_deg = args.resolution_deg;
+  if (model) {
+    for (const auto& laser : velodyne::model_spec(*model).laser_table)
+      ro.elevations_deg.push_back(laser.elevation_deg);
+  } else if (args.rings > 0) {
+    ro.rings = args.rings;
+  } else {
+    throw UsageError(path + ": no ring field; give --model (its beam elevations) or --rings N");
+  }
+  if (!det::regress_rings(cloud, ro, scan))
+    throw velodyne::IoError(path + ": cannot regress rings");
+}
+
+// The prefix of every file written: --out as given, a folder's capture-named prefix, or the
+// capture's name in the current folder.
+std::string output_prefix(const RenderArgs& args) {
+  const std::string stem = fs::path(args.capture.capture).stem().string();
+  if (args.out.empty()) return stem;
+  std::error_code ec;
+  if (args.out.back() == '/' || fs::is_directory(args.out, ec)) {
+    fs::create_directories(args.out, ec);
+    return (fs::path(args.out) / stem).string();
+  }
+  return args.out;
+}
+
+// The family of each configured name (the detector resolved them too; they load again here to
+// draw their codes).
+const tags::TagFamily& family_of(const det::DetectorOptions& options, int index) {
+  static std::map<std::string, tags::TagFamily> loaded;
+  const std::string& name = options.families[static_cast<size_t>(index)];
+  auto it = loaded.find(name);
+  if (it == loaded.end()) it = loaded.emplace(name, tags::resolve_family(name)).first;
+  return it->second;
+}
+
+int run_render(const RenderArgs& args) {
+  const det::DetectorOptions options = detector_options(args);
+  det::Detector detector(options);
+  if (args.size_px < 200 || args.size_px > 8000)
+    throw UsageError("--size must be 200 to 8000 pixels");
+
+  // The rotation, counted as `detect` counts them (complete ones, or all with --partial).
+  Scan pcd_scan;
+  const Scan* scan = nullptr;
+  std::unique_ptr<velodyne::CaptureReader> reader;
+  if (is_pcd(args.capture.capture)) {
+    if (args.rotation != 0) throw UsageError("a PCD file holds one rotation: --rotation 0");
+    load_pcd_scan(args, pcd_scan);
+    scan = &pcd_scan;
+  } else {
+    reader = std::make_unique<velodyne::CaptureReader>(args.capture.capture,
+                                                       reader_options(args.capture));
+    int n = 0;
+    size_t skipped = 0;
+    while (const Scan* s = reader->next()) {
+      if (!s->complete && !args.partial) {
+        ++skipped;
+        continue;
+      }
+      if (n++ == args.rotation) {
+        scan = s;
+        break;
+      }
+    }
+    warn_model_mismatch(*reader, args.capture);
+    if (scan == nullptr) {
+      require_rotations(*reader, args.capture, static_cast<size_t>(n), skipped, "renders them");
+      throw UsageError(fmt::format("--rotation {}: {} has {} {}rotation{} (0-{})", args.rotation,
+                                   args.capture.capture, n, args.partial ? "" : "complete ",
+                                   n == 1 ? "" : "s", n - 1));
+    }
+  }
+
+  det::ScanResult result;
+  detector.detect(*scan, result);
+  if (args.cluster >= 0 && args.cluster >= static_cast<int>(result.diagnostics.size()))
+    throw UsageError(
+        fmt::format("--cluster {}: rotation {} has clusters 0-{} (detect --clusters "
+                    "lists them)",
+                    args.cluster, args.rotation, static_cast<int>(result.diagnostics.size()) - 1));
+
+  std::vector<draw::ViewCluster> clusters;
+  for (size_t i = 0; i < result.diagnostics.size(); ++i)
+    clusters.push_back({static_cast<int>(i), &result.diagnostics[i], {}});
+
+  const std::string prefix = fmt::format("{}-rotation{}", output_prefix(args), args.rotation);
+  const std::string name = fs::path(args.capture.capture).filename().string();
+
+  draw::BirdsEyeOptions bo;
+  bo.size_px = args.size_px;
+  bo.range_m = args.range_m;
+  bo.highlight = args.cluster;
+  bo.title = {
+      fmt::format("{}, rotation {} (stamp {:.6f} s)", name, args.rotation,
+                  static_cast<double>(scan->stamp_ns) * 1e-9),
+      fmt::format("{} points, {} clusters, {} detection{}", scan->point_count(), result.clusters,
+                  result.detections.size(), result.detections.size() == 1 ? "" : "s")};
+  const std::string top = prefix + ".png";
+  const auto m = draw::write_birds_eye(*scan, result, clusters, bo, top);
+  fmt::print(
+      "wrote {}: bird's-eye view, {} x {} px, {} px per metre, sensor at pixel {},{} (x forward "
+      "up, y left left)\n",
+      top, args.size_px, args.size_px, draw::format_number(m.px_per_m, 4),
+      draw::format_number(m.centre_x, 2), draw::format_number(m.centre_y, 2));
+
+  const int close_px = std::max(200, args.size_px * 4 / 5);
+  for (size_t k = 0; k < result.detections.size(); ++k) {
+    const det::Detection& d = result.detections[k];
+    if (args.cluster >= 0) break;  // one cluster asked for: its picture only
+    const tags::TagFamily& family = family_of(options, d.family_index);
+    draw::CloseUp v;
+    v.points = result.points_of(d);
+    v.centre = d.position;
+    v.rotation = d.orientation.toRotationMatrix();
+    v.size_m = d.size_m;
+    v.family = &family;
+    v.code = family.codes[static_cast<size_t>(d.id)];
+    v.fitted = true;
+    v.corners = d.corners;
+    v.title = {
+        fmt::format("{} id {}: {} m marker ({} m black square)", d.family, d.id,
+                    draw::format_number(d.size_m, 3),
+                    draw::format_number(d.size_m * family.width_at_border / family.total_width, 3)),
+        fmt::format("{:.2f} m away, score {:.2f}, margin {:.1f} cells, {} points",
+                    d.position.norm(), d.score, d.margin, d.points),
+        fmt::format("{}, rotation {}", name, args.rotation)};
+    const std::string path = fmt::format("{}-{}-{}.png", prefix, d.family, d.id);
+    const auto cm = draw::write_close_up(v, close_px, path);
+    fmt::print(
+        "wrote {}: {} id {} in its plane, {} x {} px, {} px per metre, centre at pixel {},{}\n",
+        path, d.family, d.id, close_px, close_px, draw::format_number(cm.px_per_m, 4),
+        draw::format_number(cm.centre_x, 2), draw::format_number(cm.centre_y, 2));
+  }
+  return 0;
+}
+
+const Registrar kRender(
+    "render",
+    "Draw what the detector made of a rotation: a bird's-eye view and close-ups of tags and "
+    "rejected clusters (PNG)",
+    [](CLI::App& app) -> RunFunction {
+      auto a = std::make_shared<RenderArgs>();
+      add_capture_options(app, a->capture);
+      app.get_option("capture")->description("pcap or pcapng file, or a PCD point cloud");
+      app.add_option("--rotation", a->rotation,
+                     "Rotation to draw, counted as detect prints them (complete ones, or all "
+                     "with --partial)")
+          ->check(CLI::NonNegativeNumber)
+          ->capture_default_str();
+      app.add_flag("--partial", a->partial, "Count incomplete rotations too (first, last, lossy)");
+      app.add_option("--cluster", a->cluster,
+                     "Draw this cluster (its index in detect --clusters) highlighted, and its "
+                     "close-up instead of the others'")
+          ->check(CLI::NonNegativeNumber);
+      app.add_option("--range", a->range_m,
+                     "Bird's-eye view: metres from the sensor to the picture's edge (default: "
+                     "the detections and candidates with room around them)")
+          ->check(CLI::PositiveNumber);
+      app.add_option("-o,--out", a->out,
+                     "Prefix of the files (PREFIX-rotationN.png, PREFIX-rotationN-FAMILY-ID.png, "
+                     "PREFIX-rotationN-clusterK.png); a folder puts them there under the "
+                     "capture's name (default: the capture's name, here)");
+      app.add_option("--size", a->size_px, "Bird's-eye picture side, pixels (close-ups: 4/5)")
+          ->check(CLI::Range(200, 8000))
+          ->capture_default_str();
+      app.add_option("--config", a->config,
+                     "YAML file whose `detector:` section sets the detector's options")
+          ->check(CLI::ExistingFile);
+      app.add_option("--tag-size", a->tag_sizes,
+                     "Tag size in metres (full printed marker, white ring included); repeat for "
+                     "several sizes (default 1.2, or the config's)")
+          ->check(CLI::PositiveNumber);
+      app.add_option("--family", a->families,
+                     "Tag family (tag16h5, tag25h9, tag36h10, tag36h11, tag16h6 or "
+                     "FILE.json[:NAME]); repeat for several (default tag16h5, or the config's)")
+          ->type_name("FAMILY");
+      app.add_option("--rings", a->rings,
+                     "PCD without a ring field and no --model: number of beams to regress")
+          ->check(CLI::Range(1, 256));
+      app.add_option("--resolution", a->resolution_deg,
+                     "PCD: horizontal resolution (column width), degrees")
+          ->capture_default_str()
+          ->check(CLI::Range(0.01, 5.0));
+      return [a] { return run_render(*a); };
+    });
+
+}  // namespace
+}  // namespace lidartag::cli
