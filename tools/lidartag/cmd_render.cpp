@@ -140,15 +140,22 @@ std::string output_prefix(const RenderArgs& args) {
   return args.out;
 }
 
-// The family of each configured name (the detector resolved them too; they load again here to
-// draw their codes).
-const tags::TagFamily& family_of(const det::DetectorOptions& options, int index) {
-  static std::map<std::string, tags::TagFamily> loaded;
-  const std::string& name = options.families[static_cast<size_t>(index)];
-  auto it = loaded.find(name);
-  if (it == loaded.end()) it = loaded.emplace(name, tags::resolve_family(name)).first;
-  return it->second;
-}
+// The family of each configured name, loaded once (the detector resolved them too; they load
+// again here to draw their codes).
+class Families {
+ public:
+  explicit Families(const det::DetectorOptions& options) : options_(options) {}
+  const tags::TagFamily& operator[](int index) {
+    const std::string& name = options_.families[static_cast<size_t>(index)];
+    auto it = loaded_.find(name);
+    if (it == loaded_.end()) it = loaded_.emplace(name, tags::resolve_family(name)).first;
+    return it->second;
+  }
+
+ private:
+  const det::DetectorOptions& options_;
+  std::map<std::string, tags::TagFamily> loaded_;
+};
 
 int run_render(const RenderArgs& args) {
   const det::DetectorOptions options = detector_options(args);
@@ -221,10 +228,11 @@ int run_render(const RenderArgs& args) {
       draw::format_number(m.centre_x, 2), draw::format_number(m.centre_y, 2));
 
   const int close_px = std::max(200, args.size_px * 4 / 5);
+  Families families(options);
   for (size_t k = 0; k < result.detections.size(); ++k) {
     const det::Detection& d = result.detections[k];
     if (args.cluster >= 0) break;  // one cluster asked for: its picture only
-    const tags::TagFamily& family = family_of(options, d.family_index);
+    const tags::TagFamily& family = families[d.family_index];
     draw::CloseUp v;
     v.points = result.points_of(d);
     v.centre = d.position;
