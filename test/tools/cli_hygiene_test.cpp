@@ -325,7 +325,7 @@ TEST(CliCompletion, CommandsOptionsAndValues) {
   write_file(dir / "scan.pcap", "");
   EXPECT_EQ(complete("lidartag", "lidartag detect " + (dir / "sc")), (dir / "scan.pcap") + "\n");
   // Every option of every command completes.
-  for (const char* sub : {"detect", "dump", "info", "sim", "tag"}) {
+  for (const char* sub : {"detect", "dump", "info", "render", "sim", "tag"}) {
     const std::string all = complete("lidartag", std::string("lidartag ") + sub + " --");
     const Result help = run_command(kCli + " " + sub + " --help");
     std::istringstream lines(help.out);

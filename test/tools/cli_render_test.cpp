@@ -178,6 +178,31 @@ std::vector<uint8_t> read_grid(const Image& img, int cells, double& side_px) {
   return grid;
 }
 
+// The inset of the cells the points read: the bounding box of its two colours, each cell's colour
+// at its centre (1 = read white, 0 = read black, 2 = no evidence drawn).
+std::vector<uint8_t> read_inset(const Image& img, int cells) {
+  int x0 = img.width, y0 = img.height, x1 = -1, y1 = -1;
+  for (int y = 0; y < img.height; ++y)
+    for (int x = 0; x < img.width; ++x)
+      if (same(img.at(x, y), draw::kReadBlack) || same(img.at(x, y), draw::kReadWhite)) {
+        x0 = std::min(x0, x);
+        y0 = std::min(y0, y);
+        x1 = std::max(x1, x);
+        y1 = std::max(y1, y);
+      }
+  std::vector<uint8_t> grid;
+  if (x1 < 0) return grid;
+  // The outermost squares are the smallest possible (35 % of a cell): the box is within a cell
+  // of the inset's edges; cell centres are found from the box of the squares' centres instead.
+  const double pitch = (x1 - x0 + 1) / (cells - 0.3);
+  for (int r = 0; r < cells; ++r)
+    for (int c = 0; c < cells; ++c) {
+      const Rgb& p = img.at(int(x0 + (c + 0.35) * pitch), int(y0 + (r + 0.35) * pitch));
+      grid.push_back(same(p, draw::kReadWhite, 8) ? 1 : same(p, draw::kReadBlack, 8) ? 0 : 2);
+    }
+  return grid;
+}
+
 TEST(CliRender, CloseUpsShowTheDecodedCodeAtTheTagsSize) {
   TempDir dir;
   const Result r = run_split(kCli + " render " + kDemo + kSizes + " -o " + (dir / "demo"));
@@ -194,11 +219,133 @@ TEST(CliRender, CloseUpsShowTheDecodedCodeAtTheTagsSize) {
     const auto grid = read_grid(img, family.total_width, side);
     EXPECT_EQ(grid, family.render(family.codes[static_cast<size_t>(tags[k].first)]));
     EXPECT_NEAR(side, tags[k].second * pics[k + 1].px_per_m, 2.0);
+    // What the points read (the inset) is the code too inside the white ring (both tags score
+    // 1.00; the ring's corners get few returns on a board turned by 45 degrees).
+    const auto read = read_inset(img, family.total_width);
+    const auto code = family.render(family.codes[static_cast<size_t>(tags[k].first)]);
+    ASSERT_EQ(read.size(), code.size());
+    const int w = family.total_width;
+    for (int row = 1; row + 1 < w; ++row)
+      for (int col = 1; col + 1 < w; ++col)
+        EXPECT_EQ(read[size_t(row * w + col)], code[size_t(row * w + col)]) << row << "," << col;
     // The fitted square: the black square's edge, in its colour.
     const double black = side * family.width_at_border / family.total_width;
     EXPECT_TRUE(
         colour_near(img, pics[k + 1].cx - black / 2, pics[k + 1].cy, draw::kFittedSquare, 2));
   }
+}
+
+// Configured for 1.2 m tags, the demo's 0.8 and 0.6 m tags are rejected for their size: their
+// clusters are drawn in the plane of their points, beside a dashed 1.2 m marker and the side
+// measured, so that the picture shows why.
+TEST(CliRender, ATagNotFoundIsDrawnFromItsRejectedCluster) {
+  TempDir dir;
+  const nlohmann::json rotation = detect_rotation(kDemo, 0);
+  ASSERT_TRUE(rotation["detections"].empty());
+  std::vector<nlohmann::json> rejected;  // reached the plane fit or later
+  for (const auto& c : rotation["cluster_diagnostics"])
+    for (const char* stage : {"plane", "corners", "pose", "decode"})
+      if (c["stage"] == stage) rejected.push_back(c);
+  ASSERT_EQ(rejected.size(), 2u);
+  const Result r = run_split(kCli + " render " + kDemo + " -o " + (dir / "demo"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto pics = pictures(r.out);
+  ASSERT_EQ(pics.size(), 3u) << r.out;
+  const Image top = read_png(pics[0].file);
+  for (size_t k = 0; k < rejected.size(); ++k) {
+    const auto& c = rejected[k];
+    SCOPED_TRACE("cluster " + c["index"].dump());
+    EXPECT_EQ(pics[k + 1].file, dir / ("demo-rotation0-cluster" + c["index"].dump() + ".png"));
+    EXPECT_NE(r.out.find("cluster " + c["index"].dump() + " (corners/wrong_size)"),
+              std::string::npos);
+    // Bird's-eye: the cluster's points in the corners stage's colour inside its box.
+    const uint32_t yellow = draw::stage_colour(lidartag::detector::Stage::kCorners).rgb();
+    const auto& box = c["box"];
+    const Picture& m = pics[0];
+    int coloured = 0;
+    for (int y = int(m.cy - box[1].get<double>() * m.px_per_m);
+         y <= int(m.cy - box[0].get<double>() * m.px_per_m); ++y)
+      for (int x = int(m.cx - box[3].get<double>() * m.px_per_m);
+           x <= int(m.cx - box[2].get<double>() * m.px_per_m); ++x)
+        coloured += same(top.at(x, y), yellow, 8);
+    EXPECT_GT(coloured, 40);
+
+    const Image img = read_png(pics[k + 1].file);
+    const Picture& p = pics[k + 1];
+    // The dashed 1.2 m marker and the side measured (about 0.89 and 0.69 m: the boards).
+    auto dashed = [&](double side_m, uint32_t colour) {
+      const int x = int(std::lround(p.cx - side_m / 2 * p.px_per_m));
+      int on = 0, n = 0;
+      for (double y = p.cy - side_m / 3 * p.px_per_m; y < p.cy + side_m / 3 * p.px_per_m; ++y, ++n)
+        on += colour_near(img, x, y, colour, 1);
+      return double(on) / n;
+    };
+    EXPECT_GT(dashed(1.2, draw::kFittedSquare), 0.4);
+    EXPECT_GT(dashed(c["side"].get<double>(), draw::kMeasuredSide), 0.4);
+    // Every point lies inside the 1.2 m marker: the band outside it (below the title, above the
+    // legend) is empty.
+    const double half = 0.6 * p.px_per_m;
+    int outside = 0, points = 0;
+    for (int y = 100; y < img.height - 70; ++y)
+      for (int x = 0; x < img.width; ++x) {
+        const bool in = std::abs(x - p.cx) < half - 3 && std::abs(y - p.cy) < half - 3;
+        const bool near_edge =
+            std::abs(std::abs(x - p.cx) - half) < 4 || std::abs(std::abs(y - p.cy) - half) < 4;
+        const bool drawn = !same(img.at(x, y), draw::kCloseUpBackground, 2);
+        if (in && drawn) ++points;
+        if (!in && !near_edge && drawn) ++outside;
+      }
+    EXPECT_EQ(outside, 0);
+    EXPECT_GT(points, 1000);
+  }
+}
+
+// Configured for tag25h9, the demo's tag16h5 markers reach decoding and are rejected there: the
+// close-up shows the best tag25h9 code found and the cells the points read.
+TEST(CliRender, ADecodeRejectionShowsTheBestCodeAndTheCellsRead) {
+  TempDir dir;
+  const Result r =
+      run_split(kCli + " render " + kDemo + kSizes + " --family tag25h9 -o " + (dir / "demo"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto pics = pictures(r.out);
+  ASSERT_EQ(pics.size(), 3u) << r.out;
+  const auto& family = lidartag::tags::builtin_family("tag25h9");
+  static const std::regex best(R"(\(decode/\w+, best tag25h9 id (\d+)\))");
+  std::vector<int> ids;
+  for (std::sregex_iterator it(r.out.begin(), r.out.end(), best), end; it != end; ++it)
+    ids.push_back(std::stoi((*it)[1]));
+  ASSERT_EQ(ids.size(), 2u) << r.out;
+  for (size_t k = 0; k < 2; ++k) {
+    const Image img = read_png(pics[k + 1].file);
+    double side = 0;
+    const auto grid = read_grid(img, family.total_width, side);
+    const auto code = family.render(family.codes[static_cast<size_t>(ids[k])]);
+    EXPECT_EQ(grid, code);
+    const auto read = read_inset(img, family.total_width);
+    ASSERT_EQ(read.size(), code.size());
+    // A tag of another family: most cells agree with the best code (the outer ring and the
+    // border at least), not all.
+    size_t agree = 0;
+    for (size_t i = 0; i < code.size(); ++i) agree += read[i] == code[i];
+    EXPECT_GT(agree, code.size() * 6 / 10);
+    EXPECT_LT(agree, code.size());
+  }
+}
+
+TEST(CliRender, OneClusterAskedFor) {
+  TempDir dir;
+  const nlohmann::json rotation = detect_rotation(kDemo + kSizes, 0);
+  int accepted = -1;
+  for (const auto& c : rotation["cluster_diagnostics"])
+    if (c["result"] == "accepted" && accepted < 0) accepted = c["index"].get<int>();
+  ASSERT_GE(accepted, 0);
+  const Result r = run_split(kCli + " render " + kDemo + kSizes + " --cluster " +
+                             std::to_string(accepted) + " -o " + (dir / "one"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto pics = pictures(r.out);
+  ASSERT_EQ(pics.size(), 2u) << r.out;  // the bird's-eye view and that cluster
+  EXPECT_EQ(pics[1].file, dir / ("one-rotation0-cluster" + std::to_string(accepted) + ".png"));
+  EXPECT_NE(r.out.find("(accepted, best tag16h5 id "), std::string::npos) << r.out;
 }
 
 TEST(CliRender, RotationRangeSizePrefixAndPcdInput) {

@@ -6,6 +6,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <limits>
@@ -65,6 +66,7 @@ det::DetectorOptions detector_options(const RenderArgs& args) {
   if (!args.families.empty()) options.families = args.families;
   options.cluster_diagnostics = true;
   options.keep_tag_points = true;
+  options.keep_cluster_points = true;
   return options;
 }
 
@@ -157,6 +159,110 @@ class Families {
   std::map<std::string, tags::TagFamily> loaded_;
 };
 
+// The black square's corners of a marker of size t in a tag frame (sensor frame): bottom-left,
+// bottom-right, top-right, top-left seen from the front (the detector's order).
+std::array<Eigen::Vector3d, 4> square_corners(const Eigen::Vector3d& centre,
+                                              const Eigen::Matrix3d& rotation, double t,
+                                              const tags::TagFamily& f) {
+  const double s = t / 2 * f.width_at_border / f.total_width;
+  const double yz[4][2] = {{-s, -s}, {s, -s}, {s, s}, {-s, s}};
+  std::array<Eigen::Vector3d, 4> corners;
+  for (size_t k = 0; k < 4; ++k)
+    corners[k] = centre + rotation * Eigen::Vector3d(0, yz[k][0], yz[k][1]);
+  return corners;
+}
+
+// What a candidate's points read, turned upright in its decoded frame.
+void add_cells_read(const det::ScanResult& result, const det::Candidate& c, draw::CloseUp& v) {
+  if (c.grid_width <= 0) return;
+  v.cells_read = draw::turn_counter_clockwise(result.cells_of(c), c.grid_width, c.quarter_turns);
+  v.cells_width = c.grid_width;
+}
+
+const det::Candidate* candidate_of_detection(const det::ScanResult& result, int detection) {
+  for (const auto& c : result.candidates)
+    if (c.detection == detection) return &c;
+  return nullptr;
+}
+
+draw::CloseUp detection_view(const det::ScanResult& result, int k, Families& families) {
+  const det::Detection& d = result.detections[static_cast<size_t>(k)];
+  const tags::TagFamily& family = families[d.family_index];
+  draw::CloseUp v;
+  v.points = result.points_of(d);
+  v.centre = d.position;
+  v.rotation = d.orientation.toRotationMatrix();
+  v.size_m = d.size_m;
+  v.family = &family;
+  v.code = family.codes[static_cast<size_t>(d.id)];
+  v.fitted = true;
+  v.corners = d.corners;
+  if (const det::Candidate* c = candidate_of_detection(result, k)) add_cells_read(result, *c, v);
+  v.title = {
+      fmt::format("{} id {}: {} m marker ({} m black square)", d.family, d.id,
+                  draw::format_number(d.size_m, 3),
+                  draw::format_number(d.size_m * family.width_at_border / family.total_width, 3)),
+      fmt::format("{:.2f} m away, score {:.2f}, margin {:.1f} cells, {} points", d.position.norm(),
+                  d.score, d.margin, d.points)};
+  return v;
+}
+
+// What the stages measured of a cluster, as `detect --clusters` says it.
+std::string measured(const det::ClusterDiagnostic& c) {
+  std::string s = fmt::format("{} points, {} boundary", c.points, c.boundary_points);
+  if (c.outlier_ratio >= 0) s += fmt::format(", outliers {:.2f}", c.outlier_ratio);
+  if (c.side_m >= 0) s += fmt::format(", side {:.3f} m", c.side_m);
+  if (c.mean_cost_m >= 0) s += fmt::format(", cost {:.4f} m", c.mean_cost_m);
+  if (c.coverage >= 0) s += fmt::format(", coverage {:.2f}", c.coverage);
+  if (c.score >= 0) s += fmt::format(", score {:.2f} margin {:.2f}", c.score, c.margin);
+  return s;
+}
+
+// A cluster: in its decoded frame with the best code when it reached decoding, else in the plane
+// of its points with a marker of the configured size nearest to what was measured, for scale.
+draw::CloseUp cluster_view(const det::ScanResult& result, int index,
+                           const det::DetectorOptions& options, Families& families) {
+  const det::ClusterDiagnostic& c = result.diagnostics[static_cast<size_t>(index)];
+  draw::CloseUp v;
+  v.points = result.points_of(c);
+  const std::string verdict =
+      c.rejection == det::Rejection::kNone
+          ? "accepted"
+          : fmt::format("rejected at {}: {}", det::rejection_stage(c.rejection),
+                        det::rejection_name(c.rejection));
+  v.title = {fmt::format("cluster {}: {}", index, verdict), measured(c)};
+  if (c.candidate >= 0) {
+    const det::Candidate& k = result.candidates[static_cast<size_t>(c.candidate)];
+    v.centre = k.position;
+    v.rotation = k.orientation.toRotationMatrix();
+    v.size_m = k.size_m;
+    if (k.family_index >= 0 && k.id >= 0) {
+      const tags::TagFamily& family = families[k.family_index];
+      v.family = &family;
+      v.code = family.codes[static_cast<size_t>(k.id)];
+      v.fitted = true;
+      v.corners = square_corners(v.centre, v.rotation, v.size_m, family);
+      v.title.push_back(fmt::format("best: {} id {} at {} m, {:.2f} m away", family.name, k.id,
+                                    draw::format_number(k.size_m, 3), k.position.norm()));
+    }
+    add_cells_read(result, k, v);
+    return v;
+  }
+  draw::plane_frame(v.points, v.centre, v.rotation);
+  v.measured_side_m = c.side_m;
+  // The configured size nearest to the measured side, else the largest.
+  const auto& sizes = options.tag_sizes_m;
+  v.size_m = *std::max_element(sizes.begin(), sizes.end());
+  if (c.side_m > 0)
+    v.size_m = *std::min_element(sizes.begin(), sizes.end(), [&](double a, double b) {
+      return std::fabs(a - c.side_m) < std::fabs(b - c.side_m);
+    });
+  v.title.push_back(fmt::format("{:.2f} m away; dashed: a {} m marker{}", v.centre.norm(),
+                                draw::format_number(v.size_m, 3),
+                                c.side_m > 0 ? ", the side measured" : ""));
+  return v;
+}
+
 int run_render(const RenderArgs& args) {
   const det::DetectorOptions options = detector_options(args);
   det::Detector detector(options);
@@ -205,7 +311,8 @@ int run_render(const RenderArgs& args) {
 
   std::vector<draw::ViewCluster> clusters;
   for (size_t i = 0; i < result.diagnostics.size(); ++i)
-    clusters.push_back({static_cast<int>(i), &result.diagnostics[i], {}});
+    clusters.push_back(
+        {static_cast<int>(i), &result.diagnostics[i], result.points_of(result.diagnostics[i])});
 
   const std::string prefix = fmt::format("{}-rotation{}", output_prefix(args), args.rotation);
   const std::string name = fs::path(args.capture.capture).filename().string();
@@ -229,32 +336,41 @@ int run_render(const RenderArgs& args) {
 
   const int close_px = std::max(200, args.size_px * 4 / 5);
   Families families(options);
-  for (size_t k = 0; k < result.detections.size(); ++k) {
-    const det::Detection& d = result.detections[k];
-    if (args.cluster >= 0) break;  // one cluster asked for: its picture only
-    const tags::TagFamily& family = families[d.family_index];
-    draw::CloseUp v;
-    v.points = result.points_of(d);
-    v.centre = d.position;
-    v.rotation = d.orientation.toRotationMatrix();
-    v.size_m = d.size_m;
-    v.family = &family;
-    v.code = family.codes[static_cast<size_t>(d.id)];
-    v.fitted = true;
-    v.corners = d.corners;
-    v.title = {
-        fmt::format("{} id {}: {} m marker ({} m black square)", d.family, d.id,
-                    draw::format_number(d.size_m, 3),
-                    draw::format_number(d.size_m * family.width_at_border / family.total_width, 3)),
-        fmt::format("{:.2f} m away, score {:.2f}, margin {:.1f} cells, {} points",
-                    d.position.norm(), d.score, d.margin, d.points),
-        fmt::format("{}, rotation {}", name, args.rotation)};
-    const std::string path = fmt::format("{}-{}-{}.png", prefix, d.family, d.id);
+  auto write = [&](const draw::CloseUp& v, const std::string& path, const std::string& what) {
     const auto cm = draw::write_close_up(v, close_px, path);
-    fmt::print(
-        "wrote {}: {} id {} in its plane, {} x {} px, {} px per metre, centre at pixel {},{}\n",
-        path, d.family, d.id, close_px, close_px, draw::format_number(cm.px_per_m, 4),
-        draw::format_number(cm.centre_x, 2), draw::format_number(cm.centre_y, 2));
+    fmt::print("wrote {}: {} in its plane, {} x {} px, {} px per metre, centre at pixel {},{}\n",
+               path, what, close_px, close_px, draw::format_number(cm.px_per_m, 4),
+               draw::format_number(cm.centre_x, 2), draw::format_number(cm.centre_y, 2));
+  };
+  if (args.cluster < 0) {
+    for (size_t k = 0; k < result.detections.size(); ++k) {
+      const det::Detection& d = result.detections[k];
+      draw::CloseUp v = detection_view(result, static_cast<int>(k), families);
+      v.title.push_back(fmt::format("{}, rotation {}", name, args.rotation));
+      write(v, fmt::format("{}-{}-{}.png", prefix, d.family, d.id),
+            fmt::format("{} id {}", d.family, d.id));
+    }
+  }
+  // Clusters: the one asked for, or every one rejected at the plane fit or later (what could
+  // have been a tag).
+  for (size_t i = 0; i < result.diagnostics.size(); ++i) {
+    const det::ClusterDiagnostic& c = result.diagnostics[i];
+    const bool asked = static_cast<int>(i) == args.cluster;
+    const bool candidate =
+        c.rejection != det::Rejection::kNone &&
+        static_cast<int>(det::stage_of(c.rejection)) >= static_cast<int>(det::Stage::kPlane);
+    if (!(asked || (args.cluster < 0 && candidate))) continue;
+    draw::CloseUp v = cluster_view(result, static_cast<int>(i), options, families);
+    v.title.push_back(fmt::format("{}, rotation {}", name, args.rotation));
+    std::string what = fmt::format("cluster {} (", i);
+    what += c.rejection == det::Rejection::kNone
+                ? std::string("accepted")
+                : fmt::format("{}/{}", det::rejection_stage(c.rejection),
+                              det::rejection_name(c.rejection));
+    if (v.family != nullptr)
+      what += fmt::format(", best {} id {}", v.family->name,
+                          result.candidates[static_cast<size_t>(c.candidate)].id);
+    write(v, fmt::format("{}-cluster{}.png", prefix, i), what + ")");
   }
   return 0;
 }

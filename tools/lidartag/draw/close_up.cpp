@@ -5,6 +5,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "lidartag/draw/cairo_util.hpp"
 #include "lidartag/draw/colors.hpp"
@@ -27,7 +28,46 @@ void square_path(cairo_t* cr, double cx, double cy, double half) {
   cairo_rectangle(cr, cx - half, cy - half, 2 * half, 2 * half);
 }
 
+// The inset: what the points read, one square per cell, its side growing with the evidence.
+void cells_inset(cairo_t* cr, const CloseUp& v, double x0, double y0, double side, double u) {
+  const int w = v.cells_width;
+  float strongest = 0;
+  for (const float e : v.cells_read) strongest = std::max(strongest, std::fabs(e));
+  from_hex(0xffffff).use(cr);
+  cairo_rectangle(cr, x0, y0, side, side);
+  cairo_fill_preserve(cr);
+  cairo_set_source_rgb(cr, 0.6, 0.6, 0.6);
+  cairo_set_line_width(cr, 1.0 * u);
+  cairo_stroke(cr);
+  const double cell = side / w;
+  for (int r = 0; r < w; ++r)
+    for (int c = 0; c < w; ++c) {
+      const float e = v.cells_read[static_cast<size_t>(r * w + c)];
+      if (e == 0 || strongest == 0) continue;
+      const double s = cell * (0.35 + 0.6 * std::sqrt(std::fabs(e) / strongest));
+      from_hex(e > 0 ? kReadWhite : kReadBlack).use(cr);
+      cairo_rectangle(cr, x0 + (c + 0.5) * cell - s / 2, y0 + (r + 0.5) * cell - s / 2, s, s);
+      cairo_fill(cr);
+    }
+  cairo_set_source_rgb(cr, 0.15, 0.15, 0.15);
+  draw_text(cr, "cells read", x0 + side / 2, y0 + side + 15 * u, 12 * u, Align::kCentre);
+}
+
 }  // namespace
+
+std::vector<float> turn_counter_clockwise(std::span<const float> cells, int width,
+                                          int quarter_turns) {
+  std::vector<float> out(cells.begin(), cells.end());
+  const auto w = static_cast<size_t>(width);
+  for (int q = 0; q < ((quarter_turns % 4) + 4) % 4; ++q) {
+    std::vector<float> turned(out.size());
+    // Counter-clockwise: the cell at (row, col) moves to (W-1-col, row).
+    for (size_t r = 0; r < w; ++r)
+      for (size_t c = 0; c < w; ++c) turned[(w - 1 - c) * w + r] = out[r * w + c];
+    out.swap(turned);
+  }
+  return out;
+}
 
 void plane_frame(std::span<const detector::ClusterPoint> points, Eigen::Vector3d& centre,
                  Eigen::Matrix3d& rotation) {
@@ -47,10 +87,40 @@ void plane_frame(std::span<const detector::ClusterPoint> points, Eigen::Vector3d
   Eigen::Vector3d z = Eigen::Vector3d::UnitZ() - x.z() * x;
   if (z.norm() < 1e-6) z = eig.eigenvectors().col(2);  // a horizontal plane
   z.normalize();
-  const Eigen::Vector3d y = z.cross(x);
+  Eigen::Vector3d y = z.cross(x);
+  // Turned within the plane to the smallest square around the points (a board mounted at 45
+  // degrees is shown along its sides), the turn nearest to upright on a tie; centred on it.
+  std::vector<Eigen::Vector2d> in_plane;
+  for (const auto& p : points) {
+    const Eigen::Vector3d d = Eigen::Vector3d(p.x, p.y, p.z) - centre;
+    in_plane.emplace_back(d.dot(y), d.dot(z));
+  }
+  double best_side = std::numeric_limits<double>::infinity(), best_angle = 0;
+  Eigen::Vector2d best_mid = Eigen::Vector2d::Zero();
+  for (int step = 0; step <= 90; ++step) {
+    const int deg = step % 2 == 0 ? step / 2 : -(step + 1) / 2;  // 0, -1, 1, -2, 2, ... 45
+    const double a = deg * M_PI / 180.0, c = std::cos(a), s = std::sin(a);
+    Eigen::Vector2d lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity());
+    Eigen::Vector2d hi = -lo;
+    for (const auto& q : in_plane) {
+      const Eigen::Vector2d r(c * q.x() + s * q.y(), -s * q.x() + c * q.y());
+      lo = lo.cwiseMin(r);
+      hi = hi.cwiseMax(r);
+    }
+    const double side = (hi - lo).maxCoeff();
+    if (side < best_side * 0.995) {
+      best_side = side;
+      best_angle = a;
+      const Eigen::Vector2d mid = (lo + hi) / 2;
+      best_mid = Eigen::Vector2d(c * mid.x() - s * mid.y(), s * mid.x() + c * mid.y());
+    }
+  }
+  centre += best_mid.x() * y + best_mid.y() * z;
+  const double c = std::cos(best_angle), s = std::sin(best_angle);
+  const Eigen::Vector3d y2 = c * y + s * z, z2 = -s * y + c * z;
   rotation.col(0) = x;
-  rotation.col(1) = y;
-  rotation.col(2) = z;
+  rotation.col(1) = y2;
+  rotation.col(2) = z2;
 }
 
 CloseUpMapping write_close_up(const CloseUp& v, int n, const std::string& path) {
@@ -136,14 +206,29 @@ CloseUpMapping write_close_up(const CloseUp& v, int n, const std::string& path) 
     from_hex(kFittedSquare).use(cr);
     cairo_set_line_width(cr, 2.0 * u);
     cairo_stroke(cr);
+    if (v.measured_side_m > 0) {
+      square_path(cr, m.centre_x, m.centre_y, v.measured_side_m / 2 * m.px_per_m);
+      from_hex(kMeasuredSide).use(cr);
+      cairo_stroke(cr);
+    }
     cairo_set_dash(cr, nullptr, 0, 0);
+  }
+  if (!v.cells_read.empty() && v.cells_width > 0) {
+    const double side = 0.16 * n;
+    cells_inset(cr, v, n - side - 16 * u, 16 * u, side, u);
   }
 
   // Title, legend, scale bar.
   cairo_set_source_rgb(cr, 0.1, 0.1, 0.1);
   double y = 26 * u;
+  // Left of the inset; a line too long is drawn smaller.
+  const double room = n - 32 * u - (v.cells_read.empty() ? 0.0 : 0.16 * n + 16 * u);
   for (const auto& line : v.title) {
-    draw_text(cr, line, 16 * u, y, (y < 30 * u ? 17 : 14) * u, Align::kLeft, y < 30 * u);
+    const bool first = y < 30 * u;
+    double size = (first ? 17 : 14) * u;
+    const double w = text_width(cr, line, size, first);
+    if (w > room) size *= room / w;
+    draw_text(cr, line, 16 * u, y, size, Align::kLeft, first);
     y += 21 * u;
   }
   double x = 16 * u;
@@ -165,7 +250,8 @@ CloseUpMapping write_close_up(const CloseUp& v, int n, const std::string& path) 
   }
   swatch(0x202020, "dark return", true);
   swatch(0xe0e0e0, "bright return", true);
-  swatch(kFittedSquare, v.fitted ? "fitted square" : "a marker of this size", false);
+  swatch(kFittedSquare, v.fitted ? "fitted square" : "a marker of the size asked for", false);
+  if (!v.fitted && v.measured_side_m > 0) swatch(kMeasuredSide, "side measured", false);
   const double bar = nice_length(v.size_m / 3);
   cairo_set_source_rgb(cr, 0.15, 0.15, 0.15);
   cairo_rectangle(cr, 16 * u, n - 22 * u, bar * m.px_per_m, 4 * u);

@@ -29,6 +29,13 @@ struct CloseUp {
   // of size_m is drawn at the centre for scale.
   bool fitted = false;
   std::array<Eigen::Vector3d, 4> corners;
+  // Without a pose: the side the corner stage measured (dashed too), -1 when unknown.
+  double measured_side_m = -1;
+  // What the points read: per cell, white minus black evidence (> 0 reads white), row-major,
+  // upright in this picture (row 0 at the top), cells_width across; drawn as an inset at the
+  // top right, each cell's square as large as its evidence. Empty: no inset.
+  std::vector<float> cells_read;
+  int cells_width = 0;
 };
 
 // Where a point of the plane lands: pixel x = centre_x + y_tag * px_per_m, pixel y = centre_y -
@@ -37,8 +44,14 @@ struct CloseUpMapping {
   double px_per_m = 0, centre_x = 0, centre_y = 0;
 };
 
-// A plane frame for points without a pose: centroid, the normal of least variance turned toward
-// the sensor, z as close to up (sensor z) as the plane allows.
+// The inset's cells upright: `cells` (row-major, `width` across) turned `quarter_turns` times
+// counter-clockwise.
+std::vector<float> turn_counter_clockwise(std::span<const float> cells, int width,
+                                          int quarter_turns);
+
+// A plane frame for points without a pose: the normal of least variance turned toward the
+// sensor; in the plane, z as close to up (sensor z) as the plane allows, then turned by up to 45
+// degrees to the smallest square around the points, whose centre is the origin.
 void plane_frame(std::span<const detector::ClusterPoint> points, Eigen::Vector3d& centre,
                  Eigen::Matrix3d& rotation);
 

@@ -35,5 +35,9 @@ inline constexpr uint32_t kBlackCell = 0x35557f;
 inline constexpr uint32_t kWhiteCell = 0xefe2b8;
 inline constexpr uint32_t kCloseUpBackground = 0xf4f4f4;
 inline constexpr uint32_t kFittedSquare = 0x1aa64b;
+inline constexpr uint32_t kMeasuredSide = 0xe8710a;
+// The inset of what the points read: darker and stronger than the grid's cells.
+inline constexpr uint32_t kReadBlack = 0x1d2f4a;
+inline constexpr uint32_t kReadWhite = 0xf2c94c;
 
 }  // namespace lidartag::draw
