@@ -10,7 +10,7 @@ packages=(
   iproute2 util-linux
   # lidartag tag/render: Cairo (PDF, SVG, PNG); the tests rasterise with poppler and librsvg;
   # man pages by help2man at build time
-  libcairo2-dev zlib1g-dev poppler-utils librsvg2-bin help2man
+  libcairo2-dev libfontconfig-dev zlib1g-dev poppler-utils librsvg2-bin help2man
   # bash completion: generated from --help by tools/scripts/bash_completion.py
   python3
   # bench_accuracy: the plot docs/accuracy.png

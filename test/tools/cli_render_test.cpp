@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <nlohmann/json.hpp>
 #include <regex>
 #include <sstream>
@@ -382,6 +383,14 @@ TEST(CliRender, BadArgumentsAreUsageErrors) {
   EXPECT_EQ(run_split(kCli + " render " + kDemo + " --size 50 -o " + (dir / "x")).exit_code, 2);
   EXPECT_EQ(run_split(kCli + " render " + kDemo + " --family tag99h1 -o " + (dir / "x")).exit_code,
             2);
+  {
+    std::ofstream pcd(dir / "xyz.pcd");
+    pcd << "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 1\nDATA ascii\n1 2 3\n";
+  }
+  r = run_split(kCli + " render " + (dir / "xyz.pcd") + " --rings 16 -o " + (dir / "x"));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("no intensity field"), std::string::npos) << r.err;
+  fs::remove(dir / "xyz.pcd");
   r = run_split(kCli + " render " + kDemo + " -o /nonexistent-dir/x");
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.err.find("/nonexistent-dir/x-rotation0.png"), std::string::npos) << r.err;

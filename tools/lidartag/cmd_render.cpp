@@ -22,6 +22,7 @@
 #include "lidartag/detector/ring_regression.hpp"
 #include "lidartag/detector/tag_family.hpp"
 #include "lidartag/draw/birds_eye.hpp"
+#include "lidartag/draw/cairo_util.hpp"
 #include "lidartag/draw/close_up.hpp"
 #include "lidartag/draw/units.hpp"
 #include "lidartag/driver/io/capture_reader.hpp"
@@ -82,7 +83,10 @@ bool is_pcd(const std::string& path) {
 void load_pcd_scan(const RenderArgs& args, Scan& scan) {
   const std::string& path = args.capture.capture;
   const velodyne::PcdCloud pcd = velodyne::read_pcd(path);
-  const bool has_ring = pcd.has("ring"), has_intensity = pcd.has("intensity");
+  const bool has_ring = pcd.has("ring");
+  // Tags are read from intensity: a cloud without it could only show nothing.
+  if (!pcd.has("intensity"))
+    throw velodyne::IoError(path + ": no intensity field (tags are read from intensity)");
   std::vector<det::CloudPoint> cloud;
   int max_ring = -1;
   size_t skipped = 0;
@@ -99,8 +103,7 @@ void load_pcd_scan(const RenderArgs& args, Scan& scan) {
     p.x = static_cast<float>(x);
     p.y = static_cast<float>(y);
     p.z = static_cast<float>(z);
-    p.intensity =
-        has_intensity ? static_cast<float>(std::clamp(pcd.field("intensity")[i], 0.0, 255.0)) : 0;
+    p.intensity = static_cast<float>(std::clamp(pcd.field("intensity")[i], 0.0, 255.0));
     p.ring = static_cast<int>(ring);
     max_ring = std::max(max_ring, p.ring);
     cloud.push_back(p);
@@ -264,6 +267,7 @@ draw::CloseUp cluster_view(const det::ScanResult& result, int index,
 }
 
 int run_render(const RenderArgs& args) {
+  const draw::FontCacheRelease release_fonts;  // after every surface below
   const det::DetectorOptions options = detector_options(args);
   det::Detector detector(options);
   if (args.size_px < 200 || args.size_px > 8000)

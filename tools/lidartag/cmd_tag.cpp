@@ -112,6 +112,7 @@ double outer_size_mm(const TagArgs& a, const tags::TagFamily& f) {
 }
 
 int run_tag(const TagArgs& a) {
+  const draw::FontCacheRelease release_fonts;  // after every surface below
   const tags::TagFamily family = tags::resolve_family(a.family);
   draw::MarkerJob job;
   job.family = &family;

@@ -1,5 +1,6 @@
 #include "lidartag/draw/cairo_util.hpp"
 
+#include <fontconfig/fontconfig.h>
 #include <zlib.h>
 
 #include <algorithm>
@@ -78,6 +79,10 @@ void draw_text(cairo_t* cr, const std::string& text, double x, double y, double 
   cairo_move_to(cr, x0, y);
   cairo_show_text(cr, text.c_str());
   cairo_new_path(cr);
+}
+
+FontCacheRelease::~FontCacheRelease() {
+  cairo_debug_reset_static_data();
 }
 
 void write_png(cairo_surface_t* image, const std::string& path, double dpi) {

@@ -40,6 +40,16 @@ void draw_text(cairo_t* cr, const std::string& text, double x, double y, double 
                Align align = Align::kLeft, bool bold = false);
 double text_width(cairo_t* cr, const std::string& text, double size_mm, bool bold = false);
 
+// Frees Cairo's font caches and fontconfig's configuration (loaded for the text drawn) when it
+// goes out of scope: declared before any surface of a command, so that it runs after they are
+// gone, on success and on an error alike, and leak checkers see no memory still held.
+struct FontCacheRelease {
+  FontCacheRelease() = default;
+  FontCacheRelease(const FontCacheRelease&) = delete;
+  FontCacheRelease& operator=(const FontCacheRelease&) = delete;
+  ~FontCacheRelease();
+};
+
 // Writes an image surface as PNG with its resolution (a pHYs chunk, when dpi > 0) so that it
 // prints at size; throws std::runtime_error on failure.
 void write_png(cairo_surface_t* image, const std::string& path, double dpi = 0);
