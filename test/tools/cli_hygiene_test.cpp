@@ -219,6 +219,7 @@ TEST(CliProgress, DrawnOnATerminalOnly) {
       "sim " + scene + " --rotations 2 --out " + (dir / "sim.pcap"),
       "dump " + kDemo + " --force --out " + (dir / "scans"),
       "detect " + kDemo + " --json",
+      "render " + kDemo + " --rotation 9 -o " + (dir / "render"),
   };
   for (const std::string& command : commands) {
     const Result tty =

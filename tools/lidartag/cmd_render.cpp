@@ -29,6 +29,7 @@
 #include "lidartag/driver/io/errors.hpp"
 #include "lidartag/driver/io/pcd.hpp"
 #include "lidartag/exit_codes.hpp"
+#include "lidartag/progress.hpp"
 #ifdef LIDARTAG_HAVE_CONFIG
 #include "lidartag/daemon/config.hpp"
 #endif
@@ -286,7 +287,10 @@ int run_render(const RenderArgs& args) {
                                                        reader_options(args.capture));
     int n = 0;
     size_t skipped = 0;
+    std::error_code ec;
+    Progress progress(fs::file_size(args.capture.capture, ec));  // a late rotation of a long one
     while (const Scan* s = reader->next()) {
+      progress.update(capture_bytes_read(*reader), fmt::format("rotation {}", n));
       if (!s->complete && !args.partial) {
         ++skipped;
         continue;
@@ -296,6 +300,7 @@ int run_render(const RenderArgs& args) {
         break;
       }
     }
+    progress.done();
     warn_model_mismatch(*reader, args.capture);
     if (scan == nullptr) {
       require_rotations(*reader, args.capture, static_cast<size_t>(n), skipped, "renders them");
