@@ -12,6 +12,11 @@ packages=(
   python3-dev pybind11-dev python3-numpy python3-pytest
   libgtest-dev libgmock-dev libbenchmark-dev
   iproute2 util-linux
+  # lidartag tag/render: Cairo (PDF, SVG, PNG); the tests rasterise with poppler and librsvg;
+  # man pages by help2man at build time
+  libcairo2-dev libfontconfig-dev zlib1g-dev poppler-utils librsvg2-bin help2man
+  # bash completion: generated from --help by tools/scripts/bash_completion.py
+  python3
   # bench_accuracy: the plot docs/accuracy.png
   gnuplot-nox
   # lidartagd: LCM type jar and lcm-spy (Java 17), the lcm-spy screenshot under Xvfb, systemd-analyze

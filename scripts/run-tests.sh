@@ -21,7 +21,7 @@ if [ "${1:-}" != "--no-sanitizers" ]; then
   cmake --build build-tsan -j "$jobs" --target test_scan_buffer
   TSAN_OPTIONS="halt_on_error=1" timeout 600 build-tsan/bin/test_scan_buffer
 
-  echo "== AddressSanitizer + UndefinedBehaviorSanitizer: driver, I/O, simulator, detector, daemon setup =="
+  echo "== AddressSanitizer + UndefinedBehaviorSanitizer: driver, I/O, simulator, detector, daemon setup, tool =="
   cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLIDARTAG_SANITIZE=address \
     -DLIDARTAG_BUILD_BENCHMARKS=OFF
   targets="test_driver_core test_driver_captures test_scan_buffer test_pcap_writer test_pcap_source
@@ -29,11 +29,14 @@ if [ "${1:-}" != "--no-sanitizers" ]; then
     test_capture_mutation"
   # The daemon's configuration parsing, LCM URL/log/bus, recorder and setup checks.
   targets="$targets test_daemon_config test_daemon_setup"
+  # The lidartag tool's drawing (tag, render), run as a user would (they build the tool).
+  targets="$targets test_cli_tag test_cli_render"
   # The detector's unit tests, one target per stage (*_test).
   targets="$targets $(cmake --build build-asan --target help | sed -n 's/^\([a-z_]*_test\):.*/\1/p' | sort -u | tr '\n' ' ')"
   cmake --build build-asan -j "$jobs" --target $targets
   for t in $targets; do
     echo "-- $t"
-    ASAN_OPTIONS="detect_leaks=1" UBSAN_OPTIONS="print_stacktrace=1" timeout 900 "build-asan/bin/$t"
+    ASAN_OPTIONS="detect_leaks=1" UBSAN_OPTIONS="print_stacktrace=1" \
+      LSAN_OPTIONS="suppressions=$PWD/test/tools/lsan.supp" timeout 900 "build-asan/bin/$t"
   done
 fi

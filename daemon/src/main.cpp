@@ -18,6 +18,7 @@
 #include "lidartag/daemon/daemon.hpp"
 #include "lidartag/daemon/logging.hpp"
 #include "lidartag/daemon/setup_checks.hpp"
+#include "lidartag/version.hpp"
 
 namespace {
 
@@ -98,6 +99,8 @@ int main(int argc, char** argv) {
       "lidartagd: LiDARTag detection daemon. Receives Velodyne packets (live UDP, interface "
       "capture, pcap or LCM log replay), detects LiDARTags in every rotation and publishes them "
       "on LCM. See docs/daemon.md."};
+  app.set_version_flag("--version", std::string("lidartagd ") + lidartag::kVersionString,
+                       "Print the version and exit");
   app.add_option("-c,--config", a.config, "Configuration file (YAML; see config/lidartagd.yaml)");
   app.add_option("--set", a.set,
                  "Override one setting: KEY=VALUE (YAML value), repeatable, e.g. "

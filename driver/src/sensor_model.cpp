@@ -2,7 +2,10 @@
 
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <cmath>
+#include <string>
+#include <utility>
 
 namespace lidartag::velodyne {
 namespace {
@@ -184,9 +187,29 @@ std::span<const Model> all_models() {
   return kAllModels;
 }
 
+namespace {
+// Lower case without '-', '_', '.' and spaces: "VLP-32C", "vlp_32c" and "vlp32c" are one name.
+std::string fold_name(std::string_view name) {
+  std::string out;
+  for (const char c : name) {
+    if (c == '-' || c == '_' || c == '.' || c == ' ') continue;
+    out += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  }
+  return out;
+}
+// Velodyne's product names besides the model numbers, folded.
+constexpr std::pair<std::string_view, Model> kAliases[] = {{"puck", Model::kVLP16},
+                                                           {"pucklite", Model::kVLP16},
+                                                           {"ultrapuck", Model::kVLP32C},
+                                                           {"alphaprime", Model::kVLS128}};
+}  // namespace
+
 std::optional<Model> model_from_name(std::string_view name) {
+  const std::string folded = fold_name(name);
   for (const auto& s : kModels)
-    if (s.name == name) return s.model;
+    if (fold_name(s.name) == folded) return s.model;
+  for (const auto& [alias, model] : kAliases)
+    if (alias == folded) return model;
   return std::nullopt;
 }
 

@@ -18,6 +18,24 @@ TEST(SensorModel, EveryModelHasAFullLaserTableAndAName) {
   EXPECT_EQ(model_names(), "vlp16, puck-hires, vlp32c, hdl32e, vls128");
 }
 
+TEST(SensorModel, NamesAreCaseInsensitiveAndIgnorePunctuation) {
+  EXPECT_EQ(model_from_name("VLP32C"), Model::kVLP32C);
+  EXPECT_EQ(model_from_name("VLP-32C"), Model::kVLP32C);
+  EXPECT_EQ(model_from_name("vlp_32c"), Model::kVLP32C);
+  EXPECT_EQ(model_from_name("Puck Hi-Res"), Model::kPuckHiRes);
+  EXPECT_EQ(model_from_name("PUCKHIRES"), Model::kPuckHiRes);
+  EXPECT_EQ(model_from_name("HDL-32E"), Model::kHDL32E);
+  EXPECT_EQ(model_from_name("VLS-128"), Model::kVLS128);
+  EXPECT_EQ(model_from_name("Alpha Prime"), Model::kVLS128);
+  EXPECT_EQ(model_from_name("Ultra Puck"), Model::kVLP32C);
+  EXPECT_EQ(model_from_name("puck"), Model::kVLP16);
+  EXPECT_EQ(model_from_name("Puck LITE"), Model::kVLP16);
+  EXPECT_FALSE(model_from_name("").has_value());
+  EXPECT_FALSE(model_from_name("-").has_value());
+  EXPECT_FALSE(model_from_name("vlp32").has_value());
+  EXPECT_FALSE(model_from_name("hdl64e").has_value());
+}
+
 TEST(SensorModel, RingsArePermutationsInElevationOrder) {
   for (Model m : all_models()) {
     const ModelSpec& s = model_spec(m);

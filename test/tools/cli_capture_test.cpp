@@ -166,7 +166,7 @@ TEST(CliDump, PartialAlsoWritesTheIncompleteRotations) {
   EXPECT_EQ(points, j["rotations"]["points"].get<size_t>());
 }
 
-TEST(CliErrors, UsageErrorsExitTwoSetupErrorsExitOne) {
+TEST(CliErrors, UsageAndConfigurationErrorsExitTwoRuntimeErrorsExitOne) {
   EXPECT_EQ(run_tool("").exit_code, 2);
   EXPECT_EQ(run_tool("no-such-command").exit_code, 2);
   EXPECT_EQ(run_tool("info /nonexistent-lidartag/x.pcap").exit_code, 2);
@@ -187,7 +187,7 @@ TEST(CliErrors, UsageErrorsExitTwoSetupErrorsExitOne) {
   }
   const Result bad_calibration =
       run_tool("info --model vlp16 --calibration " + yaml + " " + capture);
-  EXPECT_EQ(bad_calibration.exit_code, 1);
+  EXPECT_EQ(bad_calibration.exit_code, 2);  // a configuration file
   EXPECT_EQ(bad_calibration.out.rfind("lidartag: error: calibration file '" + yaml, 0), 0u)
       << bad_calibration.out;
   const Result not_pcap = run_tool("info " + yaml);

@@ -137,7 +137,7 @@ TEST(CliDetect, ConfigFileSetsTheDetector) {
   ASSERT_EQ(good.exit_code, 0) << good.out;
   EXPECT_NE(good.out.find("tag16h5 id 0 in 10, tag16h5 id 1 in 10"), std::string::npos) << good.out;
   const Result bad = run_tool("detect " + kDemo + " --config " + (dir / "bad.yaml").string());
-  EXPECT_EQ(bad.exit_code, 1);
+  EXPECT_EQ(bad.exit_code, 2);  // a configuration error, as lidartagd's
   EXPECT_NE(bad.out.find("detector.features.zeta"), std::string::npos) << bad.out;
 }
 
@@ -365,7 +365,7 @@ TEST(CliDetect, RandomlyDamagedPcdFilesNeverCrashTheTool) {
 TEST(CliDetect, BadArgumentsAreUsageErrors) {
   EXPECT_EQ(run_tool("detect " + kDemo + " --tag-size -1").exit_code, 2);
   const Result r = run_tool("detect " + kDemo + " --family tag99h1");
-  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.out.find("tag99h1"), std::string::npos) << r.out;
 }
 

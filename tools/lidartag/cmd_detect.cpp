@@ -3,7 +3,6 @@
 // a table by default, one JSON object per rotation with --json.
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -25,6 +24,7 @@
 #include "lidartag/driver/io/capture_reader.hpp"
 #include "lidartag/driver/io/errors.hpp"
 #include "lidartag/driver/io/pcd.hpp"
+#include "lidartag/progress.hpp"
 #ifdef LIDARTAG_HAVE_CONFIG
 #include "lidartag/daemon/config.hpp"
 #endif
@@ -61,90 +61,6 @@ det::DetectorOptions detector_options(const DetectArgs& args) {
   return options;
 }
 
-bool is_pcd(const std::string& path) {
-  std::string ext = std::filesystem::path(path).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(),
-                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  return ext == ".pcd";
-}
-
-// A PCD file as one scan (detector/cloud_scan.hpp): organised dumps keep their cells, other clouds
-// are binned by azimuth, rings come from a `ring` field or are regressed from the elevations (the
-// --model's beam table, or --rings beams estimated from the cloud). The stamp and the rotation's
-// other fields come from the header comments `lidartag dump` writes.
-void load_pcd_scan(const DetectArgs& args, Scan& scan) {
-  const std::string& path = args.capture.capture;
-  const velodyne::PcdCloud pcd = velodyne::read_pcd(path);
-  auto column = [&](const char* name) {
-    return pcd.has(name) ? std::span<const double>(pcd.field(name)) : std::span<const double>();
-  };
-  det::CloudFields fields;
-  for (const char* axis : {"x", "y", "z"})
-    if (!pcd.has(axis)) throw velodyne::IoError(path + ": no '" + axis + "' field");
-  fields.x = column("x");
-  fields.y = column("y");
-  fields.z = column("z");
-  fields.intensity = column("intensity");
-  fields.ring = column("ring");
-  fields.azimuth_deg = column("azimuth");
-  fields.time_s = column("time");
-  fields.return_type = column("return_type");
-  fields.width = pcd.width;
-  fields.height = pcd.height;
-  det::CloudScanOptions options;
-  options.resolution_deg = args.resolution_deg;
-  const auto model =
-      args.capture.model.empty() ? std::nullopt : velodyne::model_from_name(args.capture.model);
-  if (model) {
-    options.rings = velodyne::model_spec(*model).lasers;
-    for (const auto& laser : velodyne::model_spec(*model).laser_table)
-      options.elevations_deg.push_back(laser.elevation_deg);
-  } else if (fields.ring.empty()) {
-    options.rings = args.rings;
-  }
-  det::CloudScanReport report;
-  try {
-    report = det::cloud_to_scan(fields, options, scan);
-  } catch (const det::CloudError& e) {
-    std::string hint;
-    if (fields.ring.empty() && !model && args.rings == 0) hint = " (--model or --rings N)";
-    throw velodyne::IoError(path + ": " + e.what() + hint);
-  }
-  velodyne::apply_pcd_rotation(pcd.rotation, scan);
-  if (report.skipped_coordinates > 0)
-    spdlog::warn("{}: {} points with infinite or out-of-range coordinates skipped", path,
-                 report.skipped_coordinates);
-  if (report.skipped_rings > 0)
-    spdlog::warn("{}: {} points with a ring that is not a whole number in 0..{} skipped", path,
-                 report.skipped_rings, scan.rings - 1);
-  if (report.intensity_scaled)
-    spdlog::warn("{}: every intensity is within [0, 1]: read as 0..1 and scaled to 0..255", path);
-}
-
-// "[#####.....]  45%" on stderr, redrawn in place; only when stderr is a terminal.
-class Progress {
- public:
-  explicit Progress(uintmax_t total_bytes) : total_(total_bytes), on_(::isatty(STDERR_FILENO)) {}
-  void update(uintmax_t done, size_t rotations) {
-    if (!on_ || total_ == 0) return;
-    const int pct = static_cast<int>(std::min<uintmax_t>(100, done * 100 / total_));
-    if (pct == last_) return;
-    last_ = pct;
-    const int filled = pct * 30 / 100;
-    std::fprintf(stderr, "\r[%s%s] %3d%%  %zu rotations", std::string(size_t(filled), '#').c_str(),
-                 std::string(size_t(30 - filled), '.').c_str(), pct, rotations);
-    std::fflush(stderr);
-  }
-  void done() {
-    if (on_ && last_ >= 0) std::fprintf(stderr, "\r%60s\r", "");
-  }
-
- private:
-  uintmax_t total_;
-  bool on_;
-  int last_ = -1;
-};
-
 nlohmann::json vec(const Eigen::Vector3d& v) {
   return nlohmann::json::array({v.x(), v.y(), v.z()});
 }
@@ -154,8 +70,9 @@ bool explained(const det::ClusterDiagnostic& c) {
   return c.rejection != det::Rejection::kFewFeatures;
 }
 
-nlohmann::json cluster_json(const det::ClusterDiagnostic& c) {
+nlohmann::json cluster_json(size_t index, const det::ClusterDiagnostic& c) {
   nlohmann::json o;
+  o["index"] = index;  // what `lidartag render --cluster` takes
   o["result"] = std::string(det::rejection_name(c.rejection));
   o["stage"] = std::string(det::rejection_stage(c.rejection));
   o["box"] = nlohmann::json::array({c.min_x, c.max_x, c.min_y, c.max_y});
@@ -207,8 +124,8 @@ nlohmann::json rotation_json(size_t n, const Scan& scan, const det::ScanResult& 
   j["rejected"] = rejected;
   if (!r.diagnostics.empty()) {
     nlohmann::json clusters = nlohmann::json::array();
-    for (const auto& c : r.diagnostics)
-      if (explained(c)) clusters.push_back(cluster_json(c));
+    for (size_t i = 0; i < r.diagnostics.size(); ++i)
+      if (explained(r.diagnostics[i])) clusters.push_back(cluster_json(i, r.diagnostics[i]));
     j["cluster_diagnostics"] = clusters;
   }
   return j;
@@ -229,12 +146,13 @@ void print_rotation(size_t n, const Scan& scan, const det::ScanResult& r) {
         d.family, d.id, d.size_m, d.position.x(), d.position.y(), d.position.z(), q.w(), q.x(),
         q.y(), q.z(), d.score, d.margin, d.points);
   }
-  for (const auto& c : r.diagnostics) {
+  for (size_t i = 0; i < r.diagnostics.size(); ++i) {
+    const auto& c = r.diagnostics[i];
     if (!explained(c)) continue;
     fmt::print(
-        "  cluster x [{:.2f}, {:.2f}] y [{:.2f}, {:.2f}] rings {}-{}: {} features, {} points, "
+        "  cluster {} x [{:.2f}, {:.2f}] y [{:.2f}, {:.2f}] rings {}-{}: {} features, {} points, "
         "{} boundary",
-        c.min_x, c.max_x, c.min_y, c.max_y, c.min_ring, c.max_ring, c.features, c.points,
+        i, c.min_x, c.max_x, c.min_y, c.max_y, c.min_ring, c.max_ring, c.features, c.points,
         c.boundary_points);
     if (c.outlier_ratio >= 0) fmt::print(", outliers {:.2f}", c.outlier_ratio);
     if (c.side_m >= 0) fmt::print(", side {:.3f} m", c.side_m);
@@ -247,6 +165,7 @@ void print_rotation(size_t n, const Scan& scan, const det::ScanResult& r) {
 
 struct Totals {
   size_t rotations = 0;
+  size_t skipped = 0;  // incomplete rotations left out (no --partial)
   std::map<std::pair<std::string, int>, size_t> found;
   std::array<double, det::kStageCount> ms{};
   std::array<uint64_t, det::kRejectionCount> rejected{};
@@ -267,6 +186,9 @@ struct Totals {
       fmt::print("{} {} id {} in {}", it == found.begin() ? ":" : ",", it->first.first,
                  it->first.second, it->second);
     if (!found.empty()) fmt::print(" rotations\n");
+    if (skipped > 0)
+      fmt::print("skipped {} incomplete rotation{} (--partial detects in them)\n", skipped,
+                 skipped == 1 ? "" : "s");
     if (rotations == 0) return;
     const auto n = static_cast<double>(rotations);
     double total = 0.0;
@@ -305,7 +227,7 @@ int run_detect(const DetectArgs& args) {
 
   if (is_pcd(args.capture.capture)) {
     Scan scan;
-    load_pcd_scan(args, scan);
+    load_pcd_scan(args.capture, args.rings, args.resolution_deg, scan);
     report(0, scan);
   } else {
     velodyne::CaptureReader reader(args.capture.capture, reader_options(args.capture));
@@ -313,13 +235,18 @@ int run_detect(const DetectArgs& args) {
     Progress progress(std::filesystem::file_size(args.capture.capture, ec));
     size_t n = 0;
     while (const Scan* scan = reader.next()) {
-      if (scan->complete || args.partial) report(n++, *scan);
-      // Pcap records: 16 bytes of record header and 42 of Ethernet/IPv4/UDP per packet.
-      const auto s = reader.source_stats();
-      progress.update(s.bytes + 58 * (s.packets + s.ignored), n);
+      if (scan->complete || args.partial) {
+        report(n++, *scan);
+      } else {
+        ++totals.skipped;
+      }
+      progress.update(capture_bytes_read(reader), fmt::format("{} rotations", n));
     }
     progress.done();
     warn_model_mismatch(reader, args.capture);
+    if (!args.json) totals.print();
+    require_rotations(reader, args.capture, n, totals.skipped, "detects in them");
+    return 0;
   }
   if (!args.json) totals.print();
   return 0;
@@ -342,7 +269,8 @@ const Registrar kDetect(
           ->check(CLI::PositiveNumber);
       app.add_option("--family", args->families,
                      "Tag family (tag16h5, tag25h9, tag36h10, tag36h11, tag16h6 or "
-                     "FILE.json[:NAME]); repeat for several (default tag16h5, or the config's)");
+                     "FILE.json[:NAME]); repeat for several (default tag16h5, or the config's)")
+          ->type_name("FAMILY");
       app.add_flag("--clusters", args->clusters,
                    "Explain every cluster with enough features to be a tag: what each stage "
                    "measured and why it was dropped");

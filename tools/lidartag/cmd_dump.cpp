@@ -1,35 +1,78 @@
-// `lidartag dump CAPTURE --out DIR [--organized]`: one binary PCD per rotation, its stamp in the
-// header (pcd.hpp).
+// `lidartag dump CAPTURE --out DIR [--organized] [--force]`: one binary PCD per rotation, its
+// stamp in the header (pcd.hpp).
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include <filesystem>
 #include <memory>
+#include <regex>
 #include <string>
+#include <system_error>
 
 #include "lidartag/commands.hpp"
 #include "lidartag/common.hpp"
 #include "lidartag/driver/io/capture_reader.hpp"
 #include "lidartag/driver/io/errors.hpp"
 #include "lidartag/driver/io/pcd.hpp"
+#include "lidartag/exit_codes.hpp"
+#include "lidartag/progress.hpp"
 
 namespace lidartag::cli {
 namespace {
+
+namespace fs = std::filesystem;
 
 struct DumpArgs {
   CaptureArgs capture;
   std::string out;
   bool partial = false;
   bool organized = false;
+  bool force = false;
 };
 
-int run_dump(const DumpArgs& args) {
+// The files dump writes: scan_NNNNNN.pcd (six digits or more).
+bool is_dump_file(const fs::path& p) {
+  static const std::regex pattern(R"(scan_[0-9]{6,}\.pcd)");
+  return std::regex_match(p.filename().string(), pattern);
+}
+
+// An existing folder must be empty, so that old rotations never mix with new ones; --force removes
+// the files a dump writes (by name) and leaves everything else alone.
+void prepare_output(const DumpArgs& args) {
   std::error_code ec;
-  std::filesystem::create_directories(args.out, ec);
-  if (ec || !std::filesystem::is_directory(args.out)) {
+  if (fs::exists(args.out, ec) && fs::is_directory(args.out, ec)) {
+    size_t ours = 0, others = 0;
+    for (const auto& entry : fs::directory_iterator(args.out, ec))
+      ++(entry.is_regular_file(ec) && is_dump_file(entry.path()) ? ours : others);
+    if (ec) throw velodyne::IoError("cannot list '" + args.out + "': " + ec.message());
+    if (ours + others > 0 && !args.force) {
+      throw UsageError(fmt::format(
+          "output folder '{}' is not empty ({} scan_*.pcd file{}, {} other entr{}); choose an "
+          "empty or new folder, or --force to delete its scan_*.pcd files first",
+          args.out, ours, ours == 1 ? "" : "s", others, others == 1 ? "y" : "ies"));
+    }
+    if (ours > 0) {
+      for (const auto& entry : fs::directory_iterator(args.out, ec)) {
+        if (!entry.is_regular_file(ec) || !is_dump_file(entry.path())) continue;
+        if (!fs::remove(entry.path(), ec) || ec)
+          throw velodyne::IoError("cannot remove '" + entry.path().string() +
+                                  "': " + (ec ? ec.message() : "not removed"));
+      }
+      spdlog::info("removed {} scan_*.pcd file{} from {}", ours, ours == 1 ? "" : "s", args.out);
+    }
+  }
+  fs::create_directories(args.out, ec);
+  if (ec || !fs::is_directory(args.out)) {
     throw velodyne::IoError("cannot create output directory '" + args.out + "'" +
                             (ec ? ": " + ec.message() : std::string()));
   }
+}
+
+int run_dump(const DumpArgs& args) {
   velodyne::CaptureReader reader(args.capture.capture, reader_options(args.capture));
+  prepare_output(args);
+  std::error_code ec;
+  Progress progress(fs::file_size(args.capture.capture, ec));
   size_t written = 0, skipped = 0, points = 0;
   while (const Scan* scan = reader.next()) {
     if (!scan->complete && !args.partial) {
@@ -37,14 +80,17 @@ int run_dump(const DumpArgs& args) {
       continue;
     }
     const std::string path =
-        (std::filesystem::path(args.out) / fmt::format("scan_{:06d}.pcd", written)).string();
+        (fs::path(args.out) / fmt::format("scan_{:06d}.pcd", written)).string();
     points += velodyne::write_pcd(path, *scan, {velodyne::PcdFormat::kBinary, args.organized});
     ++written;
+    progress.update(capture_bytes_read(reader), fmt::format("{} files", written));
   }
+  progress.done();
   warn_model_mismatch(reader, args.capture);
   fmt::print("wrote {} PCD files ({} points) to {}", written, points, args.out);
   if (skipped > 0) fmt::print("; skipped {} incomplete rotations (--partial keeps them)", skipped);
   fmt::print("\n");
+  require_rotations(reader, args.capture, written, skipped, "writes them");
   return 0;
 }
 
@@ -53,12 +99,18 @@ const Registrar kDump(
     [](CLI::App& app) -> RunFunction {
       auto args = std::make_shared<DumpArgs>();
       add_capture_options(app, args->capture);
-      app.add_option("--out", args->out, "Output directory (created)")->required();
+      app.add_option("--out", args->out,
+                     "Output directory (created; must be empty unless --force): scan_000000.pcd, "
+                     "scan_000001.pcd, ...")
+          ->required();
       app.add_flag("--partial", args->partial,
                    "Also write incomplete rotations (first, last, lossy)");
       app.add_flag("--organized", args->organized,
                    "Organised clouds as PCL expects: WIDTH = columns, HEIGHT = rings (x returns), "
                    "NaN where a laser had no return");
+      app.add_flag("--force", args->force,
+                   "Write into a non-empty directory: its scan_*.pcd files are deleted first, "
+                   "other files are kept");
       return [args] { return run_dump(*args); };
     });
 

@@ -2,12 +2,14 @@
 // the capture a real Velodyne would record of the scene, and its ground truth (docs/simulator.md).
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <memory>
 #include <optional>
 #include <string>
 
 #include "lidartag/commands.hpp"
 #include "lidartag/driver/io/pcap_writer.hpp"
+#include "lidartag/progress.hpp"
 #include "lidartag/sim/simulator.hpp"
 
 namespace lidartag::cli {
@@ -28,12 +30,25 @@ int run_sim(const SimArgs& args) {
   sim::Simulator simulator(std::move(scene));
   velodyne::PcapWriter writer(args.out);
   sim::RunStats stats;
+  // Progress by the packets' time: `rotations` periods from the scene's start time.
+  const auto& so = simulator.scene().sensor;
+  const double period_ns = 60e9 / so.rpm;
+  const auto start_ns = static_cast<int64_t>(so.start_time_s * 1e9);
+  Progress progress(static_cast<uint64_t>(period_ns * rotations));
   const sim::Truth truth = simulator.run(
       rotations, seed,
       [&](std::span<const uint8_t> payload, int64_t time_ns, uint16_t port) {
         writer.write_udp(payload, time_ns, port);
+        if (progress.on() && time_ns > start_ns) {
+          const auto done = static_cast<uint64_t>(time_ns - start_ns);
+          progress.update(
+              done, fmt::format("rotation {} of {}",
+                                std::min<int64_t>(rotations, int64_t(double(done) / period_ns) + 1),
+                                rotations));
+        }
       },
       &stats);
+  progress.done();
   writer.close();
   if (!args.truth.empty()) sim::write_truth(truth, args.truth);
 

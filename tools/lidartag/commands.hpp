@@ -10,7 +10,8 @@
 //   });
 //   }
 //
-// The run function may throw on setup errors; main prints "lidartag: error: <message>", exit 1.
+// The run function may throw on setup errors; main prints "lidartag: error: <message>" and exits
+// with the status of exit_codes.hpp (2 for usage and configuration errors, 1 for the rest).
 #pragma once
 
 #include <functional>

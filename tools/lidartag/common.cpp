@@ -1,7 +1,18 @@
 #include "lidartag/common.hpp"
 
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+#include <cctype>
+#include <filesystem>
+#include <optional>
+#include <span>
+#include <stdexcept>
+
+#include "lidartag/detector/cloud_scan.hpp"
+#include "lidartag/driver/io/errors.hpp"
+#include "lidartag/driver/io/pcd.hpp"
 #include "lidartag/driver/io/udp_frame.hpp"
 
 namespace lidartag::cli {
@@ -11,13 +22,17 @@ void add_capture_options(CLI::App& app, CaptureArgs& args) {
       ->required()
       ->check(CLI::ExistingFile);
   const std::string names = velodyne::model_names();
-  app.add_option("--model", args.model, "Decode as this model (" + names + ")")
+  std::string set = names;
+  set.erase(std::remove(set.begin(), set.end(), ' '), set.end());
+  app.add_option("--model", args.model,
+                 "Decode as this model (any case, '-' optional: VLP-32C; ultra-puck, "
+                 "alpha-prime, puck are names too)")
       ->check(CLI::Validator(
           [names](std::string& name) -> std::string {
             return velodyne::model_from_name(name) ? std::string()
                                                    : "unknown model '" + name + "' (" + names + ")";
           },
-          "MODEL"));
+          "{" + set + "}"));
   app.add_option("--calibration", args.calibration,
                  "Calibration file (ros-drivers YAML or VeloView XML)")
       ->check(CLI::ExistingFile);
@@ -51,6 +66,12 @@ velodyne::CaptureReaderOptions reader_options(const CaptureArgs& args) {
   return options;
 }
 
+uint64_t capture_bytes_read(const velodyne::CaptureReader& reader) {
+  // Pcap records: 16 bytes of record header and 42 of Ethernet/IPv4/UDP per packet.
+  const auto s = reader.source_stats();
+  return s.bytes + 58 * (s.packets + s.ignored);
+}
+
 void warn_model_mismatch(const velodyne::CaptureReader& reader, const CaptureArgs& args) {
   // Empty when the packets fit the model (a --model that the timing fits included).
   const std::string mismatch = reader.model_mismatch();
@@ -61,6 +82,81 @@ void warn_model_mismatch(const velodyne::CaptureReader& reader, const CaptureArg
   }
   spdlog::warn("{} (decoded as {}; use --model to override)", mismatch,
                reader.model() ? velodyne::model_spec(*reader.model()).name : "nothing");
+}
+
+void require_rotations(const velodyne::CaptureReader& reader, const CaptureArgs& args, size_t used,
+                       size_t skipped, const char* partial_effect) {
+  if (used > 0) return;
+  if (skipped > 0)
+    throw std::runtime_error(fmt::format(
+        "{}: no complete rotation, only {} incomplete one{} (a truncated or very short capture?); "
+        "--partial {}",
+        args.capture, skipped, skipped == 1 ? "" : "s", partial_effect));
+  const auto s = reader.source_stats();
+  throw std::runtime_error(fmt::format(
+      "{}: no rotation: {} data packets on port {}, {} decoded, {} other packets ignored (check "
+      "--data-port, --sensor, --model)",
+      args.capture, reader.counts().data_packets, args.data_port, reader.counts().decoded,
+      s.ignored));
+}
+
+bool is_pcd(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return ext == ".pcd";
+}
+
+// A PCD file as one scan (detector/cloud_scan.hpp): organised dumps keep their cells, other clouds
+// are binned by azimuth, rings come from a `ring` field or are regressed from the elevations (the
+// --model's beam table, or --rings beams estimated from the cloud). The stamp and the rotation's
+// other fields come from the header comments `lidartag dump` writes.
+void load_pcd_scan(const CaptureArgs& args, int rings, double resolution_deg, Scan& scan) {
+  const std::string& path = args.capture;
+  const velodyne::PcdCloud pcd = velodyne::read_pcd(path);
+  auto column = [&](const char* name) {
+    return pcd.has(name) ? std::span<const double>(pcd.field(name)) : std::span<const double>();
+  };
+  detector::CloudFields fields;
+  for (const char* axis : {"x", "y", "z"})
+    if (!pcd.has(axis)) throw velodyne::IoError(path + ": no '" + axis + "' field");
+  fields.x = column("x");
+  fields.y = column("y");
+  fields.z = column("z");
+  fields.intensity = column("intensity");
+  fields.ring = column("ring");
+  fields.azimuth_deg = column("azimuth");
+  fields.time_s = column("time");
+  fields.return_type = column("return_type");
+  fields.width = pcd.width;
+  fields.height = pcd.height;
+  detector::CloudScanOptions options;
+  options.resolution_deg = resolution_deg;
+  const auto model = args.model.empty() ? std::nullopt : velodyne::model_from_name(args.model);
+  if (model) {
+    options.rings = velodyne::model_spec(*model).lasers;
+    for (const auto& laser : velodyne::model_spec(*model).laser_table)
+      options.elevations_deg.push_back(laser.elevation_deg);
+  } else if (fields.ring.empty()) {
+    options.rings = rings;
+  }
+  detector::CloudScanReport report;
+  try {
+    report = detector::cloud_to_scan(fields, options, scan);
+  } catch (const detector::CloudError& e) {
+    std::string hint;
+    if (fields.ring.empty() && !model && rings == 0) hint = " (--model or --rings N)";
+    throw velodyne::IoError(path + ": " + e.what() + hint);
+  }
+  velodyne::apply_pcd_rotation(pcd.rotation, scan);
+  if (report.skipped_coordinates > 0)
+    spdlog::warn("{}: {} points with infinite or out-of-range coordinates skipped", path,
+                 report.skipped_coordinates);
+  if (report.skipped_rings > 0)
+    spdlog::warn("{}: {} points with a ring that is not a whole number in 0..{} skipped", path,
+                 report.skipped_rings, scan.rings - 1);
+  if (report.intensity_scaled)
+    spdlog::warn("{}: every intensity is within [0, 1]: read as 0..1 and scaled to 0..255", path);
 }
 
 }  // namespace lidartag::cli

@@ -1,11 +1,13 @@
-// Options and helpers shared by the capture subcommands (info, dump, and later detect).
+// Options and helpers shared by the capture subcommands (info, dump, detect, render).
 #pragma once
 
+#include <cstddef>
 #include <optional>
 #include <string>
 
 #include "lidartag/cli11.hpp"
 #include "lidartag/driver/io/capture_reader.hpp"
+#include "lidartag/driver/scan.hpp"
 #include "lidartag/driver/sensor_model.hpp"
 
 namespace lidartag::cli {
@@ -27,7 +29,27 @@ void add_capture_options(CLI::App& app, CaptureArgs& args);
 // The reader options for `args` (names already validated by CLI11).
 velodyne::CaptureReaderOptions reader_options(const CaptureArgs& args);
 
-// Warns on stderr when the product byte contradicts the timing and no model was given.
+// Bytes of the capture file read so far, for a progress bar (pcap record and UDP/IP headers
+// estimated).
+uint64_t capture_bytes_read(const velodyne::CaptureReader& reader);
+
+// Warns on stderr when the product byte contradicts the timing, or when the packets' timing
+// contradicts an explicit --model.
 void warn_model_mismatch(const velodyne::CaptureReader& reader, const CaptureArgs& args);
+
+// Throws (exit 1) when a capture gave nothing to work on: `used` rotations were used and
+// `skipped` incomplete ones left out. The message names --partial (`partial_effect`: what it does
+// for this command, e.g. "detects in them") or, without any rotation, the packet counts.
+void require_rotations(const velodyne::CaptureReader& reader, const CaptureArgs& args, size_t used,
+                       size_t skipped, const char* partial_effect);
+
+// Whether `path` names a PCD file (by its extension, any case).
+bool is_pcd(const std::string& path);
+
+// A PCD file (`args.capture`) as one scan, for detect and render (detector/cloud_scan.hpp):
+// organised dumps keep their cells, other clouds are binned by azimuth (`resolution_deg`); rings
+// come from a `ring` field or are regressed from the elevations (--model's beam table, or `rings`
+// beams estimated from the cloud). Throws velodyne::IoError naming the file.
+void load_pcd_scan(const CaptureArgs& args, int rings, double resolution_deg, Scan& scan);
 
 }  // namespace lidartag::cli

@@ -1,22 +1,35 @@
 // lidartag: the project's command-line tool. Subcommands register themselves (commands.hpp).
+// Standard output carries only results; logs, warnings, errors and progress go to standard error.
+// Exit status: exit_codes.hpp (0 ok, 1 runtime failure, 2 usage or configuration).
+#include <spdlog/sinks/stdout_color_sinks.h>  // also declares stderr_color_mt
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <cstdio>
 #include <exception>
+#include <string>
 
 #include "lidartag/cli11.hpp"
 #include "lidartag/commands.hpp"
+#include "lidartag/exit_codes.hpp"
+#include "lidartag/version.hpp"
 
 int main(int argc, char** argv) {
+  namespace cli = lidartag::cli;
+  // spdlog's default logger writes to standard output, where it would break --json.
+  auto log = spdlog::stderr_color_mt("lidartag");
+  spdlog::set_default_logger(log);
   spdlog::set_pattern("lidartag: %l: %v");
-  CLI::App app{"lidartag: Velodyne driver and LiDARTag tools"};
-  app.require_subcommand(1);
 
-  auto commands = lidartag::cli::registry();
+  CLI::App app{"lidartag: Velodyne driver and LiDARTag tools", "lidartag"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", std::string("lidartag ") + lidartag::kVersionString,
+                       "Print the version and exit");
+
+  auto commands = cli::registry();
   std::sort(commands.begin(), commands.end(),
             [](const auto& a, const auto& b) { return a.name < b.name; });
-  std::vector<std::pair<CLI::App*, lidartag::cli::RunFunction>> runs;
+  std::vector<std::pair<CLI::App*, cli::RunFunction>> runs;
   for (const auto& command : commands) {
     CLI::App* sub = app.add_subcommand(command.name, command.description);
     runs.emplace_back(sub, command.setup(*sub));
@@ -26,16 +39,17 @@ int main(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     // Help and version exit 0; every usage error exits 2.
-    return app.exit(e) == 0 ? 0 : 2;
+    return app.exit(e) == 0 ? cli::kExitOk : cli::kExitUsage;
   }
   for (auto& [sub, run] : runs) {
     if (!sub->parsed()) continue;
     try {
       return run();
     } catch (const std::exception& e) {
+      spdlog::default_logger()->flush();
       std::fprintf(stderr, "lidartag: error: %s\n", e.what());
-      return 1;
+      return cli::exit_code_of(e);
     }
   }
-  return 2;  // unreachable: a subcommand is required
+  return cli::kExitUsage;  // unreachable: a subcommand is required
 }

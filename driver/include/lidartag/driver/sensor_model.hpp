@@ -52,6 +52,9 @@ struct ModelSpec {
 
 const ModelSpec& model_spec(Model model);
 std::span<const Model> all_models();
+// The model of a name, case-insensitive and ignoring '-', '_', '.' and spaces ("VLP-32C",
+// "vlp_32c", "Puck Hi-Res"); Velodyne's product names puck, puck-lite (VLP-16), ultra-puck
+// (VLP-32C) and alpha-prime (VLS-128) too.
 std::optional<Model> model_from_name(std::string_view name);
 std::optional<Model> model_from_product_id(uint8_t id);
 std::string_view return_mode_name(ReturnMode mode);
