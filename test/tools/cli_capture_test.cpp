@@ -118,9 +118,11 @@ TEST(CliInfo, GivenModelContradictingTheTimingIsShown) {
   const Result r = run_tool("info --model vlp32c " + capture);
   ASSERT_EQ(r.exit_code, 0) << r.out;
   EXPECT_NE(r.out.find("model:          vlp32c (from --model)"), std::string::npos) << r.out;
-  EXPECT_NE(r.out.find("MISMATCH:     --model vlp32c but the packet timing fits vlp16"),
+  EXPECT_NE(r.out.find("MISMATCH:     configured model vlp32c but the packets' product byte and "
+                       "timing (1327 us per packet) fit vlp16"),
             std::string::npos)
       << r.out;
+  EXPECT_EQ(r.out.find("MISMATCH"), r.out.rfind("MISMATCH")) << "reported once: " << r.out;
 }
 
 TEST(CliDump, WritesOnePcdPerCompleteRotation) {

@@ -111,9 +111,9 @@ int run_info(const InfoArgs& args) {
   fmt::print("model:          {} (from {})\n", model, model_from);
   fmt::print("model check:    product byte {}, packet timing {} ({:.1f} us per packet)\n", product,
              timing, check.median_packet_period_us());
+  // The reader reports a product byte the timing contradicts, a configured model the packets
+  // contradict, and a model change mid-stream.
   if (!reader.model_mismatch().empty()) fmt::print("  MISMATCH:     {}\n", reader.model_mismatch());
-  if (!args.capture.model.empty() && check.timing_model() && check.timing_model() != reader.model())
-    fmt::print("  MISMATCH:     --model {} but the packet timing fits {}\n", model, timing);
   fmt::print("return mode:    {}\n", mode);
   fmt::print("rotation rate:  {:.1f} rpm (mean of {} rotations)\n", rpm,
              complete > 0 ? "complete" : "partial");

@@ -40,9 +40,23 @@ BatcherStats CaptureReader::batcher_stats() const {
 
 std::string CaptureReader::model_mismatch() const {
   if (!stream_mismatch_.empty()) return stream_mismatch_;
-  // A configured model that the timing fits settles a product byte that says otherwise.
-  if (options_.model && check_.timing_model() == options_.model) return {};
+  if (options_.model) {
+    // A configured model that the timing fits settles a product byte that says otherwise; one the
+    // timing contradicts is reported as soon as the timing is known (a short capture never
+    // reaches the mid-stream watch).
+    const std::optional<Model> fits = check_.timing_model();
+    if (!fits || *fits == *options_.model) return {};
+    return configured_mismatch(*fits, check_.median_packet_period_us());
+  }
   return check_.mismatch();
+}
+
+std::string CaptureReader::configured_mismatch(Model fits, double period_us) const {
+  return std::string(options_.model ? "configured model " : "calibration file's model ") +
+         std::string(model_spec(model_ ? *model_ : fits).name) +
+         " but the packets' product byte and timing (" +
+         std::to_string(static_cast<int>(period_us)) + " us per packet) fit " +
+         std::string(model_spec(fits).name);
 }
 
 void CaptureReader::watch_model(std::span<const uint8_t> payload) {
@@ -64,11 +78,7 @@ void CaptureReader::watch_model(std::span<const uint8_t> payload) {
   const std::string now(model_spec(*model_).name), seen(model_spec(*fits).name);
   if (options_.model || !options_.calibration_file.empty()) {
     // Configured: decode as told, but say so (once; the counter keeps counting).
-    if (stream_mismatch_.empty())
-      stream_mismatch_ =
-          std::string(options_.model ? "configured model " : "calibration file's model ") + now +
-          " but the packets' product byte and timing (" +
-          std::to_string(static_cast<int>(period_us)) + " us per packet) fit " + seen;
+    if (stream_mismatch_.empty()) stream_mismatch_ = configured_mismatch(*fits, period_us);
     return;
   }
   stream_mismatch_ = "model changed mid-stream: " + now + " -> " + seen +

@@ -115,6 +115,8 @@ class CaptureReader {
   bool handle(std::span<const uint8_t> payload, int64_t time_ns, uint16_t port, Scan& scan);
   void decide();
   // Per data packet after the decision: checks that the packets still fit the model in use.
+  // "configured model X but the packets' ... fit Y" (or the calibration file's model).
+  std::string configured_mismatch(Model fits, double period_us) const;
   void watch_model(std::span<const uint8_t> payload);
   // Decodes as `model` from now on (what was assembled with the old one is delivered first).
   void switch_model(Model model);
