@@ -26,10 +26,6 @@ sigset_t handled_signals() {
   return set;
 }
 
-int64_t to_ns(double seconds) {
-  return static_cast<int64_t>(seconds * 1e9);
-}
-
 }  // namespace
 
 void block_signals() {
@@ -42,14 +38,16 @@ Daemon::Daemon(DaemonOptions options, RunOptions run, Logging* logging)
   workers_ = options_.pipeline.worker_threads > 0
                  ? options_.pipeline.worker_threads
                  : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
-  // The arena's threads are all workers (no slot kept for a master thread: nobody joins it), and
-  // the global limit must allow that many beside the main thread.
+  // `workers` worker threads, and one slot reserved for each sensor's pipeline thread, whose first
+  // stage sleeps while no rotation waits (a sleeping stage holds its thread: the workers still
+  // detect). The global limit must allow that many workers beside the main thread.
+  const auto sensors = static_cast<int>(options_.sensors.size());
   const auto limit = static_cast<size_t>(workers_ + 1);
   threads_ = std::make_unique<tbb::global_control>(
       tbb::global_control::max_allowed_parallelism,
       std::max(limit,
                tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)));
-  arena_ = std::make_unique<tbb::task_arena>(workers_, 0);
+  arena_ = std::make_unique<tbb::task_arena>(workers_ + sensors, sensors);
   bus_ = std::make_unique<LcmBus>(options_.lcm.url);
   if (!options_.record_pcap.empty()) {
     recorder_ = std::make_unique<PcapRecorder>(options_.record_pcap);
@@ -58,8 +56,9 @@ Daemon::Daemon(DaemonOptions options, RunOptions run, Logging* logging)
     printer_ = std::make_unique<LinePrinter>(run.print_detections);
   }
   for (const auto& sensor : options_.sensors) {
-    pipelines_.push_back(std::make_unique<SensorPipeline>(
-        sensor, options_, *bus_, *arena_, workers_, recorder_.get(), printer_.get()));
+    pipelines_.push_back(std::make_unique<SensorPipeline>(sensor, options_, *bus_, *arena_,
+                                                          workers_, recorder_.get(), printer_.get(),
+                                                          run.detect_hook));
   }
 }
 
@@ -68,20 +67,21 @@ Daemon::~Daemon() {
   for (auto& p : pipelines_) p->join();
 }
 
-bool Daemon::healthy() const {
+bool Daemon::progressing() const {
   const int64_t now = steady_ns();
-  const int64_t stall = to_ns(options_.watchdog.stall_timeout_s);
   return std::all_of(pipelines_.begin(), pipelines_.end(),
-                     [&](const auto& p) { return p->healthy(now, stall); });
+                     [&](const auto& p) { return p->progressing(now); });
 }
 
 std::string Daemon::summary() const {
   std::string text;
   for (const auto& s : last_status_) {
     if (!text.empty()) text += "; ";
-    text += fmt::format("{}: {} {} rotations published, {} dropped, {} tags, {}", s.sensor,
+    text += fmt::format("{}: {}{}{}, {} {} rotations published, {} dropped, {} tags", s.sensor,
+                        health_state_name(s.health.state), s.health.reason.empty() ? "" : " (",
+                        s.health.reason.empty() ? "" : s.health.reason + ")",
                         s.model.empty() ? "(model unknown)" : s.model, s.rotations_published,
-                        s.rotations_dropped, s.detections, s.healthy ? "healthy" : "UNHEALTHY");
+                        s.rotations_dropped, s.detections);
   }
   return text;
 }
@@ -91,7 +91,7 @@ void Daemon::publish_status(bool final) {
   const double uptime = static_cast<double>(now - started_ns_) * 1e-9;
   last_status_.clear();
   for (auto& p : pipelines_) {
-    SensorStatus s = p->status(now, to_ns(options_.watchdog.stall_timeout_s));
+    SensorStatus s = p->status(now);
     fill_status(s, wall_utime(), uptime, status_message_);
     bus_->publish(channel_of(p->sensor(), options_.lcm.channels.status), status_message_);
     last_status_.push_back(std::move(s));
@@ -122,24 +122,31 @@ int Daemon::run() {
       std::chrono::duration<double>(options_.status.period_s));
   const auto ping = notifier_.ping_interval();
   if (ping) {
-    spdlog::info("systemd watchdog: pinging every {} ms while healthy",
+    spdlog::info("systemd watchdog: pinging every {} ms while every sensor progresses",
                  std::chrono::duration_cast<std::chrono::milliseconds>(*ping).count());
   }
   auto next_status = Clock::now() + status_period;
   auto next_ping = Clock::now();
-  bool was_healthy = true;
+  bool was_progressing = true;
   const sigset_t signals = handled_signals();
   int stop_signal = 0;
 
   for (;;) {
     const auto now = Clock::now();
     if (ping && now >= next_ping) {
-      const bool ok = healthy();
+      // Fed only by progress: a stuck pipeline, or a sensor silent past the grace, lets
+      // WatchdogSec run out and systemd restart the daemon.
+      const bool ok = progressing();
       if (ok) notifier_.watchdog();
-      if (ok != was_healthy) {
-        spdlog::warn("pipeline {}", ok ? "healthy again" : "stalled: watchdog pings suspended");
+      if (ok != was_progressing) {
+        if (ok) {
+          spdlog::warn("every sensor progresses again: watchdog pings resumed");
+        } else {
+          publish_status(false);  // says which sensor and why
+          spdlog::warn("no progress: watchdog pings suspended ({})", summary());
+        }
       }
-      was_healthy = ok;
+      was_progressing = ok;
       next_ping = now + *ping;
     }
     if (now >= next_status) {
