@@ -38,16 +38,14 @@ Daemon::Daemon(DaemonOptions options, RunOptions run, Logging* logging)
   workers_ = options_.pipeline.worker_threads > 0
                  ? options_.pipeline.worker_threads
                  : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
-  // `workers` worker threads, and one slot reserved for each sensor's pipeline thread, whose first
-  // stage sleeps while no rotation waits (a sleeping stage holds its thread: the workers still
-  // detect). The global limit must allow that many workers beside the main thread.
-  const auto sensors = static_cast<int>(options_.sensors.size());
+  // The arena's threads are all workers (no slot kept for a master thread: the receivers only
+  // hand tasks to it), and the global limit must allow that many beside the main thread.
   const auto limit = static_cast<size_t>(workers_ + 1);
   threads_ = std::make_unique<tbb::global_control>(
       tbb::global_control::max_allowed_parallelism,
       std::max(limit,
                tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)));
-  arena_ = std::make_unique<tbb::task_arena>(workers_ + sensors, sensors);
+  arena_ = std::make_unique<tbb::task_arena>(workers_, 0);
   bus_ = std::make_unique<LcmBus>(options_.lcm.url);
   if (!options_.record_pcap.empty()) {
     recorder_ = std::make_unique<PcapRecorder>(options_.record_pcap);

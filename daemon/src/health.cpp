@@ -80,12 +80,16 @@ void HealthMonitor::judge_window(const HealthSample& from, const HealthSample& t
   const uint64_t decoded = to.decoded - from.decoded;
   const uint64_t rotations = to.rotations - from.rotations;
   if (decoded > 0) {
-    const double per_second = static_cast<double>(rotations) / dt;
+    // Rotations per second of the sensor's own time (a replay runs at any speed; a loop seam
+    // sets the clock back: no verdict on that window).
+    const double sensor_dt = seconds(to.sensor_ns - from.sensor_ns);
+    const double per_second = sensor_dt > 0 ? static_cast<double>(rotations) / sensor_dt : 0.0;
     if (to.rpm > 0 && (to.rpm < options_.min_rpm || to.rpm > options_.max_rpm)) {
       window_problems_.push_back({HealthState::kRateImplausible,
                                   fmt::format("measured {:.0f} rpm, outside {:.0f}..{:.0f} rpm",
                                               to.rpm, options_.min_rpm, options_.max_rpm)});
-    } else if (to.rpm > 0 && per_second > options_.max_rotation_ratio * to.rpm / 60.0 + 1.0 / dt) {
+    } else if (to.rpm > 0 && sensor_dt > 0 &&
+               per_second > options_.max_rotation_ratio * to.rpm / 60.0 + 1.0 / sensor_dt) {
       window_problems_.push_back(
           {HealthState::kRateImplausible,
            fmt::format("{:.1f} rotations/s at {:.0f} rpm ({:.1f}/s expected): stray or spoofed "
@@ -96,6 +100,15 @@ void HealthMonitor::judge_window(const HealthSample& from, const HealthSample& t
           {HealthState::kRateImplausible,
            fmt::format("{} data packets but no rotation ended in the last {:.1f} s", decoded, dt)});
     }
+  }
+  const uint64_t stray = to.inconsistent - from.inconsistent;
+  if (stray > 0 &&
+      static_cast<double>(stray) > options_.max_loss * static_cast<double>(decoded + stray)) {
+    window_problems_.push_back(
+        {HealthState::kSeveralSources,
+         fmt::format("{} data packets in the last {:.1f} s with azimuths that contradict the "
+                     "stream (spoofed, or another sensor on port {}), dropped",
+                     stray, dt, to.data_port)});
   }
   const uint64_t behind = to.dropped_behind - from.dropped_behind;
   if (behind > 0) {

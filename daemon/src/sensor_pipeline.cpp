@@ -2,7 +2,7 @@
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
-#include <tbb/parallel_pipeline.h>
+#include <tbb/flow_graph.h>
 #include <tbb/task_arena.h>
 
 #include <algorithm>
@@ -126,6 +126,7 @@ struct SensorPipeline::Snapshot {
   std::optional<velodyne::ReturnMode> mode;
   velodyne::TimeSource time_source = velodyne::TimeSource::kHost;
   float rpm = 0;
+  int64_t sensor_ns = 0;          // first firing of the last rotation assembled
   uint64_t data_packets = 0;      // data-port packets received (also while the model is probed)
   int64_t last_data_ns = 0;       // steady clock, of the last read that saw new data packets
   std::string model_problem;      // the model decoded does not fit the packets' timing
@@ -156,6 +157,39 @@ struct SensorPipeline::Senders {
   uint64_t data_packets = 0, seen_data = 0;  // data packets, and at the last snapshot
 };
 
+// The detection pipeline, a oneTBB flow graph in the shared arena. `take` (serial) is told by the
+// receiver after each rotation it hands over, and by `publish` after each publication; it takes
+// waiting rotations while fewer than tokens_ are in the pipeline, numbering them in taking order
+// (which is rotation order: the buffer is FIFO). `detect` runs on up to `workers` arena threads;
+// the sequencer restores the taking order, `publish` (serial) publishes and frees the slot.
+struct SensorPipeline::Graph {
+  using Take = tbb::flow::multifunction_node<tbb::flow::continue_msg, std::tuple<Rotation*>>;
+  tbb::flow::graph graph;
+  Take take;
+  tbb::flow::function_node<Rotation*, Rotation*> detect;
+  tbb::flow::sequencer_node<Rotation*> order;
+  tbb::flow::function_node<Rotation*, tbb::flow::continue_msg> publish;
+
+  Graph(SensorPipeline& p, int workers)
+      : take(graph, tbb::flow::serial,
+             [&p](const tbb::flow::continue_msg&, Take::output_ports_type& out) { p.take(out); }),
+        detect(graph, static_cast<size_t>(workers),
+               [&p](Rotation* r) {
+                 p.detect(*r);
+                 return r;
+               }),
+        order(graph, [](Rotation* r) { return static_cast<size_t>(r->order); }),
+        publish(graph, tbb::flow::serial, [&p](Rotation* r) {
+          p.publish(*r);
+          return tbb::flow::continue_msg();
+        }) {
+    tbb::flow::make_edge(tbb::flow::output_port<0>(take), detect);
+    tbb::flow::make_edge(detect, order);
+    tbb::flow::make_edge(order, publish);
+    tbb::flow::make_edge(publish, take);
+  }
+};
+
 SensorPipeline::SensorPipeline(const SensorOptions& sensor, const DaemonOptions& options,
                                LcmBus& bus, tbb::task_arena& arena, int workers,
                                PcapRecorder* recorder, LinePrinter* printer, DetectHook hook)
@@ -174,11 +208,11 @@ SensorPipeline::SensorPipeline(const SensorOptions& sensor, const DaemonOptions&
               lossless_ ? Overflow::kWait : Overflow::kDropOldest),
       publisher_(sensor_, options, bus, printer, failures_),
       health_(options.health),
+      tokens_(static_cast<size_t>(workers + options.pipeline.publish_queue)),
       senders_(std::make_unique<Senders>()),
       counts_(std::make_unique<Counts>()),
       snapshot_(std::make_unique<Snapshot>()) {
-  const auto threads = static_cast<size_t>(std::max(1, arena.max_concurrency()));
-  for (size_t i = 0; i < threads; ++i) {
+  for (size_t i = 0; i < tokens_; ++i) {
     detectors_.push_back(std::make_unique<detector::Detector>(options.detector));
   }
   // Every packet passes here on the receiving thread: senders are noted, raw packets published.
@@ -199,11 +233,14 @@ SensorPipeline::SensorPipeline(const SensorOptions& sensor, const DaemonOptions&
   reader.decoder = sensor.decoder;
   reader.batcher = sensor.batcher;
   reader_ = std::make_unique<velodyne::CaptureReader>(std::move(source), reader);
+  // Built inside the arena, so that its tasks run there.
+  arena_.execute([&] { graph_ = std::make_unique<Graph>(*this, workers_); });
 }
 
 SensorPipeline::~SensorPipeline() {
   stop();
   join();
+  graph_.reset();  // waits for the graph's tasks, which use `this`
 }
 
 void SensorPipeline::start() {
@@ -216,7 +253,6 @@ void SensorPipeline::start() {
     counts_->progress_ns = now;
   }
   receiver_ = std::thread([this] { receive(); });
-  pipeline_ = std::thread([this] { run_pipeline(); });
 }
 
 void SensorPipeline::stop() {
@@ -227,7 +263,13 @@ void SensorPipeline::stop() {
 
 void SensorPipeline::join() {
   if (receiver_.joinable()) receiver_.join();
-  if (pipeline_.joinable()) pipeline_.join();
+  // The receiver closed the buffer and told the graph: every rotation it handed over gets
+  // published, then take() sees the buffer drained.
+  graph_->graph.wait_for_all();
+}
+
+void SensorPipeline::wake_pipeline() {
+  graph_->take.try_put(tbb::flow::continue_msg());
 }
 
 std::string SensorPipeline::error() const {
@@ -322,7 +364,10 @@ void SensorPipeline::take_snapshot(const Scan* last) {
   s.time_source = reader_->clock().source();
   s.model_problem = std::move(problem);
   s.senders = std::move(recent);
-  if (last != nullptr && last->rpm > 0) s.rpm = last->rpm;
+  if (last != nullptr) {
+    if (last->rpm > 0) s.rpm = last->rpm;
+    s.sensor_ns = last->stamp_ns;
+  }
 }
 
 bool SensorPipeline::at_loop_seam(const Scan& scan) {
@@ -377,6 +422,7 @@ void SensorPipeline::receive() {
         ++counts_->behind;
       }
       buffer_.publish(slot);
+      wake_pipeline();
       slot = next;
     }
   } catch (const std::exception& e) {
@@ -387,12 +433,22 @@ void SensorPipeline::receive() {
   take_snapshot(nullptr);
   receiver_done_.store(true, std::memory_order_release);
   buffer_.close();
+  wake_pipeline();  // take() finds the buffer drained once the rest is published
 }
 
-Rotation* SensorPipeline::take() {
-  Rotation* r = buffer_.take();
-  if (r != nullptr) r->result.taken_ns = steady_ns();
-  return r;
+template <class Out>
+void SensorPipeline::take(Out& out) {
+  // Serial. Rotations in the pipeline: taken here, not yet released by publish().
+  while (taken_ - released_.load(std::memory_order_acquire) < tokens_) {
+    Rotation* r = buffer_.try_take();
+    if (r == nullptr) break;
+    r->result.taken_ns = steady_ns();
+    r->order = taken_++;
+    std::get<0>(out).try_put(r);
+  }
+  if (taken_ == released_.load(std::memory_order_acquire) && buffer_.drained()) {
+    finished_.store(true, std::memory_order_release);
+  }
 }
 
 void SensorPipeline::detect(Rotation& rotation) {
@@ -411,10 +467,11 @@ void SensorPipeline::detect(Rotation& rotation) {
   r.points = static_cast<int>(scan.point_count());
   r.rpm = scan.rpm;
   r.assembled_ns = rotation.assembled_ns;
-  const int thread = tbb::this_task_arena::current_thread_index();
-  detector::Detector& detector = *detectors_[static_cast<size_t>(std::max(0, thread))];
+  // The rotations in the pipeline are consecutive in `order` (taken in order, released in order)
+  // and at most tokens_ of them: order modulo tokens_ gives each its own detector.
+  detector::Detector& detector = *detectors_[rotation.order % tokens_];
   // Isolated: while this thread waits inside the detector's own parallel loops it must not pick
-  // up another rotation, which would reuse its detector and delay this rotation behind it.
+  // up another rotation, which would delay this one (and the publication order) behind it.
   tbb::this_task_arena::isolate([&] { detector.detect(scan, r.detection); });
   decimate_scan(scan, options_.lcm.cloud_decimation, r.cloud);
   r.detected_ns = steady_ns();
@@ -426,7 +483,15 @@ void SensorPipeline::publish(Rotation& rotation) {
     std::lock_guard lock(counts_mutex_);
     dropped = counts_->dropped();
   }
-  const bool sent = publisher_.publish(rotation.result, dropped);
+  bool sent = false;
+  try {
+    sent = publisher_.publish(rotation.result, dropped);
+  } catch (const std::exception& e) {
+    // A message could not be allocated: this rotation is lost (counted as unsent), not the
+    // pipeline.
+    spdlog::error("sensor {}: rotation {} not published: {}", sensor_.name,
+                  rotation.result.sequence, e.what());
+  }
   {
     std::lock_guard lock(counts_mutex_);
     Counts& c = *counts_;
@@ -440,39 +505,7 @@ void SensorPipeline::publish(Rotation& rotation) {
     c.progress_ns = steady_ns();
   }
   buffer_.release(&rotation);
-}
-
-void SensorPipeline::run_pipeline() {
-  // Each sensor's first stage sleeps in take() while no rotation waits, holding the arena slot
-  // reserved for this thread (or a worker's): the other `workers` threads keep detecting.
-  const auto tokens = static_cast<size_t>(workers_ + options_.pipeline.publish_queue);
-  try {
-    arena_.execute([&] {
-      tbb::this_task_arena::isolate([&] {
-        tbb::parallel_pipeline(
-            tokens, tbb::make_filter<void, Rotation*>(tbb::filter_mode::serial_in_order,
-                                                      [this](tbb::flow_control& fc) -> Rotation* {
-                                                        Rotation* r = take();
-                                                        if (r == nullptr) fc.stop();
-                                                        return r;
-                                                      }) &
-                        tbb::make_filter<Rotation*, Rotation*>(tbb::filter_mode::parallel,
-                                                               [this](Rotation* r) {
-                                                                 detect(*r);
-                                                                 return r;
-                                                               }) &
-                        tbb::make_filter<Rotation*, void>(tbb::filter_mode::serial_in_order,
-                                                          [this](Rotation* r) { publish(*r); }));
-      });
-    });
-  } catch (const std::exception& e) {
-    // Publishing could not allocate a message: nothing more can be published.
-    fail(std::string("publishing stopped: ") + e.what());
-    stop();
-    // Let the receiver finish: it drops what it cannot hand over.
-    while (Rotation* r = buffer_.take()) buffer_.release(r);
-  }
-  finished_.store(true, std::memory_order_release);
+  released_.fetch_add(1, std::memory_order_release);
 }
 
 std::string SensorPipeline::stall(int64_t now) const {
@@ -555,6 +588,8 @@ SensorStatus SensorPipeline::status(int64_t now_ns) {
     h.missing = s.batcher.missing_packets;
     h.model_mismatch = s.counts.model_mismatch;
     h.rpm = s.rpm;
+    h.sensor_ns = s.sensor_ns;
+    h.inconsistent = s.batcher.inconsistent;
     h.model_problem = s.model_problem;
     h.senders = s.senders;
   }

@@ -20,6 +20,7 @@ struct Sensor {
     s.data_packets = s.decoded = 1507;
     s.last_data_ns = s.now_ns;
     s.rotations = 10;
+    s.sensor_ns = 1'700'000'000 * kSecond;
     s.rpm = 600;
     s.senders = {0xC0A801C9};
   }
@@ -32,6 +33,7 @@ struct Sensor {
     s.data_packets += packets;
     s.decoded += packets;
     s.rotations += static_cast<uint64_t>(10 * seconds);
+    s.sensor_ns += dt;
     return s;
   }
 };
@@ -107,6 +109,36 @@ TEST(Health, SpoofedPacketsMultiplyingRotationsAreImplausible) {
   const Health h = judge(m, sensor, 1);
   EXPECT_EQ(h.state, HealthState::kRateImplausible);
   EXPECT_NE(h.reason.find("stray or spoofed packets"), std::string::npos) << h.reason;
+}
+
+TEST(Health, RotationRateIsJudgedOnTheSensorsClock) {
+  // A replay at full speed: 100 rotations in 0.5 s of wall time are 10 s of the sensor's.
+  HealthMonitor m({});
+  Sensor sensor;
+  judge(m, sensor, 1);
+  for (int i = 0; i < 3; ++i) {
+    sensor.s.now_ns += kSecond / 2;
+    sensor.s.last_data_ns = sensor.s.now_ns;
+    sensor.s.decoded += 15070;
+    sensor.s.data_packets += 15070;
+    sensor.s.rotations += 100;
+    sensor.s.sensor_ns += 10 * kSecond;
+    m.update(sensor.s);
+  }
+  const Health h = m.update(sensor.s);
+  EXPECT_EQ(h.state, HealthState::kHealthy) << h.reason;
+}
+
+TEST(Health, StrayPacketsDroppedAsInconsistentAreReported) {
+  // What the batcher does with spoofed azimuths: dropped, counted; the status must say so.
+  HealthMonitor m({});
+  Sensor sensor;
+  judge(m, sensor, 1);
+  sensor.s.inconsistent += 600;
+  const Health h = judge(m, sensor, 1);
+  EXPECT_EQ(h.state, HealthState::kSeveralSources);
+  EXPECT_NE(h.reason.find("600 data packets"), std::string::npos) << h.reason;
+  EXPECT_NE(h.reason.find("spoofed"), std::string::npos) << h.reason;
 }
 
 TEST(Health, AnImpossibleRpmIsImplausible) {

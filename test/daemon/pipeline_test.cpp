@@ -55,9 +55,9 @@ Recorder run_pipeline(const DaemonOptions& options) {
   LcmBus bus(options.lcm.url);
   Recorder recorder;
   bus.lcm().subscribe(".*", &Recorder::handle, &recorder);  // memq:// keeps subscribed channels
-  // As the daemon: two worker threads and the slot of the pipeline thread.
+  // As the daemon: the arena's threads are all workers.
   tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 3);
-  tbb::task_arena arena(3, 1);  // two workers, one slot for the pipeline thread
+  tbb::task_arena arena(2, 0);
   {
     SensorPipeline pipeline(options.sensors[0], options, bus, arena, 2, nullptr, nullptr);
     pipeline.start();

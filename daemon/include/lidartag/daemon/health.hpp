@@ -38,12 +38,16 @@ struct HealthSample {
   std::string error;   // why the pipeline stopped, if it did
   std::string stall;   // why the pipeline makes no progress (see SensorPipeline); empty if it does
   uint16_t data_port = 0;
-  uint64_t data_packets = 0;      // data packets received
-  int64_t last_data_ns = 0;       // when the last one was; 0: none yet
-  uint64_t decoded = 0;           // data packets decoded
-  uint64_t missing = 0;           // data packets missing from the stream (sequence gaps)
-  uint64_t model_mismatch = 0;    // data packets contradicting the model in use
-  uint64_t rotations = 0;         // rotations assembled
+  uint64_t data_packets = 0;    // data packets received
+  int64_t last_data_ns = 0;     // when the last one was; 0: none yet
+  uint64_t decoded = 0;         // data packets decoded
+  uint64_t missing = 0;         // data packets missing from the stream (sequence gaps)
+  uint64_t model_mismatch = 0;  // data packets contradicting the model in use
+  uint64_t inconsistent = 0;    // data packets whose azimuth contradicts the stream (dropped)
+  uint64_t rotations = 0;       // rotations assembled
+  // The sensor's clock at the last rotation assembled (its first firing): rotations per second
+  // are judged on it, so that replays at any speed are judged as the sensor ran.
+  int64_t sensor_ns = 0;
   uint64_t dropped_behind = 0;    // rotations dropped because detection fell behind
   uint64_t publish_failures = 0;  // LCM messages of this sensor (or the bus) not published
   double rpm = 0;                 // measured by the last rotation; 0: not known

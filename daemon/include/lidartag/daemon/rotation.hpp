@@ -32,6 +32,7 @@ struct RotationResult {
 struct Rotation {
   Scan scan;                 // sized by the batcher when first filled
   int64_t assembled_ns = 0;  // steady clock: when the receiver finished the rotation
+  uint64_t order = 0;        // place in the pipeline's publication order (0, 1, 2, ...)
   RotationResult result;
 };
 

@@ -1,10 +1,11 @@
 // The hand-over of rotations from the receiving thread to the detection pipeline: a fixed set of
 // slots that the receiver assembles in place, the pipeline takes in order, detects, publishes and
-// releases. Bounded and preallocated; lock-free (two bounded index queues); a side that has to
-// wait sleeps on a C++20 atomic wait, woken by the other side: no polling.
+// releases. Bounded and preallocated; lock-free (two bounded index queues). The pipeline never
+// waits here (it is told by the receiver when a rotation is ready); a replay's receiver waiting for
+// a free slot sleeps on a C++20 atomic wait, woken by release(): no polling.
 //
 //   receiver: acquire() -> CaptureReader::read(slot->scan) -> publish()   (FIFO of waiting slots)
-//   pipeline: take() -> detect -> publish in order -> release()
+//   pipeline: try_take() -> detect -> publish in order -> release()
 //
 // A template over the slot (the daemon's is Rotation), so that the ThreadSanitizer test builds it
 // without the detector.
@@ -50,7 +51,7 @@ template <class Slot>
 class ScanBuffer {
  public:
   // At most `depth` rotations wait for the pipeline, which holds at most `in_pipeline` between
-  // take() and release() (its tokens); the receiver fills one more. The slots are created here
+  // try_take() and release() (its tokens); the receiver fills one more. The slots are created here
   // (the daemon's scans start empty: the batcher sizes each when it is first filled).
   ScanBuffer(size_t depth, size_t in_pipeline, Overflow overflow);
 
@@ -62,14 +63,16 @@ class ScanBuffer {
   Slot* acquire(bool& dropped);
   // A finished rotation to the pipeline (FIFO: rotation order).
   void publish(Slot* slot);
-  // Nothing more comes: take() returns nullptr once the waiting rotations are taken.
+  // Nothing more comes (drained() once the waiting rotations are taken).
   void close();
   // The daemon stops: a kWait acquire() waiting now or later drops the oldest instead.
   void stop_waiting();
 
   // ---- The pipeline's first stage (one thread at a time). ----
-  // The oldest waiting rotation; sleeps until there is one; nullptr once closed and drained.
-  Slot* take();
+  // The oldest waiting rotation, or nullptr when none waits.
+  Slot* try_take();
+  // Closed, and every rotation published was taken or dropped.
+  bool drained() const;
 
   // ---- The pipeline's last stage (one thread at a time): the slot is free again. ----
   void release(Slot* slot);
@@ -87,9 +90,9 @@ class ScanBuffer {
   size_t depth_;
   Overflow overflow_;
   std::atomic<bool> closed_{false}, stop_waiting_{false};
-  // Bumped after every publish/close and every release/stop_waiting: what the sleepers wait on
-  // (32 bits: a futex word).
-  std::atomic<uint32_t> published_epoch_{0}, released_epoch_{0};
+  // Bumped after every release and stop_waiting: what a waiting acquire() sleeps on (32 bits: a
+  // futex word).
+  std::atomic<uint32_t> released_epoch_{0};
   std::atomic<uint64_t> published_{0}, taken_{0}, dropped_{0};
 };
 
@@ -128,7 +131,7 @@ Slot* ScanBuffer<Slot>::acquire(bool& dropped) {
     if (free_.pop(i)) return slots_[i].get();
     if (overflow_ == Overflow::kDropOldest || stop_waiting_.load(std::memory_order_acquire)) {
       if (ready_.pop(i)) {
-        dropped_.fetch_add(1, std::memory_order_relaxed);
+        dropped_.fetch_add(1, std::memory_order_release);
         dropped = true;
         return slots_[i].get();
       }
@@ -143,17 +146,13 @@ template <class Slot>
 void ScanBuffer<Slot>::publish(Slot* slot) {
   const uint32_t i = index_of(slot);
   if (i >= slots_.size()) return;
-  published_.fetch_add(1, std::memory_order_relaxed);
+  published_.fetch_add(1, std::memory_order_release);
   ready_.push_retrying(i);
-  published_epoch_.fetch_add(1, std::memory_order_release);
-  published_epoch_.notify_one();
 }
 
 template <class Slot>
 void ScanBuffer<Slot>::close() {
   closed_.store(true, std::memory_order_release);
-  published_epoch_.fetch_add(1, std::memory_order_release);
-  published_epoch_.notify_all();
 }
 
 template <class Slot>
@@ -164,22 +163,19 @@ void ScanBuffer<Slot>::stop_waiting() {
 }
 
 template <class Slot>
-Slot* ScanBuffer<Slot>::take() {
-  for (;;) {
-    const uint32_t seen = published_epoch_.load(std::memory_order_acquire);
-    uint32_t i = 0;
-    if (ready_.pop(i)) {
-      taken_.fetch_add(1, std::memory_order_relaxed);
-      return slots_[i].get();
-    }
-    if (closed_.load(std::memory_order_acquire)) {
-      // close() follows the last publish: a pop now sees every rotation published before it.
-      if (!ready_.pop(i)) return nullptr;
-      taken_.fetch_add(1, std::memory_order_relaxed);
-      return slots_[i].get();
-    }
-    published_epoch_.wait(seen, std::memory_order_acquire);
-  }
+Slot* ScanBuffer<Slot>::try_take() {
+  uint32_t i = 0;
+  if (!ready_.pop(i)) return nullptr;
+  taken_.fetch_add(1, std::memory_order_release);
+  return slots_[i].get();
+}
+
+template <class Slot>
+bool ScanBuffer<Slot>::drained() const {
+  // close() follows the receiver's last publish and drop: the counts read after it are final.
+  if (!closed_.load(std::memory_order_acquire)) return false;
+  return published_.load(std::memory_order_acquire) ==
+         taken_.load(std::memory_order_acquire) + dropped_.load(std::memory_order_acquire);
 }
 
 template <class Slot>

@@ -1,11 +1,11 @@
 // One sensor's pipeline: the receiving thread assembles each rotation straight into a slot of the
-// scan buffer (CaptureReader::read: decoding and scan assembly, no copy); a oneTBB
-// parallel_pipeline in the shared arena takes the slots in rotation order, detects them in
+// scan buffer (CaptureReader::read: decoding and scan assembly, no copy) and tells a oneTBB flow
+// graph in the shared arena, which takes the waiting slots in rotation order, detects them in
 // parallel (one Detector per arena thread) and publishes them in rotation order
-// (RotationPublisher), then frees the slot.
+// (RotationPublisher), then frees the slot and takes the next.
 //
 //   receiver --ScanBuffer slot (drop oldest | wait)--> take (serial) -> detect (parallel)
-//            -> publish (serial, in order) -> release
+//            -> sequencer -> publish (serial, in order) -> release, take again
 #pragma once
 
 #include <tbb/task_arena.h>
@@ -55,9 +55,9 @@ class SensorPipeline {
   using DetectHook = std::function<void(const Scan&)>;
 
   // Opens the source (velodyne::IoError), the calibration when the model is given
-  // (velodyne::CalibrationError) and builds one detector per thread of `arena`
-  // (detector::OptionsError). `arena` has `workers` worker threads and one slot reserved for
-  // each sensor's pipeline thread (whose first stage sleeps while no rotation waits).
+  // (velodyne::CalibrationError) and builds a detector for each rotation the pipeline may hold
+  // (workers + pipeline.publish_queue; detector::OptionsError). `arena` has `workers` threads; none
+  // of them ever waits for the source, and at most `workers` rotations are detected at once.
   SensorPipeline(const SensorOptions& sensor, const DaemonOptions& options, LcmBus& bus,
                  tbb::task_arena& arena, int workers, PcapRecorder* recorder, LinePrinter* printer,
                  DetectHook hook = {});
@@ -88,9 +88,11 @@ class SensorPipeline {
   struct Snapshot;
   struct Counts;
   struct Senders;
+  struct Graph;
   void receive();
-  void run_pipeline();
-  Rotation* take();
+  void wake_pipeline();
+  template <class Out>
+  void take(Out& out);
   void detect(Rotation& rotation);
   void publish(Rotation& rotation);
   void note_sender(const velodyne::RawPacket& packet);
@@ -111,13 +113,17 @@ class SensorPipeline {
 
   TapSource* tap_ = nullptr;  // owned by reader_
   std::unique_ptr<velodyne::CaptureReader> reader_;
-  // One per thread of the arena (indexed by its slot), so that no two workers share one.
+  // One per rotation the pipeline may hold (indexed by Rotation::order modulo tokens_).
   std::vector<std::unique_ptr<detector::Detector>> detectors_;
   ScanBuffer<Rotation> buffer_;
   RotationPublisher publisher_;
   HealthMonitor health_;
+  size_t tokens_;  // rotations in the pipeline at most: workers + publish_queue
+  std::unique_ptr<Graph> graph_;
+  uint64_t taken_ = 0;                 // take() only (serial): also the next publication order
+  std::atomic<uint64_t> released_{0};  // publish() (serial); in the pipeline: taken - released
 
-  std::thread receiver_, pipeline_;
+  std::thread receiver_;
   std::atomic<bool> stopping_{false}, receiver_done_{false}, finished_{false};
   std::atomic<bool> receiver_waiting_{false};  // waiting for the pipeline to free a slot
   std::atomic<int64_t> started_ns_{0}, receiver_beat_ns_{0};
