@@ -431,6 +431,7 @@ void SensorPipeline::receive() {
     fail(e.what());
   }
   take_snapshot(nullptr);
+  stopped_.store(stopping_.load());  // else the source itself ended
   receiver_done_.store(true, std::memory_order_release);
   buffer_.close();
   wake_pipeline();  // take() finds the buffer drained once the rest is published
@@ -535,13 +536,16 @@ bool SensorPipeline::progressing(int64_t now) const {
     if (now - counts_->last_assembled_ns <= limit) return true;
   }
   std::lock_guard lock(snapshot_mutex_);
-  if (snapshot_->data_packets == 0) {
-    // Waiting for the sensor to come up.
-    return now - started_ns_.load() <= to_ns(options_.health.startup_grace_s);
+  const Snapshot& s = *snapshot_;
+  // Waiting for the sensor to come up.
+  if (s.data_packets == 0 && now - started_ns_.load() <= to_ns(options_.health.startup_grace_s)) {
+    return true;
   }
-  // Packets come but no rotation ends (garbage), or the sensor fell silent.
-  return options_.watchdog.while_silent &&
-         now - snapshot_->last_data_ns > to_ns(options_.health.silence_s);
+  // Silent (never a packet past the grace, or none lately): a restart reopens the sockets,
+  // unless the sensor is switched off on purpose. Packets without rotations (garbage): no.
+  const bool silent =
+      s.data_packets == 0 || now - s.last_data_ns > to_ns(options_.health.silence_s);
+  return silent && options_.watchdog.while_silent;
 }
 
 SensorStatus SensorPipeline::status(int64_t now_ns) {
@@ -612,6 +616,7 @@ SensorStatus SensorPipeline::status(int64_t now_ns) {
   // Any LCM failure of the bus (the status messages too) means publishing fails now.
   h.publish_failures = std::max<uint64_t>(bus_.failures(), st.publish_failures);
   st.health = health_.update(h);
+  if (st.health.state == HealthState::kEnded && stopped_.load()) st.health.reason = "stopped";
   st.progressing = progressing(now_ns);
   st.buffer_occupancy = buffer_.waiting();
   st.buffer_depth = buffer_.depth();

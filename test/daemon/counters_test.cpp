@@ -3,7 +3,10 @@
 // (assembled = published + dropped + in flight; exactly at the end) under loss, duplicates,
 // reordering, junk, spoofed packets, a second sender, a wrong model, a silent sensor and a slow
 // detector.
+#include <arpa/inet.h>
 #include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
 #include <tbb/global_control.h>
 #include <tbb/task_arena.h>
 #include <unistd.h>
@@ -343,6 +346,54 @@ TEST(Counters, DropsWhenDetectionFallsBehindAddUpAndAreReported) {
   for (size_t i = 0; i < run.detections.size(); ++i) {
     EXPECT_GE(run.detections[i].dropped_rotations,
               run.detections[i].sequence - static_cast<int64_t>(i));
+  }
+}
+
+uint16_t free_udp_port() {
+  const int fd = socket(AF_INET, SOCK_DGRAM, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  EXPECT_EQ(bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)), 0);
+  socklen_t len = sizeof(addr);
+  getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len);
+  close(fd);
+  return ntohs(addr.sin_port);
+}
+
+TEST(Counters, ALiveSourceWithoutPacketsIsWaitingThenSilentAndTheWatchdogSaysSo) {
+  // A UDP source on 127.0.0.1 that nobody sends to (nothing leaves this process).
+  for (bool while_silent : {false, true}) {
+    SCOPED_TRACE(while_silent ? "watchdog.while_silent" : "default");
+    const uint16_t data = free_udp_port(), position = free_udp_port();
+    const DaemonOptions options = parse_config(
+        "", {"sensors[0].source.bind_address=127.0.0.1",
+             "sensors[0].source.data_port=" + std::to_string(data),
+             "sensors[0].source.position_port=" + std::to_string(position), "lcm.url=memq://",
+             "health.startup_grace_s=0.4", "watchdog.stall_timeout_s=0.2",
+             std::string("watchdog.while_silent=") + (while_silent ? "true" : "false")});
+    LcmBus bus(options.lcm.url);
+    tbb::task_arena arena(2, 0);
+    SensorPipeline pipeline(options.sensors[0], options, bus, arena, 2, nullptr, nullptr);
+    pipeline.start();
+    std::this_thread::sleep_for(100ms);
+    SensorStatus s = pipeline.status(steady_ns());
+    EXPECT_EQ(s.health.state, HealthState::kWaiting) << s.health.reason;
+    EXPECT_NE(s.health.reason.find("waiting for packets on port " + std::to_string(data)),
+              std::string::npos)
+        << s.health.reason;
+    EXPECT_TRUE(s.progressing);  // within the grace: the watchdog is fed
+    std::this_thread::sleep_for(500ms);
+    s = pipeline.status(steady_ns());
+    EXPECT_EQ(s.health.state, HealthState::kSilent) << s.health.reason;
+    EXPECT_NE(s.health.reason.find("since the start"), std::string::npos) << s.health.reason;
+    // Past the grace: no progress, so no pings and WatchdogSec restarts the daemon; unless the
+    // configuration says a silent sensor is expected.
+    EXPECT_EQ(s.progressing, while_silent);
+    EXPECT_EQ(s.packets_received, 0u);
+    pipeline.stop();
+    pipeline.join();
+    EXPECT_EQ(pipeline.status(steady_ns()).health.reason, "stopped");
   }
 }
 

@@ -125,6 +125,7 @@ class SensorPipeline {
 
   std::thread receiver_;
   std::atomic<bool> stopping_{false}, receiver_done_{false}, finished_{false};
+  std::atomic<bool> stopped_{false};           // the source ended because stop() was called
   std::atomic<bool> receiver_waiting_{false};  // waiting for the pipeline to free a slot
   std::atomic<int64_t> started_ns_{0}, receiver_beat_ns_{0};
 
