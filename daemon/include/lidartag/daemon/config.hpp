@@ -102,7 +102,8 @@ struct PipelineOptions {
   int queue_depth = 4;
   // Detected rotations per sensor that may wait for an earlier one to be published (in order)
   // while workers go on. Each rotation in the pipeline holds a slot of the scan buffer (a whole
-  // rotation: 1-14 MB), so the buffer has queue_depth + worker_threads + publish_queue + 1 slots.
+  // rotation: 1.7 MB for a VLP-16 to 13 MB for a VLS-128, twice in dual mode) and a detector, so
+  // the buffer has queue_depth + worker_threads + publish_queue + 1 slots.
   int publish_queue = 2;
   // Replay sources (pcap, lcm) wait for the detector instead of dropping rotations, so that a
   // replay at any speed processes every rotation. Live sources always drop the oldest.
