@@ -144,9 +144,9 @@ struct SensorPipeline::Counts {
   uint64_t dropped() const { return behind + seam + unsent; }
 };
 
-// Distinct sender addresses of data packets (receiver thread). Per packet: one compare in the
-// common case; the times are stamped when the snapshot is taken.
-struct SensorPipeline::Senders {
+// The receiving thread's own: the distinct sender addresses of data packets (per packet one compare
+// in the common case; the times are stamped when the snapshot is taken) and the model verdict.
+struct SensorPipeline::ReceiverState {
   struct Entry {
     uint32_t address = 0;
     bool seen = false;    // since the last snapshot
@@ -155,6 +155,9 @@ struct SensorPipeline::Senders {
   std::array<Entry, 8> entries{};
   size_t size = 0, last = 0;
   uint64_t data_packets = 0, seen_data = 0;  // data packets, and at the last snapshot
+  // The model check's last verdict, and its text (empty: the model fits).
+  std::optional<velodyne::Model> problem_model, problem_timing;
+  std::string model_problem;
 };
 
 // The detection pipeline, a oneTBB flow graph in the shared arena. `take` (serial) is told by the
@@ -209,9 +212,10 @@ SensorPipeline::SensorPipeline(const SensorOptions& sensor, const DaemonOptions&
       publisher_(sensor_, options, bus, printer, failures_),
       health_(options.health),
       tokens_(static_cast<size_t>(workers + options.pipeline.publish_queue)),
-      senders_(std::make_unique<Senders>()),
+      receiver_state_(std::make_unique<ReceiverState>()),
       counts_(std::make_unique<Counts>()),
       snapshot_(std::make_unique<Snapshot>()) {
+  snapshot_->senders.reserve(receiver_state_->entries.size());
   for (size_t i = 0; i < tokens_; ++i) {
     detectors_.push_back(std::make_unique<detector::Detector>(options.detector));
   }
@@ -285,7 +289,7 @@ void SensorPipeline::fail(const std::string& what) {
 
 void SensorPipeline::note_sender(const velodyne::RawPacket& p) {
   if (p.destination_port != sensor_.source.data_port) return;
-  Senders& s = *senders_;
+  ReceiverState& s = *receiver_state_;
   ++s.data_packets;
   if (p.source_ipv4 == 0) return;  // unknown (some replays)
   if (s.size > 0 && s.entries[s.last].address == p.source_ipv4) {
@@ -315,33 +319,32 @@ void SensorPipeline::note_sender(const velodyne::RawPacket& p) {
 
 void SensorPipeline::take_snapshot(const Scan* last) {
   const int64_t now = steady_ns();
-  Senders& senders = *senders_;
-  std::vector<uint32_t> recent;
-  for (size_t i = 0; i < senders.size; ++i) {
-    auto& e = senders.entries[i];
-    if (e.seen) e.last_ns = now;
-    e.seen = false;
-    if (now - e.last_ns <= to_ns(options_.health.window_s)) recent.push_back(e.address);
-  }
+  ReceiverState& senders = *receiver_state_;
   const auto& counts = reader_->counts();
   // The model decided (configured, or the product byte) against the packets' timing, which
-  // follows the latest packets: a wrong configuration or a change mid-stream shows here.
-  std::string problem;
+  // follows the latest packets: a wrong configuration or a change mid-stream shows here. The
+  // text is made when the verdict changes, not per rotation.
   const auto model = reader_->model();
   const auto timing = reader_->model_check().timing_model();
   const auto mode = reader_->return_mode().value_or(velodyne::ReturnMode::kStrongest);
-  if (model && timing && !same_timing(*model, *timing, mode)) {
+  const bool mismatch = model && timing && !same_timing(*model, *timing, mode);
+  if (!mismatch) {
+    senders.model_problem.clear();
+  } else if (senders.problem_model != model || senders.problem_timing != timing) {
     const std::string decided(velodyne::model_spec(*model).name);
     const std::string fits(velodyne::model_spec(*timing).name);
-    problem = sensor_.model ? fmt::format(
-                                  "configured model {} does not fit the packets (their timing is "
-                                  "that of a {}): check sensors[].model",
-                                  decided, fits)
-                            : fmt::format(
-                                  "decoding as {} (the product byte) but the packets' timing is "
-                                  "that of a {}: set sensors[].model",
-                                  decided, fits);
+    senders.model_problem = sensor_.model
+                                ? fmt::format(
+                                      "configured model {} does not fit the packets (their "
+                                      "timing is that of a {}): check sensors[].model",
+                                      decided, fits)
+                                : fmt::format(
+                                      "decoding as {} (the product byte) but the packets' timing "
+                                      "is that of a {}: set sensors[].model",
+                                      decided, fits);
   }
+  senders.problem_model = model;
+  senders.problem_timing = timing;
   std::lock_guard lock(snapshot_mutex_);
   Snapshot& s = *snapshot_;
   s.counts.data_packets = counts.data_packets;
@@ -362,8 +365,14 @@ void SensorPipeline::take_snapshot(const Scan* last) {
   s.model = model;
   s.mode = reader_->return_mode();
   s.time_source = reader_->clock().source();
-  s.model_problem = std::move(problem);
-  s.senders = std::move(recent);
+  s.model_problem = senders.model_problem;  // copied into storage it keeps
+  s.senders.clear();
+  for (size_t i = 0; i < senders.size; ++i) {
+    auto& e = senders.entries[i];
+    if (e.seen) e.last_ns = now;
+    e.seen = false;
+    if (now - e.last_ns <= to_ns(options_.health.window_s)) s.senders.push_back(e.address);
+  }
   if (last != nullptr) {
     if (last->rpm > 0) s.rpm = last->rpm;
     s.sensor_ns = last->stamp_ns;

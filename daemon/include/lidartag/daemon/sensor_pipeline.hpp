@@ -87,7 +87,7 @@ class SensorPipeline {
  private:
   struct Snapshot;
   struct Counts;
-  struct Senders;
+  struct ReceiverState;
   struct Graph;
   void receive();
   void wake_pipeline();
@@ -129,9 +129,9 @@ class SensorPipeline {
   std::atomic<bool> receiver_waiting_{false};  // waiting for the pipeline to free a slot
   std::atomic<int64_t> started_ns_{0}, receiver_beat_ns_{0};
 
-  lidartag::raw_packet_t raw_message_;  // receiver thread
-  std::unique_ptr<Senders> senders_;    // receiver thread
-  bool after_seam_ = false;             // receiver thread
+  lidartag::raw_packet_t raw_message_;             // receiver thread
+  std::unique_ptr<ReceiverState> receiver_state_;  // senders seen, the model verdict
+  bool after_seam_ = false;                        // receiver thread
 
   mutable std::mutex counts_mutex_;  // the rotation counters change together
   std::unique_ptr<Counts> counts_;
