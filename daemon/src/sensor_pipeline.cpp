@@ -483,7 +483,13 @@ void SensorPipeline::detect(Rotation& rotation) {
   // Isolated: while this thread waits inside the detector's own parallel loops it must not pick
   // up another rotation, which would delay this one (and the publication order) behind it.
   tbb::this_task_arena::isolate([&] { detector.detect(scan, r.detection); });
-  decimate_scan(scan, options_.lcm.cloud_decimation, r.cloud);
+  try {
+    decimate_scan(scan, options_.lcm.cloud_decimation, r.cloud);
+  } catch (const std::exception& e) {
+    // The cloud could not grow (out of memory): this rotation's cloud is empty, nothing else.
+    r.cloud.clear();
+    spdlog::error("sensor {}: rotation {}: no cloud: {}", sensor_.name, r.sequence, e.what());
+  }
   r.detected_ns = steady_ns();
 }
 
