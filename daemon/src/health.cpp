@@ -73,9 +73,12 @@ void HealthMonitor::judge_window(const HealthSample& from, const HealthSample& t
   if (mismatched > 0) {
     window_problems_.push_back(
         {HealthState::kModelMismatch,
-         fmt::format("{} data packets in the last {:.1f} s do not fit the model decoded (another "
-                     "sensor model on port {}?)",
-                     mismatched, dt, to.data_port)});
+         to.model_note.empty()
+             ? fmt::format("{} data packets in the last {:.1f} s do not fit the model decoded "
+                           "(another sensor model on port {}?)",
+                           mismatched, dt, to.data_port)
+             : fmt::format("{} data packets in the last {:.1f} s do not fit the model decoded: {}",
+                           mismatched, dt, to.model_note)});
   }
   const uint64_t decoded = to.decoded - from.decoded;
   const uint64_t rotations = to.rotations - from.rotations;

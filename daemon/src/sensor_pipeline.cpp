@@ -130,6 +130,7 @@ struct SensorPipeline::Snapshot {
   uint64_t data_packets = 0;      // data-port packets received (also while the model is probed)
   int64_t last_data_ns = 0;       // steady clock, of the last read that saw new data packets
   std::string model_problem;      // the model decoded does not fit the packets' timing
+  std::string model_note;         // CaptureReader::model_mismatch(), once packets contradict it
   std::vector<uint32_t> senders;  // seen within health.window_s
   std::string error;
 };
@@ -366,6 +367,7 @@ void SensorPipeline::take_snapshot(const Scan* last) {
   s.mode = reader_->return_mode();
   s.time_source = reader_->clock().source();
   s.model_problem = senders.model_problem;  // copied into storage it keeps
+  if (counts.model_mismatch > 0) s.model_note = reader_->model_mismatch();
   s.senders.clear();
   for (size_t i = 0; i < senders.size; ++i) {
     auto& e = senders.entries[i];
@@ -589,9 +591,12 @@ SensorStatus SensorPipeline::status(int64_t now_ns) {
     st.packets_decoded = s.counts.decoded;
     st.packets_kernel_dropped = s.source.kernel_drops;
     st.packets_missing = s.batcher.missing_packets;
-    // late_packets = duplicates + reordered: every late packet is one or the other.
+    // `reordered` counts every packet that came after a later one (put in place or dropped);
+    // late_packets = duplicates + the reordered ones dropped. (A batcher that does not tell them
+    // apart counts every late packet in late_packets only: the difference is then the reorders.)
     st.packets_duplicate = s.batcher.duplicates;
-    st.packets_reordered = s.batcher.late_packets - s.batcher.duplicates;
+    st.packets_reordered =
+        std::max(s.batcher.reordered, s.batcher.late_packets - s.batcher.duplicates);
     st.packets_malformed = s.source.truncated + s.source.malformed + decode_errors +
                            s.counts.undecodable + s.counts.position_errors;
     st.packets_foreign = s.source.foreign_source;
@@ -610,6 +615,7 @@ SensorStatus SensorPipeline::status(int64_t now_ns) {
     h.sensor_ns = s.sensor_ns;
     h.inconsistent = s.batcher.inconsistent;
     h.model_problem = s.model_problem;
+    h.model_note = s.model_note;
     h.senders = s.senders;
   }
   st.packets_received = tap_->packets();

@@ -197,6 +197,16 @@ TEST(Health, ModelProblemsAreModelMismatch) {
   h = judge(m, sensor, 1);
   EXPECT_EQ(h.state, HealthState::kModelMismatch);
   EXPECT_NE(h.reason.find("500 data packets"), std::string::npos) << h.reason;
+  // With the capture reader's own account of it.
+  sensor.s.model_mismatch += 64;
+  sensor.s.model_note = "model changed mid-stream: vlp32c -> vlp16";
+  h = judge(m, sensor, 1);
+  EXPECT_NE(h.reason.find("64 data packets in the last 2.0 s do not fit the model decoded: model "
+                          "changed mid-stream: vlp32c -> vlp16"),
+            std::string::npos)
+      << h.reason;
+  // Once no packet contradicts the model any more, the window clears.
+  EXPECT_EQ(judge(m, sensor, 1).state, HealthState::kHealthy);
 }
 
 TEST(Health, TwoSendersOnOnePortSayWhichAndHowToSeparateThem) {

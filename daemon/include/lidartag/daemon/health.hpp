@@ -52,6 +52,7 @@ struct HealthSample {
   uint64_t publish_failures = 0;  // LCM messages of this sensor (or the bus) not published
   double rpm = 0;                 // measured by the last rotation; 0: not known
   std::string model_problem;      // the model decoded does not fit the packets; empty if it does
+  std::string model_note;  // the capture reader's own account (CaptureReader::model_mismatch())
   std::vector<uint32_t> senders;  // distinct data-packet sender addresses seen lately
 };
 
