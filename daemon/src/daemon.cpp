@@ -75,11 +75,11 @@ std::string Daemon::summary() const {
   std::string text;
   for (const auto& s : last_status_) {
     if (!text.empty()) text += "; ";
-    text += fmt::format("{}: {}{}{}; {}, {} rotations published, {} dropped, {} tags", s.sensor,
-                        health_state_name(s.health.state), s.health.reason.empty() ? "" : " (",
-                        s.health.reason.empty() ? "" : s.health.reason + ")",
+    text += fmt::format("{}: {} {} rotations published, {} dropped, {} tags, {}{}{}", s.sensor,
                         s.model.empty() ? "(model unknown)" : s.model, s.rotations_published,
-                        s.rotations_dropped, s.detections);
+                        s.rotations_dropped, s.detections, health_state_name(s.health.state),
+                        s.health.reason.empty() ? "" : " (",
+                        s.health.reason.empty() ? "" : s.health.reason + ")");
   }
   return text;
 }

@@ -408,7 +408,7 @@ void SensorPipeline::receive() {
       const int64_t now = steady_ns();
       if (loop_ && at_loop_seam(slot->scan)) {
         std::lock_guard lock(counts_mutex_);
-        ++counts_->assembled;
+        ++counts_->assembled;  // its sequence number is skipped
         ++counts_->seam;
         counts_->last_assembled_ns = now;
         continue;  // the slot takes the next rotation
@@ -417,7 +417,7 @@ void SensorPipeline::receive() {
       {
         std::lock_guard lock(counts_mutex_);
         Counts& c = *counts_;
-        ++c.assembled;
+        slot->sequence = c.assembled++;
         if (c.in_flight++ == 0) c.progress_ns = now;
         c.last_assembled_ns = now;
       }
@@ -467,7 +467,7 @@ void SensorPipeline::detect(Rotation& rotation) {
   const Scan& scan = rotation.scan;
   if (hook_) hook_(scan);
   RotationResult& r = rotation.result;
-  r.sequence = scan.sequence;
+  r.sequence = rotation.sequence;
   r.stamp_ns = scan.stamp_ns;
   r.end_stamp_ns =
       scan.columns > 0

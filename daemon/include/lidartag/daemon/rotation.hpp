@@ -32,7 +32,11 @@ struct RotationResult {
 struct Rotation {
   Scan scan;                 // sized by the batcher when first filled
   int64_t assembled_ns = 0;  // steady clock: when the receiver finished the rotation
-  uint64_t order = 0;        // place in the pipeline's publication order (0, 1, 2, ...)
+  // The daemon's count of rotations assembled before this one: the published `sequence`, so that
+  // its gaps are exactly the rotations dropped (the batcher's own counter starts again when the
+  // capture reader replaces it, e.g. on a model change).
+  uint64_t sequence = 0;
+  uint64_t order = 0;  // place in the pipeline's publication order (0, 1, 2, ...)
   RotationResult result;
 };
 
