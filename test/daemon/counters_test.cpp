@@ -12,6 +12,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <filesystem>
 #include <random>
@@ -98,7 +99,8 @@ struct Collector {
 // Runs the pcap through a SensorPipeline (two workers), taking a status every `poll` and checking
 // the rotation invariant at each; then checks it exactly at the end.
 Outcome run_pcap(const std::string& pcap, std::vector<std::string> settings,
-                 SensorPipeline::DetectHook hook = {}, std::chrono::milliseconds poll = 20ms) {
+                 SensorPipeline::DetectHook hook = {}, std::chrono::milliseconds poll = 20ms,
+                 int workers = 2) {
   std::vector<std::string> all = {"sensors[0].source.kind=pcap", "sensors[0].source.file=" + pcap,
                                   "sensors[0].source.rate=0", "lcm.url=memq://",
                                   "health.window_s=0.2"};
@@ -107,11 +109,13 @@ Outcome run_pcap(const std::string& pcap, std::vector<std::string> settings,
   LcmBus bus(options.lcm.url);
   Collector collector;
   bus.lcm().subscribe("LIDARTAG_DETECTIONS", &Collector::handle, &collector);
-  tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 3);
-  tbb::task_arena arena(2, 0);
+  tbb::global_control threads(tbb::global_control::max_allowed_parallelism,
+                              static_cast<size_t>(workers + 1));
+  tbb::task_arena arena(workers, 0);
   Outcome run;
   {
-    SensorPipeline pipeline(options.sensors[0], options, bus, arena, 2, nullptr, nullptr, hook);
+    SensorPipeline pipeline(options.sensors[0], options, bus, arena, workers, nullptr, nullptr,
+                            hook);
     pipeline.start();
     const auto deadline = std::chrono::steady_clock::now() + 60s;
     while (!pipeline.finished() && std::chrono::steady_clock::now() < deadline) {
@@ -349,6 +353,29 @@ TEST(Counters, DropsWhenDetectionFallsBehindAddUpAndAreReported) {
   for (size_t i = 0; i < run.detections.size(); ++i) {
     EXPECT_GE(run.detections[i].dropped_rotations,
               run.detections[i].sequence - static_cast<int64_t>(i));
+  }
+}
+
+TEST(Counters, WorkerThreadsRotationsAreDetectedAtOnceNeverMore) {
+  // A replay at full speed with a detection stage that takes 20 ms: rotations wait, so every
+  // worker is busy; none more (the first stage never holds a worker waiting for the source).
+  const auto packets = packets_of(sensor_stream(Model::kVLP32C, 1.0));
+  for (int workers : {1, 2, 3}) {
+    SCOPED_TRACE(workers);
+    std::atomic<int> now{0}, most{0};
+    const Outcome run = run_pcap(
+        write_pcap(packets, "workers" + std::to_string(workers)), {},
+        [&](const Scan&) {
+          const int n = now.fetch_add(1) + 1;
+          int m = most.load();
+          while (n > m && !most.compare_exchange_weak(m, n)) {
+          }
+          std::this_thread::sleep_for(20ms);
+          now.fetch_sub(1);
+        },
+        20ms, workers);
+    EXPECT_EQ(most.load(), workers);
+    EXPECT_EQ(run.last().rotations_published, 11u);
   }
 }
 
