@@ -159,6 +159,7 @@ struct SensorPipeline::ReceiverState {
   // The model check's last verdict, and its text (empty: the model fits).
   std::optional<velodyne::Model> problem_model, problem_timing;
   std::string model_problem;
+  uint64_t noted_mismatch = 0;  // CaptureCounts::model_mismatch when model_note was taken
 };
 
 // The detection pipeline, a oneTBB flow graph in the shared arena. `take` (serial) is told by the
@@ -320,7 +321,7 @@ void SensorPipeline::note_sender(const velodyne::RawPacket& p) {
 
 void SensorPipeline::take_snapshot(const Scan* last) {
   const int64_t now = steady_ns();
-  ReceiverState& senders = *receiver_state_;
+  ReceiverState& mine = *receiver_state_;
   const auto& counts = reader_->counts();
   // The model decided (configured, or the product byte) against the packets' timing, which
   // follows the latest packets: a wrong configuration or a change mid-stream shows here. The
@@ -330,22 +331,22 @@ void SensorPipeline::take_snapshot(const Scan* last) {
   const auto mode = reader_->return_mode().value_or(velodyne::ReturnMode::kStrongest);
   const bool mismatch = model && timing && !same_timing(*model, *timing, mode);
   if (!mismatch) {
-    senders.model_problem.clear();
-  } else if (senders.problem_model != model || senders.problem_timing != timing) {
+    mine.model_problem.clear();
+  } else if (mine.problem_model != model || mine.problem_timing != timing) {
     const std::string decided(velodyne::model_spec(*model).name);
     const std::string fits(velodyne::model_spec(*timing).name);
-    senders.model_problem = sensor_.model
-                                ? fmt::format(
-                                      "configured model {} does not fit the packets (their "
-                                      "timing is that of a {}): check sensors[].model",
-                                      decided, fits)
-                                : fmt::format(
-                                      "decoding as {} (the product byte) but the packets' timing "
-                                      "is that of a {}: set sensors[].model",
-                                      decided, fits);
+    mine.model_problem = sensor_.model
+                             ? fmt::format(
+                                   "configured model {} does not fit the packets (their "
+                                   "timing is that of a {}): check sensors[].model",
+                                   decided, fits)
+                             : fmt::format(
+                                   "decoding as {} (the product byte) but the packets' timing "
+                                   "is that of a {}: set sensors[].model",
+                                   decided, fits);
   }
-  senders.problem_model = model;
-  senders.problem_timing = timing;
+  mine.problem_model = model;
+  mine.problem_timing = timing;
   std::lock_guard lock(snapshot_mutex_);
   Snapshot& s = *snapshot_;
   s.counts.data_packets = counts.data_packets;
@@ -358,19 +359,22 @@ void SensorPipeline::take_snapshot(const Scan* last) {
   s.counts.position_errors = counts.position_errors;
   s.counts.gprmc_valid = counts.gprmc_valid;
   s.counts.pps = counts.pps;
-  if (senders.data_packets != senders.seen_data) s.last_data_ns = now;
-  senders.seen_data = senders.data_packets;
-  s.data_packets = senders.data_packets;
+  if (mine.data_packets != mine.seen_data) s.last_data_ns = now;
+  mine.seen_data = mine.data_packets;
+  s.data_packets = mine.data_packets;
   s.source = reader_->source_stats();
   s.batcher = reader_->batcher_stats();
   s.model = model;
   s.mode = reader_->return_mode();
   s.time_source = reader_->clock().source();
-  s.model_problem = senders.model_problem;  // copied into storage it keeps
-  if (counts.model_mismatch > 0) s.model_note = reader_->model_mismatch();
+  s.model_problem = mine.model_problem;  // copied into storage it keeps
+  if (counts.model_mismatch != mine.noted_mismatch) {
+    s.model_note = reader_->model_mismatch();
+    mine.noted_mismatch = counts.model_mismatch;
+  }
   s.senders.clear();
-  for (size_t i = 0; i < senders.size; ++i) {
-    auto& e = senders.entries[i];
+  for (size_t i = 0; i < mine.size; ++i) {
+    auto& e = mine.entries[i];
     if (e.seen) e.last_ns = now;
     e.seen = false;
     if (now - e.last_ns <= to_ns(options_.health.window_s)) s.senders.push_back(e.address);

@@ -15,6 +15,7 @@
 #include <atomic>
 #include <chrono>
 #include <filesystem>
+#include <memory>
 #include <random>
 #include <thread>
 
@@ -30,6 +31,23 @@ using namespace std::chrono_literals;
 using velodyne::Model;
 using velodyne::ReturnMode;
 using Stream = std::vector<velodyne::testing::StreamPacket>;
+
+// oneTBB fixes its largest worker pool when the process first uses it (the machine's cores less
+// one unless a global_control allows more); the pipelines below use up to 3 workers whatever the
+// machine and whatever ran before, so the whole test program allows 4 threads from the start.
+class TbbThreads : public ::testing::Environment {
+ public:
+  void SetUp() override {
+    control_ =
+        std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, 4);
+  }
+  void TearDown() override { control_.reset(); }
+
+ private:
+  std::unique_ptr<tbb::global_control> control_;
+};
+[[maybe_unused]] ::testing::Environment* const kTbbThreads =
+    ::testing::AddGlobalTestEnvironment(new TbbThreads);
 
 constexpr uint32_t kSensorA = 0xC0A801C9;  // 192.168.1.201
 constexpr uint32_t kSensorB = 0xC0A801CA;  // 192.168.1.202

@@ -256,8 +256,10 @@ TEST(Pipeline, LoopSeamPartialsAreCountedNotPublishedAndTheRateStaysTheSensors) 
   for (size_t i = 1; i + 1 < rotations.size(); ++i) {
     EXPECT_TRUE(rotations[i].complete) << "rotation " << rotations[i].sequence;
   }
-  // The pace stays the sensor's across the seams: one rotation every 100 ms, never a burst of
-  // partials, nor a pause (the replay's clock runs on across the seam).
+  // The pace stays the sensor's across the seams: 10 rotations a second (publishing the seam's two
+  // partials too would make 12 per pass of 11 rotation periods, 10.9 a second), no pause (the
+  // replay's clock runs on across the seam). Judged over the whole run, so that a rotation
+  // published late on a loaded machine does not count.
   std::vector<double> gaps_ms;
   for (size_t i = 2; i + 1 < rotations.size(); ++i) {
     gaps_ms.push_back(
@@ -268,11 +270,10 @@ TEST(Pipeline, LoopSeamPartialsAreCountedNotPublishedAndTheRateStaysTheSensors) 
   std::vector<double> sorted = gaps_ms;
   std::sort(sorted.begin(), sorted.end());
   EXPECT_NEAR(sorted[sorted.size() / 2], 100.0, 15.0) << all;
-  EXPECT_GT(sorted.front(), 60.0) << all;
-  EXPECT_LT(sorted.back(), 160.0) << all;
-  const double seconds =
-      static_cast<double>(rotations.back().publish_utime - rotations[1].publish_utime) * 1e-6;
-  EXPECT_NEAR(static_cast<double>(rotations.size() - 2) / seconds, 10.0, 1.0) << all;
+  const double seconds = static_cast<double>(rotations[rotations.size() - 2].publish_utime -
+                                             rotations[1].publish_utime) *
+                         1e-6;
+  EXPECT_NEAR(static_cast<double>(rotations.size() - 3) / seconds, 10.0, 0.4) << all;
 }
 
 }  // namespace

@@ -1,7 +1,7 @@
-// The systemd watchdog in process: a Daemon replaying the demo at 0.4 x the recorded pace, a fake
-// NOTIFY_SOCKET, and a detection stage stalled on purpose (the pipeline's test seam). WATCHDOG=1
-// stops while no rotation gets published and comes back when the pipeline moves again; STATUS=
-// says which sensor stalled and why.
+// The systemd watchdog in process: a Daemon replaying the demo at a quarter of the recorded pace, a
+// fake NOTIFY_SOCKET, and a detection stage stalled on purpose (the pipeline's test seam).
+// WATCHDOG=1 stops while no rotation gets published and comes back when the pipeline moves again;
+// STATUS= says which sensor stalled and why.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -37,7 +37,7 @@ TEST(Watchdog, NoPingsWhileThePipelineIsStalledAndPingsAgainAfter) {
   ASSERT_EQ(setenv("WATCHDOG_USEC", "200000", 1), 0);  // pings every 100 ms while progressing
 
   DaemonOptions options = load_config(
-      kDemoConfig, {"sensors[0].source.file=" + kDemo, "sensors[0].source.rate=0.4",
+      kDemoConfig, {"sensors[0].source.file=" + kDemo, "sensors[0].source.rate=0.25",
                     "lcm.url=memq://", "status.period_s=0.1", "watchdog.stall_timeout_s=0.3"});
   std::atomic<bool> release{false};
   std::atomic<int64_t> stalled_at{0};
