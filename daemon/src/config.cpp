@@ -537,6 +537,16 @@ void visit(V& v, DaemonOptions& o) {
   v.section("status", [&](V& s) { s.field("period_s", o.status.period_s, closed(0.01, 3600.0)); });
   v.section("watchdog", [&](V& s) {
     s.field("stall_timeout_s", o.watchdog.stall_timeout_s, closed(0.1, 3600.0));
+    s.field("while_silent", o.watchdog.while_silent);
+  });
+  v.section("health", [&](V& s) {
+    s.field("startup_grace_s", o.health.startup_grace_s, closed(0.0, 86400.0));
+    s.field("silence_s", o.health.silence_s, closed(0.01, 3600.0));
+    s.field("window_s", o.health.window_s, closed(0.1, 3600.0));
+    s.field("max_loss", o.health.max_loss, closed(0.0, 1.0));
+    s.field("min_rpm", o.health.min_rpm, closed(0.0, 10000.0));
+    s.field("max_rpm", o.health.max_rpm, closed(0.0, 10000.0));
+    s.field("max_rotation_ratio", o.health.max_rotation_ratio, closed(1.0, 1000.0));
   });
   v.section("logging", [&](V& s) {
     s.field("level", o.logging.level, log_level());
@@ -604,6 +614,9 @@ void check_relations(const DaemonOptions& o) {
                           fmt::format("same as lcm.channels.{}", channels[j].first));
       }
     }
+  }
+  if (o.health.max_rpm <= o.health.min_rpm) {
+    throw ConfigError("health.max_rpm", to_text(o.health.max_rpm), "must be above health.min_rpm");
   }
   check_detector(o.detector);
 }

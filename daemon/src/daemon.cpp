@@ -31,10 +31,6 @@ sigset_t handled_signals() {
   return set;
 }
 
-int64_t to_ns(double seconds) {
-  return static_cast<int64_t>(seconds * 1e9);
-}
-
 }  // namespace
 
 void block_signals() {
@@ -47,8 +43,8 @@ Daemon::Daemon(DaemonOptions options, RunOptions run, Logging* logging)
   workers_ = options_.pipeline.worker_threads > 0
                  ? options_.pipeline.worker_threads
                  : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
-  // The arena's threads are all workers (no slot kept for a master thread: nobody joins it), and
-  // the global limit must allow that many beside the main thread.
+  // The arena's threads are all workers (no slot kept for a master thread: the receivers only
+  // hand tasks to it), and the global limit must allow that many beside the main thread.
   const auto limit = static_cast<size_t>(workers_ + 1);
   threads_ = std::make_unique<tbb::global_control>(
       tbb::global_control::max_allowed_parallelism,
@@ -63,8 +59,9 @@ Daemon::Daemon(DaemonOptions options, RunOptions run, Logging* logging)
     printer_ = std::make_unique<LinePrinter>(run.print_detections);
   }
   for (const auto& sensor : options_.sensors) {
-    pipelines_.push_back(std::make_unique<SensorPipeline>(
-        sensor, options_, *bus_, *arena_, workers_, recorder_.get(), printer_.get()));
+    pipelines_.push_back(std::make_unique<SensorPipeline>(sensor, options_, *bus_, *arena_,
+                                                          workers_, recorder_.get(), printer_.get(),
+                                                          run.detect_hook));
   }
 }
 
@@ -73,20 +70,21 @@ Daemon::~Daemon() {
   for (auto& p : pipelines_) p->join();
 }
 
-bool Daemon::healthy() const {
+bool Daemon::progressing() const {
   const int64_t now = steady_ns();
-  const int64_t stall = to_ns(options_.watchdog.stall_timeout_s);
   return std::all_of(pipelines_.begin(), pipelines_.end(),
-                     [&](const auto& p) { return p->healthy(now, stall); });
+                     [&](const auto& p) { return p->progressing(now); });
 }
 
 std::string Daemon::summary() const {
   std::string text;
   for (const auto& s : last_status_) {
     if (!text.empty()) text += "; ";
-    text += fmt::format("{}: {} {} rotations published, {} dropped, {} tags, {}", s.sensor,
+    text += fmt::format("{}: {} {} rotations published, {} dropped, {} tags, {}{}{}", s.sensor,
                         s.model.empty() ? "(model unknown)" : s.model, s.rotations_published,
-                        s.rotations_dropped, s.detections, s.healthy ? "healthy" : "UNHEALTHY");
+                        s.rotations_dropped, s.detections, health_state_name(s.health.state),
+                        s.health.reason.empty() ? "" : " (",
+                        s.health.reason.empty() ? "" : s.health.reason + ")");
   }
   return text;
 }
@@ -96,7 +94,7 @@ void Daemon::publish_status(bool final) {
   const double uptime = static_cast<double>(now - started_ns_) * 1e-9;
   last_status_.clear();
   for (auto& p : pipelines_) {
-    SensorStatus s = p->status(now, to_ns(options_.watchdog.stall_timeout_s));
+    SensorStatus s = p->status(now);
     fill_status(s, wall_utime(), uptime, status_message_);
     bus_->publish(channel_of(p->sensor(), options_.lcm.channels.status), status_message_);
     last_status_.push_back(std::move(s));
@@ -127,12 +125,12 @@ int Daemon::run() {
       std::chrono::duration<double>(options_.status.period_s));
   const auto ping = notifier_.ping_interval();
   if (ping) {
-    spdlog::info("systemd watchdog: pinging every {} ms while healthy",
+    spdlog::info("systemd watchdog: pinging every {} ms while every sensor progresses",
                  std::chrono::duration_cast<std::chrono::milliseconds>(*ping).count());
   }
   auto next_status = Clock::now() + status_period;
   auto next_ping = Clock::now();
-  bool was_healthy = true;
+  bool was_progressing = true;
   const sigset_t signals = handled_signals();
   int stop_signal = 0;
   bool sigpipe_noted = false;
@@ -140,12 +138,19 @@ int Daemon::run() {
   for (;;) {
     const auto now = Clock::now();
     if (ping && now >= next_ping) {
-      const bool ok = healthy();
+      // Fed only by progress: a stuck pipeline, or a sensor silent past the grace, lets
+      // WatchdogSec run out and systemd restart the daemon.
+      const bool ok = progressing();
       if (ok) notifier_.watchdog();
-      if (ok != was_healthy) {
-        spdlog::warn("pipeline {}", ok ? "healthy again" : "stalled: watchdog pings suspended");
+      if (ok != was_progressing) {
+        if (ok) {
+          spdlog::warn("every sensor progresses again: watchdog pings resumed");
+        } else {
+          publish_status(false);  // says which sensor and why
+          spdlog::warn("no progress: watchdog pings suspended ({})", summary());
+        }
       }
-      was_healthy = ok;
+      was_progressing = ok;
       next_ping = now + *ping;
     }
     if (now >= next_status) {

@@ -120,7 +120,10 @@ void fill_status(const SensorStatus& s, int64_t utime, double uptime_s, lidartag
   out.frame_id = s.frame_id;
   out.sensor = s.sensor;
   out.uptime_s = uptime_s;
-  out.healthy = s.healthy;
+  out.healthy = s.health.healthy();
+  out.state = static_cast<int8_t>(s.health.state);
+  out.reason = s.health.reason;
+  out.progressing = s.progressing;
   out.model = s.model;
   out.return_mode = s.return_mode;
   out.rpm = s.rpm;
@@ -129,14 +132,31 @@ void fill_status(const SensorStatus& s, int64_t utime, double uptime_s, lidartag
   out.position_packets = i64(s.position_packets);
   out.gprmc_valid = i64(s.gprmc_valid);
   out.packets_received = i64(s.packets_received);
-  out.packets_dropped = i64(s.packets_dropped);
+  out.packets_data = i64(s.packets_data);
+  out.packets_decoded = i64(s.packets_decoded);
+  out.packets_kernel_dropped = i64(s.packets_kernel_dropped);
+  out.packets_missing = i64(s.packets_missing);
+  out.packets_duplicate = i64(s.packets_duplicate);
+  out.packets_reordered = i64(s.packets_reordered);
   out.packets_malformed = i64(s.packets_malformed);
+  out.packets_foreign = i64(s.packets_foreign);
+  out.packets_inconsistent = i64(s.packets_inconsistent);
+  out.packets_model_mismatch = i64(s.packets_model_mismatch);
   out.packets_ignored = i64(s.packets_ignored);
+  out.nsenders = static_cast<int32_t>(s.senders.size());
+  out.senders.resize(s.senders.size());
+  for (size_t i = 0; i < s.senders.size(); ++i) {
+    out.senders[i] = static_cast<int32_t>(s.senders[i]);
+  }
   out.rotations_assembled = i64(s.rotations_assembled);
-  out.rotations_dropped = i64(s.rotations_dropped);
-  out.rotations_processed = i64(s.rotations_processed);
   out.rotations_published = i64(s.rotations_published);
+  out.rotations_dropped = i64(s.rotations_dropped);
+  out.rotations_behind = i64(s.rotations_behind);
+  out.rotations_seam = i64(s.rotations_seam);
+  out.rotations_unsent = i64(s.rotations_unsent);
+  out.rotations_in_flight = i64(s.rotations_in_flight);
   out.detections = i64(s.detections);
+  out.publish_failures = i64(s.publish_failures);
   out.buffer_occupancy = static_cast<int32_t>(s.buffer_occupancy);
   out.buffer_depth = static_cast<int32_t>(s.buffer_depth);
   const size_t n = std::min(s.stage_names.size(), s.stages.size());

@@ -2,16 +2,18 @@
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
+#include <tbb/flow_graph.h>
 #include <tbb/task_arena.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <array>
 #include <cerrno>
 #include <csignal>
 #include <cstring>
 
 #include "lidartag/daemon/lcm_log_source.hpp"
 #include "lidartag/daemon/messages.hpp"
-#include "lidartag/daemon/scan_copy.hpp"
 #include "lidartag/driver/io/live_source.hpp"
 #include "lidartag/driver/io/pcap_source.hpp"
 #include "lidartag/driver/io/udp_frame.hpp"
@@ -23,10 +25,25 @@ using namespace std::chrono_literals;
 
 namespace {
 
-enum FixedStage : size_t { kQueue, kDetect, kOrder, kPublish, kTotal, kFixedStages };
+int64_t to_ns(double seconds) {
+  return static_cast<int64_t>(seconds * 1e9);
+}
 
-double ms(int64_t ns) {
-  return static_cast<double>(ns) * 1e-6;
+double seconds(int64_t ns) {
+  return static_cast<double>(ns) * 1e-9;
+}
+
+bool is_replay(const SourceOptions& s) {
+  return s.kind == SourceKind::kPcap || s.kind == SourceKind::kLcm;
+}
+
+// Models that the packets' timing and layout cannot tell apart (VLP-16 and Puck Hi-Res).
+bool same_timing(velodyne::Model a, velodyne::Model b, velodyne::ReturnMode mode) {
+  const auto& sa = velodyne::model_spec(a);
+  const auto& sb = velodyne::model_spec(b);
+  return (sa.blocks_per_firing > 1) == (sb.blocks_per_firing > 1) &&
+         std::abs(sa.packet_period_us(mode) - sb.packet_period_us(mode)) <
+             0.01 * sa.packet_period_us(mode);
 }
 
 std::optional<uint32_t> sender(const SourceOptions& s) {
@@ -117,7 +134,8 @@ std::string detections_line(const std::string& sensor, const RotationResult& r) 
   return line;
 }
 
-// What the receiving thread knows, copied once per rotation for the status thread.
+// What the receiving thread knows, copied at every return of CaptureReader::read (each rotation,
+// and at least every 100 ms) for the status.
 struct SensorPipeline::Snapshot {
   velodyne::CaptureCounts counts;
   velodyne::SourceStats source;
@@ -126,38 +144,111 @@ struct SensorPipeline::Snapshot {
   std::optional<velodyne::ReturnMode> mode;
   velodyne::TimeSource time_source = velodyne::TimeSource::kHost;
   float rpm = 0;
+  int64_t sensor_ns = 0;          // first firing of the last rotation assembled
+  uint64_t data_packets = 0;      // data-port packets received (also while the model is probed)
+  int64_t last_data_ns = 0;       // steady clock, of the last read that saw new data packets
+  std::string model_problem;      // the model decoded does not fit the packets' timing
+  std::string model_note;         // CaptureReader::model_mismatch(), once packets contradict it
+  std::vector<uint32_t> senders;  // seen within health.window_s
   std::string error;
+};
+
+// The rotation counters, changed together under counts_mutex_ so that every status sees
+// assembled = published + behind + seam + unsent + in_flight.
+struct SensorPipeline::Counts {
+  uint64_t assembled = 0, published = 0, behind = 0, seam = 0, unsent = 0, in_flight = 0;
+  uint64_t detections = 0;
+  int64_t last_assembled_ns = 0;  // steady clock
+  int64_t progress_ns = 0;        // last publication, or when the pipeline last became non-empty
+  uint64_t dropped() const { return behind + seam + unsent; }
+};
+
+// The receiving thread's own: the distinct sender addresses of data packets (per packet one compare
+// in the common case; the times are stamped when the snapshot is taken) and the model verdict.
+struct SensorPipeline::ReceiverState {
+  struct Entry {
+    uint32_t address = 0;
+    bool seen = false;    // since the last snapshot
+    int64_t last_ns = 0;  // steady clock of the snapshot that last saw it
+  };
+  std::array<Entry, 8> entries{};
+  size_t size = 0, last = 0;
+  uint64_t data_packets = 0, seen_data = 0;  // data packets, and at the last snapshot
+  // The model check's last verdict, and its text (empty: the model fits).
+  std::optional<velodyne::Model> problem_model, problem_timing;
+  std::string model_problem;
+  uint64_t noted_mismatch = 0;  // CaptureCounts::model_mismatch when model_note was taken
+};
+
+// The detection pipeline, a oneTBB flow graph in the shared arena. `take` (serial) is told by the
+// receiver after each rotation it hands over, and by `publish` after each publication; it takes
+// waiting rotations while fewer than tokens_ are in the pipeline, numbering them in taking order
+// (which is rotation order: the buffer is FIFO). `detect` runs on up to `workers` arena threads;
+// the sequencer restores the taking order, `publish` (serial) publishes and frees the slot.
+struct SensorPipeline::Graph {
+  using Take = tbb::flow::multifunction_node<tbb::flow::continue_msg, std::tuple<Rotation*>>;
+  tbb::flow::graph graph;
+  Take take;
+  tbb::flow::function_node<Rotation*, Rotation*> detect;
+  tbb::flow::sequencer_node<Rotation*> order;
+  tbb::flow::function_node<Rotation*, tbb::flow::continue_msg> publish;
+
+  Graph(SensorPipeline& p, int workers)
+      : take(graph, tbb::flow::serial,
+             [&p](const tbb::flow::continue_msg&, Take::output_ports_type& out) { p.take(out); }),
+        detect(graph, static_cast<size_t>(workers),
+               [&p](Rotation* r) {
+                 p.detect(*r);
+                 return r;
+               }),
+        order(graph, [](Rotation* r) { return static_cast<size_t>(r->order); }),
+        publish(graph, tbb::flow::serial, [&p](Rotation* r) {
+          p.publish(*r);
+          return tbb::flow::continue_msg();
+        }) {
+    tbb::flow::make_edge(tbb::flow::output_port<0>(take), detect);
+    tbb::flow::make_edge(detect, order);
+    tbb::flow::make_edge(order, publish);
+    tbb::flow::make_edge(publish, take);
+  }
 };
 
 SensorPipeline::SensorPipeline(const SensorOptions& sensor, const DaemonOptions& options,
                                LcmBus& bus, tbb::task_arena& arena, int workers,
-                               PcapRecorder* recorder, LinePrinter* printer)
+                               PcapRecorder* recorder, LinePrinter* printer, DetectHook hook)
     : sensor_(sensor),
       options_(options),
       bus_(bus),
       arena_(arena),
       workers_(workers),
-      printer_(printer),
-      lossless_(options.pipeline.lossless_replay && (sensor.source.kind == SourceKind::kPcap ||
-                                                     sensor.source.kind == SourceKind::kLcm)),
-      detections_channel_(channel_of(sensor, options.lcm.channels.detections)),
+      lossless_(options.pipeline.lossless_replay && is_replay(sensor.source)),
+      loop_(is_replay(sensor.source) && sensor.source.loop),
+      hook_(std::move(hook)),
       raw_channel_(channel_of(sensor, options.lcm.channels.raw)),
-      tag_points_channel_(channel_of(sensor, options.lcm.channels.tag_points)),
-      cloud_channel_(channel_of(sensor, options.lcm.channels.cloud)),
-      ordered_(static_cast<size_t>(workers), static_cast<size_t>(options.pipeline.publish_queue)),
+      failures_(sensor.name, std::chrono::seconds(5)),
+      buffer_(static_cast<size_t>(options.pipeline.queue_depth),
+              static_cast<size_t>(workers + options.pipeline.publish_queue),
+              lossless_ ? Overflow::kWait : Overflow::kDropOldest),
+      publisher_(sensor_, options, bus, printer, failures_),
+      health_(options.health),
+      tokens_(static_cast<size_t>(workers + options.pipeline.publish_queue)),
+      receiver_state_(std::make_unique<ReceiverState>()),
+      counts_(std::make_unique<Counts>()),
       snapshot_(std::make_unique<Snapshot>()) {
-  for (int i = 0; i < workers_; ++i) {
+  snapshot_->senders.reserve(receiver_state_->entries.size());
+  for (size_t i = 0; i < tokens_; ++i) {
     detectors_.push_back(std::make_unique<detector::Detector>(options.detector));
   }
-  TapSource::RawTap raw_tap;
-  if (options.lcm.publish_raw) {
-    raw_tap = [this](const velodyne::RawPacket& p) {
+  // Every packet passes here on the receiving thread: senders are noted, raw packets published.
+  TapSource::RawTap tap = [this](const velodyne::RawPacket& p) {
+    note_sender(p);
+    if (options_.lcm.publish_raw) {
       fill_raw_packet(p, sensor_.name, raw_message_);
-      bus_.publish(raw_channel_, raw_message_);
-    };
-  }
-  auto tap = std::make_unique<TapSource>(open_source(sensor, options), recorder, raw_tap);
-  tap_ = tap.get();
+      if (!bus_.publish(raw_channel_, raw_message_)) failures_.failed(raw_channel_);
+    }
+  };
+  auto source = std::make_unique<TapSource>(open_source(sensor, options), recorder, tap);
+  tap_ = source.get();
   velodyne::CaptureReaderOptions reader;
   reader.source.data_port = sensor.source.data_port;
   reader.source.position_port = sensor.source.position_port;
@@ -165,38 +256,44 @@ SensorPipeline::SensorPipeline(const SensorOptions& sensor, const DaemonOptions&
   reader.calibration_file = sensor.calibration;
   reader.decoder = sensor.decoder;
   reader.batcher = sensor.batcher;
-  reader_ = std::make_unique<velodyne::CaptureReader>(std::move(tap), reader);
-
-  stage_names_ = {"queue", "detect", "order", "publish", "total"};
-  for (int s = 0; s < detector::kStageCount; ++s) {
-    stage_names_.emplace_back(detector::stage_name(static_cast<detector::Stage>(s)));
-  }
-  for (size_t i = 0; i < stage_names_.size(); ++i) {
-    windows_.push_back(std::make_unique<LatencyWindow>());
-  }
+  reader_ = std::make_unique<velodyne::CaptureReader>(std::move(source), reader);
+  // Built inside the arena, so that its tasks run there.
+  arena_.execute([&] { graph_ = std::make_unique<Graph>(*this, workers_); });
 }
 
 SensorPipeline::~SensorPipeline() {
   stop();
   join();
+  graph_.reset();  // waits for the graph's tasks, which use `this`
 }
 
 void SensorPipeline::start() {
-  publisher_beat_ns_.store(steady_ns());
+  const int64_t now = steady_ns();
+  started_ns_.store(now);
+  receiver_beat_ns_.store(now);
+  {
+    std::lock_guard lock(counts_mutex_);
+    counts_->last_assembled_ns = now;
+    counts_->progress_ns = now;
+  }
   receiver_ = std::thread([this] { receive(); });
-  publisher_ = std::thread([this] { publish_loop(); });
 }
 
 void SensorPipeline::stop() {
   stopping_.store(true);
   tap_->stop();
+  buffer_.stop_waiting();
 }
 
 void SensorPipeline::join() {
   if (receiver_.joinable()) receiver_.join();
-  if (publisher_.joinable()) publisher_.join();
-  // Tasks still in the arena hold `this` until they decrement active_.
-  while (active_.load(std::memory_order_acquire) > 0) std::this_thread::sleep_for(1ms);
+  // The receiver closed the buffer and told the graph: every rotation it handed over gets
+  // published, then take() sees the buffer drained.
+  graph_->graph.wait_for_all();
+}
+
+void SensorPipeline::wake_pipeline() {
+  graph_->take.try_put(tbb::flow::continue_msg());
 }
 
 std::string SensorPipeline::error() const {
@@ -204,117 +301,195 @@ std::string SensorPipeline::error() const {
   return snapshot_->error;
 }
 
+void SensorPipeline::fail(const std::string& what) {
+  spdlog::error("sensor {}: {}", sensor_.name, what);
+  std::lock_guard lock(snapshot_mutex_);
+  if (snapshot_->error.empty()) snapshot_->error = what;
+}
+
+void SensorPipeline::note_sender(const velodyne::RawPacket& p) {
+  if (p.destination_port != sensor_.source.data_port) return;
+  ReceiverState& s = *receiver_state_;
+  ++s.data_packets;
+  if (p.source_ipv4 == 0) return;  // unknown (some replays)
+  if (s.size > 0 && s.entries[s.last].address == p.source_ipv4) {
+    s.entries[s.last].seen = true;
+    return;
+  }
+  for (size_t i = 0; i < s.size; ++i) {
+    if (s.entries[i].address == p.source_ipv4) {
+      s.entries[i].seen = true;
+      s.last = i;
+      return;
+    }
+  }
+  // A new sender; with the table full, the one not seen for the longest time makes room.
+  size_t slot = s.size;
+  if (s.size == s.entries.size()) {
+    slot = 0;
+    for (size_t i = 1; i < s.size; ++i) {
+      if (s.entries[i].last_ns < s.entries[slot].last_ns) slot = i;
+    }
+  } else {
+    ++s.size;
+  }
+  s.entries[slot] = {p.source_ipv4, true, 0};
+  s.last = slot;
+}
+
 void SensorPipeline::take_snapshot(const Scan* last) {
+  const int64_t now = steady_ns();
+  ReceiverState& mine = *receiver_state_;
+  const auto& counts = reader_->counts();
+  // The model decided (configured, or the product byte) against the packets' timing, which
+  // follows the latest packets: a wrong configuration or a change mid-stream shows here. The
+  // text is made when the verdict changes, not per rotation.
+  const auto model = reader_->model();
+  const auto timing = reader_->model_check().timing_model();
+  const auto mode = reader_->return_mode().value_or(velodyne::ReturnMode::kStrongest);
+  const bool mismatch = model && timing && !same_timing(*model, *timing, mode);
+  if (!mismatch) {
+    mine.model_problem.clear();
+  } else if (mine.problem_model != model || mine.problem_timing != timing) {
+    const std::string decided(velodyne::model_spec(*model).name);
+    const std::string fits(velodyne::model_spec(*timing).name);
+    mine.model_problem = sensor_.model
+                             ? fmt::format(
+                                   "configured model {} does not fit the packets (their "
+                                   "timing is that of a {}): check sensors[].model",
+                                   decided, fits)
+                             : fmt::format(
+                                   "decoding as {} (the product byte) but the packets' timing "
+                                   "is that of a {}: set sensors[].model",
+                                   decided, fits);
+  }
+  mine.problem_model = model;
+  mine.problem_timing = timing;
   std::lock_guard lock(snapshot_mutex_);
   Snapshot& s = *snapshot_;
-  const auto& counts = reader_->counts();
   s.counts.data_packets = counts.data_packets;
   s.counts.position_packets = counts.position_packets;
   s.counts.decoded = counts.decoded;
   s.counts.decode_errors = counts.decode_errors;
   s.counts.undecodable = counts.undecodable;
+  s.counts.model_mismatch = counts.model_mismatch;
   s.counts.position_ok = counts.position_ok;
   s.counts.position_errors = counts.position_errors;
   s.counts.gprmc_valid = counts.gprmc_valid;
   s.counts.pps = counts.pps;
+  if (mine.data_packets != mine.seen_data) s.last_data_ns = now;
+  mine.seen_data = mine.data_packets;
+  s.data_packets = mine.data_packets;
   s.source = reader_->source_stats();
   s.batcher = reader_->batcher_stats();
-  s.model = reader_->model();
+  s.model = model;
   s.mode = reader_->return_mode();
   s.time_source = reader_->clock().source();
-  if (last != nullptr) s.rpm = last->rpm;
+  s.model_problem = mine.model_problem;  // copied into storage it keeps
+  if (counts.model_mismatch != mine.noted_mismatch) {
+    s.model_note = reader_->model_mismatch();
+    mine.noted_mismatch = counts.model_mismatch;
+  }
+  s.senders.clear();
+  for (size_t i = 0; i < mine.size; ++i) {
+    auto& e = mine.entries[i];
+    if (e.seen) e.last_ns = now;
+    e.seen = false;
+    if (now - e.last_ns <= to_ns(options_.health.window_s)) s.senders.push_back(e.address);
+  }
+  if (last != nullptr) {
+    if (last->rpm > 0) s.rpm = last->rpm;
+    s.sensor_ns = last->stamp_ns;
+  }
 }
 
-int64_t SensorPipeline::assembled_at(const Scan* scan) const {
-  for (size_t i = 0; i < stamp_keys_.size(); ++i) {
-    if (stamp_keys_[i] == scan) return stamp_times_[i].load(std::memory_order_relaxed);
+bool SensorPipeline::at_loop_seam(const Scan& scan) {
+  // A looped replay starts over: the packets' clock jumps back, which ends the rotation in
+  // progress (azimuth_jumps, not at the cut); the next one starts away from the cut. Neither is a
+  // rotation the sensor made: both are counted, not published, so that the published rate stays
+  // the capture's.
+  if (after_seam_ && !scan.starts_at_cut) {
+    after_seam_ = scan.azimuth_jumps > 0 && !scan.ends_at_cut;
+    return true;
   }
-  return 0;
+  after_seam_ = scan.azimuth_jumps > 0 && !scan.ends_at_cut;
+  return after_seam_;
 }
 
 void SensorPipeline::receive() {
+  bool dropped = false;
+  Rotation* slot = buffer_.acquire(dropped);  // a fresh buffer: a free slot
   try {
-    while (const Scan* scan = reader_->next()) {
-      take_snapshot(scan);
-      assembled_.fetch_add(1, std::memory_order_relaxed);
-      if (!buffer_) {
-        // Sized for dual returns, so that a change of return mode still fits.
-        buffer_ = std::make_unique<velodyne::ScanBuffer>(
-            static_cast<size_t>(options_.pipeline.queue_depth), static_cast<size_t>(workers_),
-            scan->rings, 2, scan->column_capacity);
-        // Find the buffer's scans once, for the assembly-time table.
-        std::vector<Scan*> all;
-        while (Scan* s = buffer_->acquire()) all.push_back(s);
-        for (Scan* s : all) buffer_->release(s);
-        stamp_keys_.assign(all.begin(), all.end());
-        stamp_times_ = std::make_unique<std::atomic<int64_t>[]>(stamp_keys_.size());
-        buffer_ptr_.store(buffer_.get(), std::memory_order_release);
+    for (;;) {
+      const auto result = reader_->read(slot->scan, std::chrono::milliseconds(100));
+      receiver_beat_ns_.store(steady_ns(), std::memory_order_relaxed);
+      using Result = velodyne::CaptureReader::ReadResult;
+      take_snapshot(result == Result::kRotation ? &slot->scan : nullptr);
+      if (result == Result::kEnd) break;
+      if (result == Result::kTimeout) continue;  // the rotation in progress stays in the slot
+      const int64_t now = steady_ns();
+      if (loop_ && at_loop_seam(slot->scan)) {
+        std::lock_guard lock(counts_mutex_);
+        ++counts_->assembled;  // its sequence number is skipped
+        ++counts_->seam;
+        counts_->last_assembled_ns = now;
+        continue;  // the slot takes the next rotation
       }
-      // Replays wait for the detector instead of dropping (the stop request ends the wait).
-      while (lossless_ && buffer_->ready_count() >= buffer_->depth() && !stopping_.load()) {
-        tap_->beat();
-        spawn();
-        std::this_thread::sleep_for(1ms);
+      slot->assembled_ns = now;
+      {
+        std::lock_guard lock(counts_mutex_);
+        Counts& c = *counts_;
+        slot->sequence = c.assembled++;
+        if (c.in_flight++ == 0) c.progress_ns = now;
+        c.last_assembled_ns = now;
       }
-      Scan* slot = buffer_->acquire();
-      if (slot == nullptr) {
-        dropped_no_scan_.fetch_add(1, std::memory_order_relaxed);
-        continue;
+      // The next slot first (a live source drops the oldest waiting rotation if it must, a replay
+      // waits for the pipeline), then this rotation to the pipeline: at most queue_depth wait.
+      receiver_waiting_.store(true, std::memory_order_relaxed);
+      Rotation* next = buffer_.acquire(dropped);
+      receiver_waiting_.store(false, std::memory_order_relaxed);
+      receiver_beat_ns_.store(steady_ns(), std::memory_order_relaxed);
+      if (dropped) {
+        std::lock_guard lock(counts_mutex_);
+        --counts_->in_flight;
+        ++counts_->behind;
       }
-      if (!copy_scan(*scan, *slot)) {
-        buffer_->release(slot);
-        dropped_no_scan_.fetch_add(1, std::memory_order_relaxed);
-        continue;
-      }
-      for (size_t i = 0; i < stamp_keys_.size(); ++i) {
-        if (stamp_keys_[i] == slot) stamp_times_[i].store(steady_ns(), std::memory_order_relaxed);
-      }
-      buffer_->publish(slot);
-      spawn();
+      buffer_.publish(slot);
+      wake_pipeline();
+      slot = next;
     }
   } catch (const std::exception& e) {
     // Only setup-like failures get here (the calibration file does not fit the model decided
     // from the packets): the pipeline stops, the daemon exits with an error.
-    spdlog::error("sensor {}: {}", sensor_.name, e.what());
-    std::lock_guard lock(snapshot_mutex_);
-    snapshot_->error = e.what();
+    fail(e.what());
   }
   take_snapshot(nullptr);
-  source_done_.store(true, std::memory_order_release);
-  spawn();
+  stopped_.store(stopping_.load());  // else the source itself ended
+  receiver_done_.store(true, std::memory_order_release);
+  buffer_.close();
+  wake_pipeline();  // take() finds the buffer drained once the rest is published
 }
 
-void SensorPipeline::spawn() {
-  velodyne::ScanBuffer* buffer = buffer_ptr_.load(std::memory_order_acquire);
-  if (buffer == nullptr || buffer->ready_count() == 0) return;
-  int active = active_.load(std::memory_order_relaxed);
-  while (active < workers_) {
-    if (active_.compare_exchange_weak(active, active + 1, std::memory_order_acq_rel)) {
-      arena_.enqueue([this] { work(); });
-      return;
-    }
+template <class Out>
+void SensorPipeline::take(Out& out) {
+  // Serial. Rotations in the pipeline: taken here, not yet released by publish().
+  while (taken_ - released_.load(std::memory_order_acquire) < tokens_) {
+    Rotation* r = buffer_.try_take();
+    if (r == nullptr) break;
+    r->result.taken_ns = steady_ns();
+    r->order = taken_++;
+    std::get<0>(out).try_put(r);
+  }
+  if (taken_ == released_.load(std::memory_order_acquire) && buffer_.drained()) {
+    finished_.store(true, std::memory_order_release);
   }
 }
 
-void SensorPipeline::work() {
-  velodyne::ScanBuffer* buffer = buffer_ptr_.load(std::memory_order_acquire);
-  for (;;) {
-    while (OrderedResults::Slot* slot =
-               ordered_.take([buffer] { return buffer->pop(); }, steady_ns())) {
-      process(slot);
-    }
-    // A rotation published after the last pop stays with this task; the publisher's periodic
-    // spawn() covers the remaining race.
-    if (buffer->ready_count() > 0 && ordered_.has_free_slot()) continue;
-    active_.fetch_sub(1, std::memory_order_acq_rel);  // the task's last use of `this`
-    return;
-  }
-}
-
-void SensorPipeline::process(OrderedResults::Slot* slot) {
-  const Scan& scan = *slot->scan;
-  RotationResult& r = slot->result;
-  r.sequence = scan.sequence;
+void SensorPipeline::detect(Rotation& rotation) {
+  const Scan& scan = rotation.scan;
+  if (hook_) hook_(scan);
+  RotationResult& r = rotation.result;
+  r.sequence = rotation.sequence;
   r.stamp_ns = scan.stamp_ns;
   r.end_stamp_ns =
       scan.columns > 0
@@ -325,88 +500,103 @@ void SensorPipeline::process(OrderedResults::Slot* slot) {
   r.columns = scan.columns;
   r.points = static_cast<int>(scan.point_count());
   r.rpm = scan.rpm;
-  r.assembled_ns = assembled_at(&scan);
-  detector::Detector& detector = *detectors_[static_cast<size_t>(slot->detector)];
+  r.assembled_ns = rotation.assembled_ns;
+  // The rotations in the pipeline are consecutive in `order` (taken in order, released in order)
+  // and at most tokens_ of them: order modulo tokens_ gives each its own detector.
+  detector::Detector& detector = *detectors_[rotation.order % tokens_];
   // Isolated: while this thread waits inside the detector's own parallel loops it must not pick
   // up another rotation, which would delay this one (and the publication order) behind it.
   tbb::this_task_arena::isolate([&] { detector.detect(scan, r.detection); });
-  decimate_scan(scan, options_.lcm.cloud_decimation, r.cloud);
+  try {
+    decimate_scan(scan, options_.lcm.cloud_decimation, r.cloud);
+  } catch (const std::exception& e) {
+    // The cloud could not grow (out of memory): this rotation's cloud is empty, nothing else.
+    r.cloud.clear();
+    spdlog::error("sensor {}: rotation {}: no cloud: {}", sensor_.name, r.sequence, e.what());
+  }
   r.detected_ns = steady_ns();
-  buffer_ptr_.load(std::memory_order_relaxed)->release(slot->scan);
-  processed_.fetch_add(1, std::memory_order_relaxed);
-  ordered_.complete(slot);
 }
 
-uint64_t SensorPipeline::dropped_rotations() const {
-  const velodyne::ScanBuffer* buffer = buffer_ptr_.load(std::memory_order_acquire);
-  return (buffer ? buffer->dropped() : 0) + dropped_no_scan_.load();
-}
-
-void SensorPipeline::publish(OrderedResults::Slot* slot) {
-  const RotationResult& r = slot->result;
-  const int64_t before = steady_ns();
-  const int64_t assembled = r.assembled_ns > 0 ? r.assembled_ns : r.taken_ns;
-  fill_detections(r, sensor_.name, sensor_.frame_id, wall_utime(), ms(before - assembled),
-                  static_cast<int64_t>(dropped_rotations()), message_);
-  bus_.publish(detections_channel_, message_);
-  // The visualisation messages follow their rotation's detections, in rotation order too.
-  if (options_.detector.keep_tag_points && !r.detection.detections.empty()) {
-    fill_tag_points(r, sensor_.name, sensor_.frame_id, tag_points_message_);
-    bus_.publish(tag_points_channel_, tag_points_message_);
+void SensorPipeline::publish(Rotation& rotation) {
+  uint64_t dropped = 0;
+  {
+    std::lock_guard lock(counts_mutex_);
+    dropped = counts_->dropped();
   }
-  if (options_.lcm.cloud_decimation > 0) {
-    fill_point_cloud(r, sensor_.name, sensor_.frame_id, cloud_message_);
-    bus_.publish(cloud_channel_, cloud_message_);
+  bool sent = false;
+  try {
+    sent = publisher_.publish(rotation.result, dropped);
+  } catch (const std::exception& e) {
+    // A message could not be allocated: this rotation is lost (counted as unsent), not the
+    // pipeline.
+    spdlog::error("sensor {}: rotation {} not published: {}", sensor_.name,
+                  rotation.result.sequence, e.what());
   }
-  const int64_t after = steady_ns();
-  published_.fetch_add(1, std::memory_order_relaxed);
-  detections_.fetch_add(r.detection.detections.size(), std::memory_order_relaxed);
-
-  windows_[kQueue]->record(ms(r.taken_ns - assembled));
-  windows_[kDetect]->record(ms(r.detected_ns - r.taken_ns));
-  windows_[kOrder]->record(ms(before - r.detected_ns));
-  windows_[kPublish]->record(ms(after - before));
-  windows_[kTotal]->record(ms(after - assembled));
-  for (size_t s = 0; s < r.detection.timing_ms.size(); ++s) {
-    windows_[kFixedStages + s]->record(r.detection.timing_ms[s]);
-  }
-  if (printer_ != nullptr) printer_->print(detections_line(sensor_.name, r));
-}
-
-void SensorPipeline::publish_loop() {
-  for (;;) {
-    publisher_beat_ns_.store(steady_ns(), std::memory_order_relaxed);
-    OrderedResults::Slot* slot = ordered_.next_ready(50ms);
-    if (slot != nullptr) {
-      publish(slot);
-      ordered_.recycle(slot);
+  {
+    std::lock_guard lock(counts_mutex_);
+    Counts& c = *counts_;
+    --c.in_flight;
+    if (sent) {
+      ++c.published;
+      c.detections += rotation.result.detection.detections.size();
+    } else {
+      ++c.unsent;
     }
-    spawn();
-    if (slot == nullptr && source_done_.load(std::memory_order_acquire)) {
-      const velodyne::ScanBuffer* buffer = buffer_ptr_.load(std::memory_order_acquire);
-      if ((buffer == nullptr || buffer->ready_count() == 0) &&
-          active_.load(std::memory_order_acquire) == 0 && ordered_.in_use() == 0) {
-        break;
-      }
+    c.progress_ns = steady_ns();
+  }
+  buffer_.release(&rotation);
+  released_.fetch_add(1, std::memory_order_release);
+}
+
+std::string SensorPipeline::stall(int64_t now) const {
+  const int64_t limit = to_ns(options_.watchdog.stall_timeout_s);
+  if (!receiver_done_.load(std::memory_order_acquire) &&
+      !receiver_waiting_.load(std::memory_order_relaxed)) {
+    const int64_t idle = now - receiver_beat_ns_.load(std::memory_order_relaxed);
+    if (idle > limit) {
+      return fmt::format("the receiving loop has not run for {:.1f} s", seconds(idle));
     }
   }
-  publisher_done_.store(true, std::memory_order_release);
+  std::lock_guard lock(counts_mutex_);
+  const Counts& c = *counts_;
+  if (c.in_flight > 0 && now - c.progress_ns > limit) {
+    return fmt::format("no rotation published for {:.1f} s with {} in the pipeline",
+                       seconds(now - c.progress_ns), c.in_flight);
+  }
+  return {};
 }
 
-bool SensorPipeline::healthy(int64_t now_ns, int64_t stall_ns) const {
-  if (!error().empty()) return false;
-  if (!source_done_.load() && now_ns - tap_->heartbeat_ns() > stall_ns) return false;
-  if (!publisher_done_.load() && now_ns - publisher_beat_ns_.load() > stall_ns) return false;
-  const int64_t oldest = ordered_.oldest_in_detection_ns();
-  return oldest == 0 || now_ns - oldest <= stall_ns;
+bool SensorPipeline::progressing(int64_t now) const {
+  if (finished()) return error().empty();
+  if (!error().empty() || !stall(now).empty()) return false;
+  const int64_t limit = to_ns(options_.watchdog.stall_timeout_s);
+  {
+    std::lock_guard lock(counts_mutex_);
+    if (now - counts_->last_assembled_ns <= limit) return true;
+  }
+  std::lock_guard lock(snapshot_mutex_);
+  const Snapshot& s = *snapshot_;
+  // Waiting for the sensor to come up.
+  if (s.data_packets == 0 && now - started_ns_.load() <= to_ns(options_.health.startup_grace_s)) {
+    return true;
+  }
+  // Silent (never a packet past the grace, or none lately): a restart reopens the sockets,
+  // unless the sensor is switched off on purpose. Packets without rotations (garbage): no.
+  const bool silent =
+      s.data_packets == 0 || now - s.last_data_ns > to_ns(options_.health.silence_s);
+  return silent && options_.watchdog.while_silent;
 }
 
-SensorStatus SensorPipeline::status(int64_t now_ns, int64_t stall_ns) {
+SensorStatus SensorPipeline::status(int64_t now_ns) {
   SensorStatus st;
   st.sensor = sensor_.name;
   st.frame_id = sensor_.frame_id;
-  st.healthy = healthy(now_ns, stall_ns);
-  st.rotations_dropped = dropped_rotations();
+  HealthSample h;
+  h.now_ns = now_ns;
+  h.started_ns = started_ns_.load();
+  h.ended = finished();
+  h.stall = stall(now_ns);
+  h.data_port = sensor_.source.data_port;
   {
     std::lock_guard lock(snapshot_mutex_);
     const Snapshot& s = *snapshot_;
@@ -419,25 +609,63 @@ SensorStatus SensorPipeline::status(int64_t now_ns, int64_t stall_ns) {
     st.gprmc_valid = s.counts.gprmc_valid;
     uint64_t decode_errors = 0;
     for (uint64_t e : s.counts.decode_errors) decode_errors += e;
-    st.packets_dropped = s.source.kernel_drops + s.batcher.missing_packets;
+    st.packets_data = s.counts.data_packets;
+    st.packets_decoded = s.counts.decoded;
+    st.packets_kernel_dropped = s.source.kernel_drops;
+    st.packets_missing = s.batcher.missing_packets;
+    // `reordered` counts every packet that came after a later one (put in place or dropped);
+    // late_packets = duplicates + the reordered ones dropped. (A batcher that does not tell them
+    // apart counts every late packet in late_packets only: the difference is then the reorders.)
+    st.packets_duplicate = s.batcher.duplicates;
+    st.packets_reordered =
+        std::max(s.batcher.reordered, s.batcher.late_packets - s.batcher.duplicates);
     st.packets_malformed = s.source.truncated + s.source.malformed + decode_errors +
                            s.counts.undecodable + s.counts.position_errors;
+    st.packets_foreign = s.source.foreign_source;
+    st.packets_inconsistent = s.batcher.inconsistent;
+    st.packets_model_mismatch = s.counts.model_mismatch;
     st.packets_ignored = s.source.ignored;
+    st.senders = s.senders;
     st.error = s.error;
+    h.error = s.error;
+    h.data_packets = s.data_packets;
+    h.last_data_ns = s.last_data_ns;
+    h.decoded = s.counts.decoded;
+    h.missing = s.batcher.missing_packets;
+    h.model_mismatch = s.counts.model_mismatch;
+    h.rpm = s.rpm;
+    h.sensor_ns = s.sensor_ns;
+    h.inconsistent = s.batcher.inconsistent;
+    h.model_problem = s.model_problem;
+    h.model_note = s.model_note;
+    h.senders = s.senders;
   }
   st.packets_received = tap_->packets();
-  st.rotations_assembled = assembled_.load();
-  st.rotations_processed = processed_.load();
-  st.rotations_published = published_.load();
-  st.detections = detections_.load();
-  if (const velodyne::ScanBuffer* buffer = buffer_ptr_.load(std::memory_order_acquire)) {
-    st.buffer_occupancy = buffer->ready_count();
-    st.buffer_depth = buffer->depth();
-  } else {
-    st.buffer_depth = static_cast<uint64_t>(options_.pipeline.queue_depth);
+  {
+    std::lock_guard lock(counts_mutex_);
+    const Counts& c = *counts_;
+    st.rotations_assembled = c.assembled;
+    st.rotations_published = c.published;
+    st.rotations_behind = c.behind;
+    st.rotations_seam = c.seam;
+    st.rotations_unsent = c.unsent;
+    st.rotations_dropped = c.dropped();
+    st.rotations_in_flight = c.in_flight;
+    st.detections = c.detections;
+    h.rotations = c.assembled;
+    h.dropped_behind = c.behind;
   }
-  st.stage_names = stage_names_;
-  for (auto& w : windows_) st.stages.push_back(w->take());
+  st.publish_failures = failures_.count();
+  // Any LCM failure of the bus (the status messages too) means publishing fails now.
+  h.publish_failures = std::max<uint64_t>(bus_.failures(), st.publish_failures);
+  st.health = health_.update(h);
+  if (st.health.state == HealthState::kEnded && stopped_.load()) st.health.reason = "stopped";
+  st.progressing = progressing(now_ns);
+  st.buffer_occupancy = buffer_.waiting();
+  st.buffer_depth = buffer_.depth();
+  st.stage_names = publisher_.stage_names();
+  st.stages = publisher_.take_latencies();
+  failures_.report();
   return st;
 }
 

@@ -92,16 +92,9 @@ std::string PcapRecorder::error() const {
 
 TapSource::TapSource(std::unique_ptr<velodyne::PacketSource> inner, PcapRecorder* recorder,
                      RawTap raw_tap)
-    : inner_(std::move(inner)), recorder_(recorder), raw_tap_(std::move(raw_tap)) {
-  beat();
-}
-
-void TapSource::beat() {
-  heartbeat_ns_.store(steady_ns(), std::memory_order_relaxed);
-}
+    : inner_(std::move(inner)), recorder_(recorder), raw_tap_(std::move(raw_tap)) {}
 
 velodyne::ReadStatus TapSource::next(velodyne::RawPacket& out, std::chrono::milliseconds timeout) {
-  beat();
   if (stop_.load(std::memory_order_relaxed)) return velodyne::ReadStatus::kEnd;
   const auto status = inner_->next(out, std::min<std::chrono::milliseconds>(timeout, 100ms));
   if (status != velodyne::ReadStatus::kPacket) return status;

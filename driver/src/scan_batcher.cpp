@@ -40,7 +40,7 @@ ScanBatcher::ScanBatcher(const ModelSpec& spec, ReturnMode mode, BatcherOptions 
       mode_(mode),
       options_(options),
       slots_(std::make_unique<std::array<Held, kSlots>>()),
-      candidates_(std::make_unique<std::array<Held, kNewStreamPackets>>()) {}
+      candidates_(std::make_unique<std::array<Held, kNewStreamPackets + 1>>()) {}
 
 ScanBatcher::~ScanBatcher() = default;
 
@@ -203,7 +203,25 @@ void ScanBatcher::forgive_gap(int64_t stamp_ns) {
   }
 }
 
+bool ScanBatcher::catch_up(Scan& scan) {
+  if (closing_ && finish_close(scan)) return true;
+  if (!stashed_) return false;
+  stashed_ = false;
+  // add_one() copies what it keeps (window, candidates), so the stash is free again after it.
+  return add_one((*candidates_)[kNewStreamPackets].columns, scan);
+}
+
 bool ScanBatcher::add(const PacketColumns& pk, Scan& scan) {
+  if (catch_up(scan)) {
+    // This call delivers already (one rotation per call): the packet waits for the next.
+    hold(pk, (*candidates_)[kNewStreamPackets]);
+    stashed_ = true;
+    return true;
+  }
+  return add_one(pk, scan);
+}
+
+bool ScanBatcher::add_one(const PacketColumns& pk, Scan& scan) {
   if (pk.columns <= 0 || pk.decoder == nullptr) {
     ++stats_.inconsistent;  // not a parsed packet
     return pump(scan);
@@ -234,9 +252,10 @@ bool ScanBatcher::add(const PacketColumns& pk, Scan& scan) {
         }
         // Another return mode changes the layout of the scan: close the rotation in progress;
         // this packet starts the next one, in a scan of the new layout.
+        hold(pk, (*candidates_)[0]);
+        candidate_count_ = 1;
         delivered = close_stream(scan, false);
-        mode_ = pk.mode;
-        ++stats_.mode_changes;
+        break;
       }
       insert(pk);
       break;
@@ -261,12 +280,23 @@ bool ScanBatcher::add(const PacketColumns& pk, Scan& scan) {
 }
 
 bool ScanBatcher::close_stream(Scan& scan, bool jump) {
+  closing_ = true;
+  closing_jump_ = jump;
   take_pending(scan);
-  // What the window holds goes into the rotation in progress (a cut among those few packets
-  // does not end it: the rotation ends here anyway, incomplete).
+  // The window's packets precede the new stream's: a cut among them ends the rotation as any
+  // cut does (a replay's loop seam or a sensor restart right after it loses nothing).
+  while (window_size_ > 0)
+    if (release_oldest(scan, true)) return true;
+  return finish_close(scan);
+}
+
+bool ScanBatcher::finish_close(Scan& scan) {
+  closing_ = false;
+  take_pending(scan);
+  // A second cut this close to the first is not a rotation: the columns stay in this one.
   while (window_size_ > 0) (void)release_oldest(scan, false);
   const bool delivered = open_;
-  if (jump) {
+  if (closing_jump_) {
     ++stats_.azimuth_jumps;
     if (open_) ++scan.azimuth_jumps;
   }
@@ -274,18 +304,7 @@ bool ScanBatcher::close_stream(Scan& scan, bool jump) {
   next_starts_at_cut_ = false;
   have_last_ = false;
   have_head_ = have_previous_head_ = false;
-  return delivered;
-}
-
-bool ScanBatcher::adopt_new_stream(Scan& scan) {
-  // Several packets agree with each other and none of the old stream came meanwhile. Right after
-  // the stream in time: its azimuth jumped (a field of view restricted between packets), the
-  // rotation goes on. Otherwise the sensor restarted, its clock jumped or a replay looped.
-  const PacketColumns& first = (*candidates_)[0].columns;
-  const double dt_us = static_cast<double>(first.stamp_ns - head_.stamp_ns) * 1e-3;
-  const bool continues =
-      have_head_ && dt_us > 0 && dt_us <= kNewStreamPackets * spec_.packet_period_us(first.mode);
-  const bool delivered = continues ? false : close_stream(scan, true);
+  // The new stream begins.
   const int n = candidate_count_;
   candidate_count_ = 0;
   for (int i = 0; i < n; ++i) {
@@ -297,6 +316,28 @@ bool ScanBatcher::adopt_new_stream(Scan& scan) {
     insert(pk);
   }
   return delivered;
+}
+
+bool ScanBatcher::adopt_new_stream(Scan& scan) {
+  // Several packets agree with each other and none of the old stream came meanwhile. Right after
+  // the stream in time: its azimuth jumped (a field of view restricted between packets), the
+  // rotation goes on. Otherwise the sensor restarted, its clock jumped or a replay looped.
+  const PacketColumns& first = (*candidates_)[0].columns;
+  const double dt_us = static_cast<double>(first.stamp_ns - head_.stamp_ns) * 1e-3;
+  const bool continues =
+      have_head_ && dt_us > 0 && dt_us <= kNewStreamPackets * spec_.packet_period_us(first.mode);
+  if (!continues) return close_stream(scan, true);
+  const int n = candidate_count_;
+  candidate_count_ = 0;
+  for (int i = 0; i < n; ++i) {
+    const PacketColumns& pk = (*candidates_)[static_cast<size_t>(i)].columns;
+    if (pk.mode != mode_) {
+      mode_ = pk.mode;
+      ++stats_.mode_changes;
+    }
+    insert(pk);
+  }
+  return false;
 }
 
 bool ScanBatcher::pump(Scan& scan) {
@@ -343,6 +384,7 @@ void ScanBatcher::take_pending(Scan& scan) {
 }
 
 bool ScanBatcher::release_held(Scan& scan) {
+  if (catch_up(scan)) return true;
   take_pending(scan);
   while (window_size_ > 0)
     if (release_oldest(scan, true)) return true;
@@ -351,6 +393,7 @@ bool ScanBatcher::release_held(Scan& scan) {
 }
 
 bool ScanBatcher::flush(Scan& scan) {
+  if (catch_up(scan)) return true;
   take_pending(scan);
   while (window_size_ > 0)
     if (release_oldest(scan, true)) return true;

@@ -164,9 +164,17 @@ TEST(Replay, DemoIntoAnLcmLogEveryRotationInOrderWithTheTruthTags) {
   expect_truthful(d.detections, static_cast<uint64_t>(last.rotations_assembled));
   EXPECT_EQ(last.rotations_published, static_cast<int64_t>(d.detections.size()));
   EXPECT_EQ(last.rotations_dropped, 0);  // lossless replay
+  EXPECT_EQ(last.rotations_in_flight, 0);
   EXPECT_EQ(last.model, "vlp32c");
   EXPECT_EQ(last.return_mode, "strongest");
   EXPECT_GT(last.packets_received, 0);
+  EXPECT_EQ(last.packets_decoded, last.packets_data);
+  EXPECT_EQ(last.packets_missing, 0);
+  // The final status: the replay ended, nothing went wrong on the way.
+  EXPECT_EQ(last.state, int8_t{lidartag::status_t::STATE_ENDED}) << last.reason;
+  EXPECT_FALSE(last.healthy);
+  EXPECT_EQ(last.reason, "the source ended");
+  EXPECT_EQ(last.publish_failures, 0);
   // The visualisation messages are off by default.
   EXPECT_TRUE(d.tag_points.empty());
   EXPECT_TRUE(d.clouds.empty());

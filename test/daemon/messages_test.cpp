@@ -216,23 +216,42 @@ TEST(Messages, PointCloudCarriesTheDecimatedRotationThroughMemq) {
   EXPECT_EQ(got.ring, (std::vector<uint8_t>{0, 1, 2, 0, 2, 0, 1, 2}));
 }
 
-TEST(Messages, StatusCarriesCountersAndStagePercentiles) {
+TEST(Messages, StatusCarriesHealthEveryCounterAndStagePercentiles) {
   SensorStatus s;
   s.sensor = "front";
   s.frame_id = "velodyne";
-  s.healthy = false;
+  s.health = {HealthState::kPacketLoss, "3.0 % of the data packets missing"};
+  s.progressing = true;
   s.model = "vlp32c";
   s.return_mode = "strongest";
   s.rpm = 599.0f;
   s.time_source = 1;
   s.pps = 2;
+  s.position_packets = 31;
+  s.gprmc_valid = 30;
+  // Every counter a different value: each lands in its own field.
   s.packets_received = 1000;
-  s.packets_dropped = 3;
-  s.packets_malformed = 2;
-  s.rotations_assembled = 10;
-  s.rotations_dropped = 1;
-  s.rotations_processed = 9;
-  s.rotations_published = 9;
+  s.packets_data = 990;
+  s.packets_decoded = 980;
+  s.packets_kernel_dropped = 3;
+  s.packets_missing = 4;
+  s.packets_duplicate = 5;
+  s.packets_reordered = 6;
+  s.packets_malformed = 7;
+  s.packets_foreign = 8;
+  s.packets_inconsistent = 9;
+  s.packets_model_mismatch = 11;
+  s.packets_ignored = 12;
+  s.senders = {0xC0A801C9, 0xC0A801CA};
+  s.rotations_assembled = 40;
+  s.rotations_published = 30;
+  s.rotations_dropped = 8;
+  s.rotations_behind = 5;
+  s.rotations_seam = 2;
+  s.rotations_unsent = 1;
+  s.rotations_in_flight = 2;
+  s.detections = 57;
+  s.publish_failures = 13;
   s.buffer_occupancy = 1;
   s.buffer_depth = 4;
   s.stage_names = {"queue", "detect"};
@@ -248,18 +267,61 @@ TEST(Messages, StatusCarriesCountersAndStagePercentiles) {
   EXPECT_EQ(got.utime, 123);
   EXPECT_EQ(got.uptime_s, 4.5);
   EXPECT_FALSE(got.healthy);
+  EXPECT_EQ(got.state, int8_t{lidartag::status_t::STATE_PACKET_LOSS});
+  EXPECT_EQ(got.reason, "3.0 % of the data packets missing");
+  EXPECT_TRUE(got.progressing);
   EXPECT_EQ(got.model, "vlp32c");
   EXPECT_EQ(got.return_mode, "strongest");
+  EXPECT_EQ(got.rpm, 599.0f);
   EXPECT_EQ(got.time_source, int8_t{lidartag::status_t::TIME_GPS});
   EXPECT_EQ(got.pps, int8_t{lidartag::status_t::PPS_LOCKED});
+  EXPECT_EQ(got.position_packets, 31);
+  EXPECT_EQ(got.gprmc_valid, 30);
   EXPECT_EQ(got.packets_received, 1000);
-  EXPECT_EQ(got.packets_dropped, 3);
-  EXPECT_EQ(got.rotations_dropped, 1);
+  EXPECT_EQ(got.packets_data, 990);
+  EXPECT_EQ(got.packets_decoded, 980);
+  EXPECT_EQ(got.packets_kernel_dropped, 3);
+  EXPECT_EQ(got.packets_missing, 4);
+  EXPECT_EQ(got.packets_duplicate, 5);
+  EXPECT_EQ(got.packets_reordered, 6);
+  EXPECT_EQ(got.packets_malformed, 7);
+  EXPECT_EQ(got.packets_foreign, 8);
+  EXPECT_EQ(got.packets_inconsistent, 9);
+  EXPECT_EQ(got.packets_model_mismatch, 11);
+  EXPECT_EQ(got.packets_ignored, 12);
+  ASSERT_EQ(got.nsenders, 2);
+  EXPECT_EQ(static_cast<uint32_t>(got.senders[1]), 0xC0A801CAu);
+  EXPECT_EQ(got.rotations_assembled, 40);
+  EXPECT_EQ(got.rotations_published, 30);
+  EXPECT_EQ(got.rotations_dropped, 8);
+  EXPECT_EQ(got.rotations_behind, 5);
+  EXPECT_EQ(got.rotations_seam, 2);
+  EXPECT_EQ(got.rotations_unsent, 1);
+  EXPECT_EQ(got.rotations_in_flight, 2);
+  EXPECT_EQ(got.detections, 57);
+  EXPECT_EQ(got.publish_failures, 13);
+  EXPECT_EQ(got.buffer_occupancy, 1);
   EXPECT_EQ(got.buffer_depth, 4);
   ASSERT_EQ(got.nstages, 2);
   EXPECT_EQ(got.stage_names[1], "detect");
   EXPECT_EQ(got.p90_ms[1], 6);
   EXPECT_EQ(got.max_ms[0], 4);
+}
+
+TEST(Messages, StatusStatesMatchTheLcmConstants) {
+  using st = lidartag::status_t;
+  EXPECT_EQ(static_cast<int>(HealthState::kHealthy), int{st::STATE_HEALTHY});
+  EXPECT_EQ(static_cast<int>(HealthState::kWaiting), int{st::STATE_WAITING});
+  EXPECT_EQ(static_cast<int>(HealthState::kSilent), int{st::STATE_SILENT});
+  EXPECT_EQ(static_cast<int>(HealthState::kModelMismatch), int{st::STATE_MODEL_MISMATCH});
+  EXPECT_EQ(static_cast<int>(HealthState::kSeveralSources), int{st::STATE_SEVERAL_SOURCES});
+  EXPECT_EQ(static_cast<int>(HealthState::kRateImplausible), int{st::STATE_RATE_IMPLAUSIBLE});
+  EXPECT_EQ(static_cast<int>(HealthState::kPacketLoss), int{st::STATE_PACKET_LOSS});
+  EXPECT_EQ(static_cast<int>(HealthState::kFallingBehind), int{st::STATE_FALLING_BEHIND});
+  EXPECT_EQ(static_cast<int>(HealthState::kPublishFailing), int{st::STATE_PUBLISH_FAILING});
+  EXPECT_EQ(static_cast<int>(HealthState::kStalled), int{st::STATE_STALLED});
+  EXPECT_EQ(static_cast<int>(HealthState::kError), int{st::STATE_ERROR});
+  EXPECT_EQ(static_cast<int>(HealthState::kEnded), int{st::STATE_ENDED});
 }
 
 TEST(Messages, RawPacketKeepsBytesPortAndTime) {

@@ -337,6 +337,64 @@ TEST(ScanBatcher, ReplayLoopIsANewStreamNotStrayPackets) {
   EXPECT_GE(complete_of(rig).size(), 6u);
 }
 
+TEST(ScanBatcher, ACutAmongTheLastPacketsOfAStreamStillEndsItsRotation) {
+  // A replay loops (or the sensor restarts) a packet or three after a cut: those packets wait in
+  // the reorder window when the new stream is recognised. The rotation must end at the cut as
+  // without the restart, the tail must be a rotation of its own, and no column may be lost.
+  // From 10 deg at 600 rpm the 5th cut (180 deg) falls in packet 673 of a VLP-32C stream: n puts
+  // it among the last packets, or just before them.
+  for (int n = 670; n < 682; ++n) {
+    Rig once(Model::kVLP32C, ReturnMode::kStrongest);
+    const auto stream = testing::make_stream(once.spec, ReturnMode::kStrongest, n);
+    once.feed_all(stream);
+    once.flush();
+    Rig twice(Model::kVLP32C, ReturnMode::kStrongest);
+    twice.feed_all(stream);
+    twice.feed_all(stream);
+    twice.flush();
+    ASSERT_EQ(twice.scans.size(), 2 * once.scans.size()) << n << " packets";
+    int columns_once = 0, columns_twice = 0;
+    for (size_t i = 0; i < once.scans.size(); ++i) {
+      for (size_t pass : {size_t{0}, once.scans.size()}) {
+        const Scan& a = *once.scans[i];
+        const Scan& b = *twice.scans[pass + i];
+        EXPECT_EQ(b.columns, a.columns) << n << " packets, rotation " << i;
+        EXPECT_EQ(b.complete, a.complete) << n << " packets, rotation " << i;
+        EXPECT_EQ(b.ends_at_cut, a.ends_at_cut) << n << " packets, rotation " << i;
+        columns_twice += b.columns;
+      }
+      columns_once += once.scans[i]->columns;
+    }
+    EXPECT_EQ(columns_twice, 2 * columns_once) << n << " packets";
+    EXPECT_EQ(twice.batcher.stats().azimuth_jumps, 1u);
+  }
+}
+
+TEST(ScanBatcher, AReturnModeChangeRightAfterACutLosesNothing) {
+  // The same at a return-mode change: the packets held after the cut end the old rotation's tail,
+  // the new mode's packet (kept meanwhile) starts the next rotation.
+  // The 10th cut falls in packet 713 of a VLP-16 stream.
+  for (int n = 710; n < 722; ++n) {
+    Rig rig(Model::kVLP16, ReturnMode::kStrongest);
+    const auto a = testing::make_stream(rig.spec, ReturnMode::kStrongest, n);
+    // The dual stream goes on where the strongest one stopped, in time and azimuth.
+    const double t_us =
+        n * rig.spec.columns_per_packet(ReturnMode::kStrongest) * rig.spec.firing_period_us;
+    testing::StreamOptions next;
+    next.start_ns = a.front().time_ns + static_cast<int64_t>(std::llround(t_us * 1e3));
+    next.start_azimuth_deg = std::fmod(10.0 + 600.0 * 360.0 / 60e6 * t_us, 360.0);
+    const auto b = testing::make_stream(rig.spec, ReturnMode::kDual, 400, next);
+    rig.feed_all(a);
+    rig.feed_all(b);
+    rig.flush();
+    int strongest = 0, dual = 0;
+    for (const Scan* s : rig.scans) (s->returns == 2 ? dual : strongest) += s->columns;
+    EXPECT_EQ(strongest, n * rig.spec.columns_per_packet(ReturnMode::kStrongest)) << n;
+    EXPECT_EQ(dual, 400 * rig.spec.columns_per_packet(ReturnMode::kDual)) << n;
+    EXPECT_EQ(rig.batcher.stats().mode_changes, 1u) << n;
+  }
+}
+
 TEST(ScanBatcher, RestrictedFieldOfViewGivesCompleteRotations) {
   // The sensor reports only 270..91 deg: it jumps over the blanked sector inside a packet without
   // a time gap, then pauses between packets with continuous azimuths (as the real VLP-32C capture).

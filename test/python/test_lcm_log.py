@@ -67,7 +67,9 @@ def test_the_demo_log_reads_into_messages(demo_log, truth):
     channels = {channel for channel, _, _ in log["tag_detections_t"]}
     assert channels == {"LIDARTAG_DETECTIONS"}
     status = log["status_t"][-1][2]
-    assert status.healthy is True and status.model == "vlp32c"
+    # The last status of a replay: the source ended, nothing else wrong (one reason only).
+    assert status.state == status.STATE_ENDED and status.reason == "the source ended"
+    assert status.healthy is False and status.model == "vlp32c"
     assert status.nstages == len(status.stage_names) == len(status.p50_ms)
     assert status.TIME_HOST == 0 and status.PPS_LOCKED == 2
     raw = log["raw_packet_t"][0][2]

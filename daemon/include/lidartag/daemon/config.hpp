@@ -117,9 +117,11 @@ struct PipelineOptions {
   int worker_threads = 0;
   // Rotations per sensor waiting for a worker; when full, the oldest is dropped and counted.
   int queue_depth = 4;
-  // Finished rotations per sensor waiting for the publisher (in order); workers stop taking
-  // rotations when it is full, so the rotation buffer drops instead.
-  int publish_queue = 8;
+  // Detected rotations per sensor that may wait for an earlier one to be published (in order)
+  // while workers go on. Each rotation in the pipeline holds a slot of the scan buffer (a whole
+  // rotation: 1.7 MB for a VLP-16 to 13 MB for a VLS-128, twice in dual mode) and a detector, so
+  // the buffer has queue_depth + worker_threads + publish_queue + 1 slots.
+  int publish_queue = 2;
   // Replay sources (pcap, lcm) wait for the detector instead of dropping rotations, so that a
   // replay at any speed processes every rotation. Live sources always drop the oldest.
   bool lossless_replay = true;
@@ -130,9 +132,35 @@ struct StatusOptions {
 };
 
 struct WatchdogOptions {
-  // The pipeline is unhealthy (no systemd WATCHDOG=1 ping, status healthy=false) when a receiver
-  // or publisher loop has not run, or one rotation has been in detection, for this long. Seconds.
+  // The systemd watchdog (WATCHDOG=1) is fed only while every sensor progresses: its receiving
+  // loop ran, the rotations it took were published, and a rotation was assembled, each within
+  // this many seconds (or it waits for its first packets within health.startup_grace_s).
   double stall_timeout_s = 3.0;
+  // Feed the watchdog while a sensor is silent (its receiving loop runs, nothing arrives), for
+  // robots that switch the sensor off on purpose. Off: a silent sensor stops the pings, so that
+  // WatchdogSec restarts the daemon (which reopens its sockets).
+  bool while_silent = false;
+};
+
+// Thresholds of the health states (status_t.state and .reason, systemd STATUS=; docs/daemon.md).
+struct HealthOptions {
+  // Waiting this long after the start for the first data packet is normal (a sensor powered up
+  // with the robot takes 10-20 s to spin up): state "waiting", watchdog fed. Later: "silent".
+  double startup_grace_s = 30.0;
+  // No data packet for this long: the sensor is silent (a Velodyne sends one every 0.1-1.3 ms).
+  double silence_s = 0.5;
+  // Rates (loss, rotations per second, drops, publish failures) are judged over windows of this
+  // many seconds; a verdict holds until the next window closes.
+  double window_s = 2.0;
+  // Data packets missing from the stream (sequence gaps), as a fraction of a window's data
+  // packets, above which the state is "packet loss".
+  double max_loss = 0.01;
+  // The rotation rate measured must lie in [min_rpm, max_rpm] (Velodyne: 300-1200 rpm).
+  double min_rpm = 270.0;
+  double max_rpm = 1320.0;
+  // Rotations assembled per second above this many times rpm / 60 (plus one per window, for a
+  // partial rotation): stray or spoofed packets are cutting the stream.
+  double max_rotation_ratio = 1.5;
 };
 
 enum class JournalMode : uint8_t { kAuto, kAlways, kNever };
@@ -160,6 +188,7 @@ struct DaemonOptions {
   PipelineOptions pipeline;
   StatusOptions status;
   WatchdogOptions watchdog;
+  HealthOptions health;
   LoggingOptions logging;
   // Every raw packet received by the sources is also written to this pcap; empty: none.
   std::string record_pcap;

@@ -26,6 +26,9 @@ void block_signals();
 
 struct RunOptions {
   std::FILE* print_detections = nullptr;  // one line per rotation, or null
+  // Test seam (not on the command line): called before each rotation's detection, e.g. to stall
+  // the pipeline in the watchdog test.
+  SensorPipeline::DetectHook detect_hook;
 };
 
 class Daemon {
@@ -47,7 +50,7 @@ class Daemon {
  private:
   void publish_status(bool final);
   std::string summary() const;
-  bool healthy() const;
+  bool progressing() const;
 
   DaemonOptions options_;
   Logging* logging_;

@@ -5,7 +5,7 @@
 #include <cstdint>
 #include <string>
 
-#include "lidartag/daemon/ordered_results.hpp"
+#include "lidartag/daemon/rotation.hpp"
 #include "lidartag/daemon/sensor_status.hpp"
 #include "lidartag/detector/detector.hpp"
 #include "lidartag/driver/packet_source.hpp"

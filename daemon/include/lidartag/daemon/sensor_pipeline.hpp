@@ -1,9 +1,11 @@
-// One sensor's pipeline: a receiving thread (source -> capture reader: decoding and scan assembly)
-// hands rotations to the lock-free scan buffer; detection tasks in the shared oneTBB arena take
-// them (one Detector per worker, rotations in parallel), the reorder stage puts the results back
-// in rotation order, and a publisher thread sends them on LCM.
+// One sensor's pipeline: the receiving thread assembles each rotation straight into a slot of the
+// scan buffer (CaptureReader::read: decoding and scan assembly, no copy) and tells a oneTBB flow
+// graph in the shared arena, which takes the waiting slots in rotation order, detects them in
+// parallel (one Detector per arena thread) and publishes them in rotation order
+// (RotationPublisher), then frees the slot and takes the next.
 //
-//   receiver --ScanBuffer (drop oldest)--> TBB workers --OrderedResults--> publisher -> LCM
+//   receiver --ScanBuffer slot (drop oldest | wait)--> take (serial) -> detect (parallel)
+//            -> sequencer -> publish (serial, in order) -> release, take again
 #pragma once
 
 #include <tbb/task_arena.h>
@@ -11,6 +13,7 @@
 #include <atomic>
 #include <cstdint>
 #include <cstdio>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -18,18 +21,16 @@
 #include <vector>
 
 #include "lidartag/daemon/config.hpp"
-#include "lidartag/daemon/latency_window.hpp"
+#include "lidartag/daemon/health.hpp"
 #include "lidartag/daemon/lcm_bus.hpp"
-#include "lidartag/daemon/ordered_results.hpp"
+#include "lidartag/daemon/rotation.hpp"
+#include "lidartag/daemon/rotation_publisher.hpp"
+#include "lidartag/daemon/scan_buffer.hpp"
 #include "lidartag/daemon/sensor_status.hpp"
 #include "lidartag/daemon/tap_source.hpp"
 #include "lidartag/detector/detector.hpp"
 #include "lidartag/driver/io/capture_reader.hpp"
-#include "lidartag/driver/scan_buffer.hpp"
-#include "lidartag/point_cloud_t.hpp"
 #include "lidartag/raw_packet_t.hpp"
-#include "lidartag/tag_detections_t.hpp"
-#include "lidartag/tag_points_t.hpp"
 
 namespace lidartag::daemon {
 
@@ -55,10 +56,17 @@ std::string detections_line(const std::string& sensor, const RotationResult& r);
 
 class SensorPipeline {
  public:
+  // Test seam: called in the detection stage before each rotation is detected (to slow detection
+  // down or stall it in tests). Not reachable from the configuration.
+  using DetectHook = std::function<void(const Scan&)>;
+
   // Opens the source (velodyne::IoError), the calibration when the model is given
-  // (velodyne::CalibrationError) and builds `workers` detectors (detector::OptionsError).
+  // (velodyne::CalibrationError) and builds a detector for each rotation the pipeline may hold
+  // (workers + pipeline.publish_queue; detector::OptionsError). `arena` has `workers` threads; none
+  // of them ever waits for the source, and at most `workers` rotations are detected at once.
   SensorPipeline(const SensorOptions& sensor, const DaemonOptions& options, LcmBus& bus,
-                 tbb::task_arena& arena, int workers, PcapRecorder* recorder, LinePrinter* printer);
+                 tbb::task_arena& arena, int workers, PcapRecorder* recorder, LinePrinter* printer,
+                 DetectHook hook = {});
   ~SensorPipeline();
   SensorPipeline(const SensorPipeline&) = delete;
   SensorPipeline& operator=(const SensorPipeline&) = delete;
@@ -67,65 +75,72 @@ class SensorPipeline {
   // Ends the source: the rotation in progress is flushed, every rotation taken is published.
   void stop();
   // The source ended (replay done, or stopped) and everything was published.
-  bool finished() const { return publisher_done_.load(std::memory_order_acquire); }
+  bool finished() const { return finished_.load(std::memory_order_acquire); }
   void join();
 
-  // Every stage ran within `stall_ns` and no rotation has been in detection longer.
-  bool healthy(int64_t now_ns, int64_t stall_ns) const;
-  // Counters now, latency percentiles since the previous call.
-  SensorStatus status(int64_t now_ns, int64_t stall_ns);
+  // What the systemd watchdog follows: the receiving loop runs, the rotations in the pipeline get
+  // published, and rotations are assembled (or the sensor is waiting for its first packets within
+  // health.startup_grace_s, or silent with watchdog.while_silent), each within
+  // watchdog.stall_timeout_s. Any thread.
+  bool progressing(int64_t now_ns) const;
+  // Counters and health now, latency percentiles since the previous call (one thread).
+  SensorStatus status(int64_t now_ns);
   const SensorOptions& sensor() const { return sensor_; }
-  // Set when the receiver stopped on an error (e.g. the calibration does not fit the model
+  // Set when the pipeline stopped on an error (e.g. the calibration does not fit the model
   // decided from the packets); empty otherwise.
   std::string error() const;
 
  private:
   struct Snapshot;
+  struct Counts;
+  struct ReceiverState;
+  struct Graph;
   void receive();
-  void publish_loop();
-  void spawn();
-  void work();
-  void process(OrderedResults::Slot* slot);
-  void publish(OrderedResults::Slot* slot);
+  void wake_pipeline();
+  template <class Out>
+  void take(Out& out);
+  void detect(Rotation& rotation);
+  void publish(Rotation& rotation);
+  void note_sender(const velodyne::RawPacket& packet);
   void take_snapshot(const Scan* last);
-  int64_t assembled_at(const Scan* scan) const;
-  uint64_t dropped_rotations() const;
+  bool at_loop_seam(const Scan& scan);
+  std::string stall(int64_t now_ns) const;
+  void fail(const std::string& what);
 
   SensorOptions sensor_;
   const DaemonOptions& options_;
   LcmBus& bus_;
   tbb::task_arena& arena_;
   int workers_;
-  LinePrinter* printer_;
-  bool lossless_;
-  std::string detections_channel_, raw_channel_, tag_points_channel_, cloud_channel_;
+  bool lossless_, loop_;
+  DetectHook hook_;
+  std::string raw_channel_;
+  FailureLog failures_;
 
   TapSource* tap_ = nullptr;  // owned by reader_
   std::unique_ptr<velodyne::CaptureReader> reader_;
+  // One per rotation the pipeline may hold (indexed by Rotation::order modulo tokens_).
   std::vector<std::unique_ptr<detector::Detector>> detectors_;
-  OrderedResults ordered_;
-  std::unique_ptr<velodyne::ScanBuffer> buffer_;
-  std::atomic<velodyne::ScanBuffer*> buffer_ptr_{nullptr};
-  // Assembly time of each scan of the buffer (its scans are fixed: found once, at creation).
-  std::vector<const Scan*> stamp_keys_;
-  std::unique_ptr<std::atomic<int64_t>[]> stamp_times_;
+  ScanBuffer<Rotation> buffer_;
+  RotationPublisher publisher_;
+  HealthMonitor health_;
+  size_t tokens_;  // rotations in the pipeline at most: workers + publish_queue
+  std::unique_ptr<Graph> graph_;
+  uint64_t taken_ = 0;                 // take() only (serial): also the next publication order
+  std::atomic<uint64_t> released_{0};  // publish() (serial); in the pipeline: taken - released
 
-  std::thread receiver_, publisher_;
-  std::atomic<int> active_{0};  // detection tasks in the arena
-  std::atomic<bool> source_done_{false}, publisher_done_{false}, stopping_{false};
-  std::atomic<int64_t> publisher_beat_ns_{0};
-  std::atomic<uint64_t> assembled_{0}, processed_{0}, published_{0}, detections_{0};
-  std::atomic<uint64_t> dropped_no_scan_{0};
+  std::thread receiver_;
+  std::atomic<bool> stopping_{false}, receiver_done_{false}, finished_{false};
+  std::atomic<bool> stopped_{false};           // the source ended because stop() was called
+  std::atomic<bool> receiver_waiting_{false};  // waiting for the pipeline to free a slot
+  std::atomic<int64_t> started_ns_{0}, receiver_beat_ns_{0};
 
-  lidartag::tag_detections_t message_;  // publisher thread
-  lidartag::tag_points_t tag_points_message_;
-  lidartag::point_cloud_t cloud_message_;
-  lidartag::raw_packet_t raw_message_;  // receiver thread
+  lidartag::raw_packet_t raw_message_;             // receiver thread
+  std::unique_ptr<ReceiverState> receiver_state_;  // senders seen, the model verdict
+  bool after_seam_ = false;                        // receiver thread
 
-  // Stage latencies: queue, detect, order, publish, total, then the detector's stages.
-  std::vector<std::string> stage_names_;
-  std::vector<std::unique_ptr<LatencyWindow>> windows_;
-
+  mutable std::mutex counts_mutex_;  // the rotation counters change together
+  std::unique_ptr<Counts> counts_;
   mutable std::mutex snapshot_mutex_;
   std::unique_ptr<Snapshot> snapshot_;
 };

@@ -1,6 +1,6 @@
 // Wraps a sensor's PacketSource for the daemon: ends it on request (so the capture reader flushes
-// and returns), keeps a heartbeat for the watchdog, counts packets for the status, and hands every
-// packet to the taps (the --record pcap writer, the raw LCM channel).
+// and returns), counts packets for the status, and hands every packet to the taps (the --record
+// pcap writer; the pipeline's, which notes senders and publishes the raw LCM channel).
 #pragma once
 
 #include <atomic>
@@ -65,8 +65,6 @@ class TapSource final : public velodyne::PacketSource {
   void stop() { stop_.store(true, std::memory_order_relaxed); }
   // Any thread.
   uint64_t packets() const { return packets_.load(std::memory_order_relaxed); }
-  int64_t heartbeat_ns() const { return heartbeat_ns_.load(std::memory_order_relaxed); }
-  void beat();  // records that the receiving thread is alive (also called while it waits)
 
  private:
   std::unique_ptr<velodyne::PacketSource> inner_;
@@ -74,10 +72,9 @@ class TapSource final : public velodyne::PacketSource {
   RawTap raw_tap_;
   std::atomic<bool> stop_{false};
   std::atomic<uint64_t> packets_{0};
-  std::atomic<int64_t> heartbeat_ns_{0};
 };
 
-// Steady-clock nanoseconds (for latencies and heartbeats).
+// Steady-clock nanoseconds (for latencies and progress).
 int64_t steady_ns();
 
 }  // namespace lidartag::daemon

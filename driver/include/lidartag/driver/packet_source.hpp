@@ -30,6 +30,9 @@ struct SourceStats {
   uint64_t malformed = 0;     // corrupt headers
   uint64_t kernel_drops = 0;  // reported by the kernel / libpcap
   uint64_t errors = 0;        // read errors
+  // Packets from another sender than the configured sensor address (filtered out; counted by
+  // the sources that filter by sender). 0 until they count it separately from `ignored`.
+  uint64_t foreign_source = 0;
 };
 
 class PacketSource {

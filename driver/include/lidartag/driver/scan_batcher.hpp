@@ -81,7 +81,9 @@ class ScanBatcher {
   // flush() when the newest packet is older than flush_timeout_s; `now_ns` on the packets' clock.
   [[nodiscard]] bool poll(int64_t now_ns, Scan& scan);
   // A rotation is in progress (in the caller's scan), or packets or columns wait for the next.
-  bool in_progress() const { return open_ || pending_slot_ >= 0 || window_size_ > 0; }
+  bool in_progress() const {
+    return open_ || pending_slot_ >= 0 || window_size_ > 0 || closing_ || stashed_;
+  }
 
   const BatcherStats& stats() const { return stats_; }
   // Columns a scan needs for one rotation at 300 rpm (the slowest), with margin.
@@ -113,10 +115,20 @@ class ScanBatcher {
   bool fits(const Ref& ref, const PacketColumns& pk) const;
   void hold(const PacketColumns& pk, Held& slot);
   void insert(const PacketColumns& pk);
-  // Ends the stream in progress: everything held goes into the rotation in progress, which is
-  // finished. True when `scan` then holds a rotation.
+  // Ends the stream in progress (the new stream's first packets wait in candidates_): what the
+  // window holds goes into the rotation in progress, and a cut among it ends that rotation as
+  // usual (true; the stream's tail is then ended by finish_close() on the next call). Otherwise
+  // finish_close() at once. True when `scan` then holds a rotation.
   bool close_stream(Scan& scan, bool jump);
+  // The rest of a closing stream into the rotation in progress, which is finished; then the new
+  // stream's packets enter the window. True when `scan` then holds a rotation.
+  bool finish_close(Scan& scan);
   bool adopt_new_stream(Scan& scan);
+  // add() without the deferred work of earlier calls.
+  bool add_one(const PacketColumns& packet, Scan& scan);
+  // Deferred work of earlier calls (a stream's tail, a packet that came meanwhile): true when it
+  // ended a rotation.
+  bool catch_up(Scan& scan);
   bool pump(Scan& scan);
   bool release_oldest(Scan& scan, bool may_end);
   void take_pending(Scan& scan);
@@ -153,8 +165,12 @@ class ScanBatcher {
   int pending_column_ = 0;
   uint32_t pending_missing_ = 0;
   bool pending_evaluated_ = false;
-  std::unique_ptr<std::array<Held, kNewStreamPackets>> candidates_;
+  // The candidates of a new stream, then one more: a packet that came while a call delivered the
+  // closing stream's tail (stashed_), taken first on the next call.
+  std::unique_ptr<std::array<Held, kNewStreamPackets + 1>> candidates_;
   int candidate_count_ = 0;
+  bool closing_ = false, closing_jump_ = false;  // a stream's tail waits for the next call
+  bool stashed_ = false;
   // The stream's newest packet taken (for screening).
   bool have_head_ = false, have_previous_head_ = false;
   Ref head_{}, previous_head_{};

@@ -1,4 +1,4 @@
-#include "lidartag/daemon/scan_copy.hpp"
+#include "lidartag/daemon/decimated_cloud.hpp"
 
 #include <gtest/gtest.h>
 
@@ -38,47 +38,7 @@ Scan filled(int rings, int returns, int capacity, int columns) {
   return s;
 }
 
-TEST(ScanCopy, CopiesFilledColumnsIntoALargerScanCellByCell) {
-  const Scan src = filled(4, 2, 50, 30);
-  Scan dst;
-  dst.reserve(8, 2, 80);  // other capacity: the layout differs, the cells must not
-  const float* storage = dst.x.data();
-  ASSERT_TRUE(copy_scan(src, dst));
-  EXPECT_EQ(dst.x.data(), storage);  // no reallocation
-  EXPECT_EQ(dst.rings, 4);
-  EXPECT_EQ(dst.returns, 2);
-  EXPECT_EQ(dst.columns, 30);
-  EXPECT_EQ(dst.column_capacity, 80);
-  for (int r = 0; r < 2; ++r)
-    for (int ring = 0; ring < 4; ++ring)
-      for (int c = 0; c < 30; ++c) {
-        const size_t a = src.at(r, ring, c), b = dst.at(r, ring, c);
-        ASSERT_EQ(dst.x[b], src.x[a]);
-        ASSERT_EQ(dst.y[b], src.y[a]);
-        ASSERT_EQ(dst.range[b], src.range[a]);
-        ASSERT_EQ(dst.intensity[b], src.intensity[a]);
-      }
-  EXPECT_EQ(dst.point_count(), src.point_count());
-  for (size_t ring = 0; ring < 4; ++ring) EXPECT_EQ(dst.laser_id[ring], src.laser_id[ring]);
-  EXPECT_EQ(dst.sequence, 42u);
-  EXPECT_EQ(dst.stamp_ns, src.stamp_ns);
-  EXPECT_TRUE(dst.complete);
-  EXPECT_EQ(dst.column_time_s[29], src.column_time_s[29]);
-  EXPECT_EQ(dst.packets, 7u);
-}
-
-TEST(ScanCopy, RefusesWhatDoesNotFit) {
-  Scan dst;
-  dst.reserve(4, 1, 20);
-  dst.sequence = 5;
-  EXPECT_FALSE(copy_scan(filled(4, 1, 50, 30), dst));  // too many columns
-  EXPECT_FALSE(copy_scan(filled(4, 2, 20, 10), dst));  // two returns in one-return storage
-  EXPECT_FALSE(copy_scan(filled(8, 1, 20, 10), dst));  // more rings
-  EXPECT_EQ(dst.sequence, 5u);
-  EXPECT_TRUE(copy_scan(filled(2, 2, 20, 20), dst));  // 2 x 2 rows fit in 4 x 1
-}
-
-TEST(ScanCopy, DecimatedCloudHoldsTheReturnsOfEveryKthColumnInOrder) {
+TEST(DecimatedCloud, HoldsTheReturnsOfEveryKthColumnInOrder) {
   Scan src = filled(4, 2, 50, 30);
   // Cells without a return are left out.
   src.range[src.at(0, 1, 3)] = 0;

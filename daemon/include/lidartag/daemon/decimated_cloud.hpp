@@ -1,6 +1,4 @@
-// Copies a rotation between scans of possibly different column capacity, filled columns only: the
-// hand-over from the capture reader's pool into the lock-free scan buffer. And the decimated copy
-// of a rotation that the cloud channel publishes, taken before the scan goes back to the buffer.
+// The decimated copy of a rotation that the cloud channel publishes (lcm.cloud_decimation).
 #pragma once
 
 #include <cstdint>
@@ -9,14 +7,6 @@
 #include "lidartag/driver/scan.hpp"
 
 namespace lidartag::daemon {
-
-// True when `dst` (sized by Scan::reserve) can hold `src`: enough rings x returns rows and columns.
-bool fits(const Scan& src, const Scan& dst);
-
-// Copies the cells of the filled columns, the per-column arrays and the per-rotation fields.
-// `dst` keeps its storage and column capacity (no allocation). Returns false, leaving `dst`
-// unchanged, when it does not fit.
-[[nodiscard]] bool copy_scan(const Scan& src, Scan& dst);
 
 // The returns of every `decimation`-th column of a rotation (columns 0, k, 2k, ...), column after
 // column, in each return after return and ring by ring; cells without a return are left out.

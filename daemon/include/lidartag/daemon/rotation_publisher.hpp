@@ -1,0 +1,81 @@
+// The in-order stage of a sensor's pipeline: called serially, in rotation order, once per detected
+// rotation. It publishes the rotation's detections (then its visualisation messages) on LCM,
+// prints the --print-detections line, records the stage latencies and counts what could not be
+// sent (logged at most once every few seconds, with the count). A stage that must see every
+// published rotation in order (a multi-rotation tracker) belongs in publish(), before the messages.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "lidartag/daemon/config.hpp"
+#include "lidartag/daemon/latency_window.hpp"
+#include "lidartag/daemon/lcm_bus.hpp"
+#include "lidartag/daemon/rotation.hpp"
+#include "lidartag/point_cloud_t.hpp"
+#include "lidartag/tag_detections_t.hpp"
+#include "lidartag/tag_points_t.hpp"
+
+namespace lidartag::daemon {
+
+class LinePrinter;
+
+// Publish failures of one sensor, from any thread: counted, and logged at most once per
+// `interval` with the number since the last line.
+class FailureLog {
+ public:
+  FailureLog(std::string sensor, std::chrono::steady_clock::duration interval)
+      : sensor_(std::move(sensor)), interval_(interval) {}
+  void failed(const std::string& channel);
+  // Logs the failures not logged yet, when the last line is `interval` old (the status calls it,
+  // so that a burst that ended is reported too).
+  void report();
+  uint64_t count() const { return count_.load(std::memory_order_relaxed); }
+
+ private:
+  std::string sensor_;
+  std::chrono::steady_clock::duration interval_;
+  std::atomic<uint64_t> count_{0};
+  std::mutex mutex_;
+  std::chrono::steady_clock::time_point last_line_{};
+  uint64_t logged_ = 0;  // count at the last line
+  std::string last_channel_;
+  void line(uint64_t count, std::chrono::steady_clock::time_point now);
+};
+
+class RotationPublisher {
+ public:
+  // `printer` may be null.
+  RotationPublisher(const SensorOptions& sensor, const DaemonOptions& options, LcmBus& bus,
+                    LinePrinter* printer, FailureLog& failures);
+
+  // Publishes `r`, the next rotation in order; `dropped`: rotations dropped so far (in the
+  // message). True when its detections message was sent.
+  bool publish(const RotationResult& r, uint64_t dropped);
+
+  // Stage latencies, milliseconds: queue (assembled -> taken), detect, order (waiting for earlier
+  // rotations), publish, total, then the detector's own stages.
+  const std::vector<std::string>& stage_names() const { return stage_names_; }
+  // Percentiles since the previous call, one per stage (any thread).
+  std::vector<Percentiles> take_latencies();
+
+ private:
+  const SensorOptions& sensor_;
+  const DaemonOptions& options_;
+  LcmBus& bus_;
+  LinePrinter* printer_;
+  FailureLog& failures_;
+  std::string detections_channel_, tag_points_channel_, cloud_channel_;
+  lidartag::tag_detections_t message_;  // reused: no allocation once grown
+  lidartag::tag_points_t tag_points_message_;
+  lidartag::point_cloud_t cloud_message_;
+  std::vector<std::string> stage_names_;
+  std::vector<std::unique_ptr<LatencyWindow>> windows_;
+};
+
+}  // namespace lidartag::daemon

@@ -1,0 +1,192 @@
+#include "lidartag/daemon/health.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <array>
+
+namespace lidartag::daemon {
+
+namespace {
+
+double seconds(int64_t ns) {
+  return static_cast<double>(ns) * 1e-9;
+}
+
+// Most severe first: the state reported is the first problem's.
+constexpr std::array<HealthState, 11> kSeverity = {
+    HealthState::kError,           HealthState::kStalled,        HealthState::kPublishFailing,
+    HealthState::kModelMismatch,   HealthState::kSeveralSources, HealthState::kSilent,
+    HealthState::kRateImplausible, HealthState::kFallingBehind,  HealthState::kPacketLoss,
+    HealthState::kWaiting,         HealthState::kHealthy};
+
+size_t rank(HealthState s) {
+  return static_cast<size_t>(std::find(kSeverity.begin(), kSeverity.end(), s) - kSeverity.begin());
+}
+
+}  // namespace
+
+std::string_view health_state_name(HealthState state) {
+  switch (state) {
+    case HealthState::kHealthy:
+      return "healthy";
+    case HealthState::kWaiting:
+      return "waiting";
+    case HealthState::kSilent:
+      return "silent";
+    case HealthState::kModelMismatch:
+      return "model mismatch";
+    case HealthState::kSeveralSources:
+      return "several sources";
+    case HealthState::kRateImplausible:
+      return "rate implausible";
+    case HealthState::kPacketLoss:
+      return "packet loss";
+    case HealthState::kFallingBehind:
+      return "falling behind";
+    case HealthState::kPublishFailing:
+      return "publish failing";
+    case HealthState::kStalled:
+      return "stalled";
+    case HealthState::kError:
+      return "error";
+    case HealthState::kEnded:
+      return "ended";
+  }
+  return "unknown";
+}
+
+std::string ipv4_text(uint32_t a) {
+  return fmt::format("{}.{}.{}.{}", a >> 24, (a >> 16) & 0xff, (a >> 8) & 0xff, a & 0xff);
+}
+
+void HealthMonitor::judge_window(const HealthSample& from, const HealthSample& to) {
+  window_problems_.clear();
+  const double dt = seconds(to.now_ns - from.now_ns);
+  const uint64_t failures = to.publish_failures - from.publish_failures;
+  if (failures > 0) {
+    window_problems_.push_back({HealthState::kPublishFailing,
+                                fmt::format("{} LCM message{} not published in the last {:.1f} s",
+                                            failures, failures == 1 ? "" : "s", dt)});
+  }
+  const uint64_t mismatched = to.model_mismatch - from.model_mismatch;
+  if (mismatched > 0) {
+    window_problems_.push_back(
+        {HealthState::kModelMismatch,
+         to.model_note.empty()
+             ? fmt::format("{} data packets in the last {:.1f} s do not fit the model decoded "
+                           "(another sensor model on port {}?)",
+                           mismatched, dt, to.data_port)
+             : fmt::format("{} data packets in the last {:.1f} s do not fit the model decoded: {}",
+                           mismatched, dt, to.model_note)});
+  }
+  const uint64_t decoded = to.decoded - from.decoded;
+  const uint64_t rotations = to.rotations - from.rotations;
+  if (decoded > 0) {
+    // Rotations per second of the sensor's own time (a replay runs at any speed; a loop seam
+    // sets the clock back: no verdict on that window).
+    const double sensor_dt = seconds(to.sensor_ns - from.sensor_ns);
+    const double per_second = sensor_dt > 0 ? static_cast<double>(rotations) / sensor_dt : 0.0;
+    if (to.rpm > 0 && (to.rpm < options_.min_rpm || to.rpm > options_.max_rpm)) {
+      window_problems_.push_back({HealthState::kRateImplausible,
+                                  fmt::format("measured {:.0f} rpm, outside {:.0f}..{:.0f} rpm",
+                                              to.rpm, options_.min_rpm, options_.max_rpm)});
+    } else if (to.rpm > 0 && sensor_dt > 0 &&
+               per_second > options_.max_rotation_ratio * to.rpm / 60.0 + 1.0 / sensor_dt) {
+      window_problems_.push_back(
+          {HealthState::kRateImplausible,
+           fmt::format("{:.1f} rotations/s at {:.0f} rpm ({:.1f}/s expected): stray or spoofed "
+                       "packets are cutting the stream",
+                       per_second, to.rpm, to.rpm / 60.0)});
+    } else if (rotations == 0 && dt > 60.0 / options_.min_rpm) {
+      window_problems_.push_back(
+          {HealthState::kRateImplausible,
+           fmt::format("{} data packets but no rotation ended in the last {:.1f} s", decoded, dt)});
+    }
+  }
+  const uint64_t stray = to.inconsistent - from.inconsistent;
+  if (stray > 0 &&
+      static_cast<double>(stray) > options_.max_loss * static_cast<double>(decoded + stray)) {
+    window_problems_.push_back(
+        {HealthState::kSeveralSources,
+         fmt::format("{} data packets in the last {:.1f} s with azimuths that contradict the "
+                     "stream (spoofed, or another sensor on port {}), dropped",
+                     stray, dt, to.data_port)});
+  }
+  const uint64_t behind = to.dropped_behind - from.dropped_behind;
+  if (behind > 0) {
+    window_problems_.push_back(
+        {HealthState::kFallingBehind,
+         fmt::format("{} rotation{} dropped in the last {:.1f} s: detection is slower than the "
+                     "sensor (more workers, or a lighter detector)",
+                     behind, behind == 1 ? "" : "s", dt)});
+  }
+  const uint64_t missing = to.missing - from.missing;
+  const uint64_t expected = decoded + missing;
+  if (expected >= 100 &&
+      static_cast<double>(missing) > options_.max_loss * static_cast<double>(expected)) {
+    window_problems_.push_back(
+        {HealthState::kPacketLoss,
+         fmt::format("{:.1f} % of the data packets missing in the last {:.1f} s ({} of {})",
+                     100.0 * static_cast<double>(missing) / static_cast<double>(expected), dt,
+                     missing, expected)});
+  }
+}
+
+Health HealthMonitor::update(const HealthSample& s) {
+  if (s.ended) {
+    if (!s.error.empty()) return {HealthState::kError, s.error};
+    return {HealthState::kEnded, "the source ended"};
+  }
+  if (!have_window_) {
+    window_start_ = s;
+    have_window_ = true;
+  } else if (seconds(s.now_ns - window_start_.now_ns) >= options_.window_s) {
+    judge_window(window_start_, s);
+    window_start_ = s;
+  }
+
+  std::vector<Problem> problems;
+  if (!s.error.empty()) problems.push_back({HealthState::kError, s.error});
+  if (!s.stall.empty()) problems.push_back({HealthState::kStalled, s.stall});
+  problems.insert(problems.end(), window_problems_.begin(), window_problems_.end());
+  if (!s.model_problem.empty()) problems.push_back({HealthState::kModelMismatch, s.model_problem});
+  if (s.senders.size() > 1) {
+    std::string list;
+    for (uint32_t a : s.senders) list += (list.empty() ? "" : ", ") + ipv4_text(a);
+    problems.push_back(
+        {HealthState::kSeveralSources,
+         fmt::format("data packets from {} on port {}: set sensors[].source.sensor_address to "
+                     "one of them (one sensor entry per address)",
+                     list, s.data_port)});
+  }
+  if (s.data_packets == 0) {
+    const double since_start = seconds(s.now_ns - s.started_ns);
+    if (since_start <= options_.startup_grace_s) {
+      problems.push_back({HealthState::kWaiting,
+                          fmt::format("waiting for packets on port {} ({:.0f} s since the start)",
+                                      s.data_port, since_start)});
+    } else {
+      problems.push_back({HealthState::kSilent,
+                          fmt::format("no packets on port {} in the {:.0f} s since the start",
+                                      s.data_port, since_start)});
+    }
+  } else if (seconds(s.now_ns - s.last_data_ns) > options_.silence_s) {
+    problems.push_back(
+        {HealthState::kSilent, fmt::format("no packets on port {} for {:.1f} s (sensor silent)",
+                                           s.data_port, seconds(s.now_ns - s.last_data_ns))});
+  }
+
+  if (problems.empty()) return {HealthState::kHealthy, ""};
+  std::stable_sort(problems.begin(), problems.end(), [](const Problem& a, const Problem& b) {
+    return rank(a.state) < rank(b.state);
+  });
+  Health h{problems.front().state, ""};
+  for (const Problem& p : problems) {
+    if (!h.reason.empty()) h.reason += "; ";
+    h.reason += p.reason;
+  }
+  return h;
+}
+
+}  // namespace lidartag::daemon
