@@ -40,8 +40,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   try {
     options = daemon::parse_config(base, overrides);
   } catch (const daemon::ConfigError& e) {
-    fuzz::check(std::string(e.what()).find('\n') == std::string::npos,
-                std::string("a config error of more than one line: ") + e.what());
+    fuzz::check(fuzz::one_line(e.what()),
+                std::string("a config error that is not one line: ") + e.what());
     return 0;
   }
   daemon::validate(options);

@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <span>
 #include <string>
+#include <string_view>
 
 #include "lidartag/driver/packet.hpp"
 #include "lidartag/driver/packet_source.hpp"
@@ -24,6 +25,13 @@ namespace lidartag::fuzz {
 }
 inline void check(bool ok, const std::string& what) {
   if (!ok) fail(what);
+}
+
+// An error message fit for one log line: no control characters (newlines above all).
+inline bool one_line(std::string_view text) {
+  for (const char c : text)
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7F) return false;
+  return true;
 }
 
 // An anonymous memory file (memfd) opened by path through /proc/self/fd: the readers under test

@@ -9,10 +9,10 @@
 #include <string>
 
 #include "fuzz_util.hpp"
-#include "io/scan_invariants.hpp"
 #include "lidartag/daemon/lcm_log_source.hpp"
 #include "lidartag/driver/io/capture_reader.hpp"
 #include "lidartag/driver/io/errors.hpp"
+#include "read_rotations.hpp"
 
 using namespace lidartag;
 
@@ -27,14 +27,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   }
   const daemon::LcmLogSource* source = owned.get();
   velodyne::CaptureReader reader(std::move(owned), velodyne::CaptureReaderOptions{});
-  uint64_t rotations = 0;
-  while (const Scan* scan = reader.next()) {
-    ++rotations;
-    fuzz::check(reader.model().has_value(), "a rotation without a model");
-    const std::string problem = test::scan_problem(*scan, *reader.model());
-    fuzz::check(problem.empty(), "rotation " + std::to_string(rotations) + ": " + problem);
-    fuzz::check(rotations <= size, "more rotations than input bytes");
-  }
+  (void)fuzz::read_rotations(reader, size);
   const velodyne::SourceStats s = reader.source_stats();
   fuzz::check(s.packets + s.ignored + s.malformed == source->events(),
               "events neither delivered, ignored nor malformed");

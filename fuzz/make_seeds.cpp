@@ -128,7 +128,8 @@ std::vector<std::pair<size_t, size_t>> windows(size_t n, std::mt19937& rng) {
 
 // ---- Packets, positions, captures. ----
 
-// The packet target of a model: fuzz_packets_<name with '_' for '-'>.
+// The packet corpus of a model (targets decode_<model> and stream_<model>): packets_<name with
+// '_' for '-'>.
 std::string packet_target(velodyne::Model m) {
   std::string name(velodyne::model_spec(m).name);
   std::replace(name.begin(), name.end(), '-', '_');

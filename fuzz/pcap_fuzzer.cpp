@@ -8,9 +8,9 @@
 #include <string>
 
 #include "fuzz_util.hpp"
-#include "io/scan_invariants.hpp"
 #include "lidartag/driver/io/capture_reader.hpp"
 #include "lidartag/driver/io/errors.hpp"
+#include "read_rotations.hpp"
 
 using namespace lidartag;
 
@@ -23,14 +23,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   } catch (const velodyne::IoError&) {
     return 0;  // not a capture libpcap opens, or a link type without IPv4: refused, named
   }
-  uint64_t rotations = 0;
-  while (const Scan* scan = reader->next()) {
-    ++rotations;
-    fuzz::check(reader->model().has_value(), "a rotation without a model");
-    const std::string problem = test::scan_problem(*scan, *reader->model());
-    fuzz::check(problem.empty(), "rotation " + std::to_string(rotations) + ": " + problem);
-    fuzz::check(rotations <= size, "more rotations than input bytes");
-  }
+  (void)fuzz::read_rotations(*reader, size);
   const velodyne::CaptureCounts& c = reader->counts();
   uint64_t errors = 0;
   for (uint64_t e : c.decode_errors) errors += e;

@@ -18,8 +18,28 @@
 
 namespace lidartag::daemon {
 
+namespace {
+// One line whatever the text holds (YAML's own messages quote the bad character raw): control
+// characters escaped.
+std::string one_line(std::string_view text) {
+  std::string out;
+  for (const char ch : text) {
+    const auto c = static_cast<unsigned char>(ch);
+    if (c == '\n') {
+      out += "\\n";
+    } else if (c < 0x20 || c == 0x7F) {
+      out += fmt::format("\\x{:02x}", c);
+    } else {
+      out += ch;
+    }
+  }
+  return out;
+}
+}  // namespace
+
 ConfigError::ConfigError(std::string key, std::string value, std::string reason)
-    : std::runtime_error(fmt::format("{}: '{}': {}", key, value, reason)),
+    : std::runtime_error(
+          fmt::format("{}: '{}': {}", one_line(key), one_line(value), one_line(reason))),
       key_(std::move(key)),
       value_(std::move(value)),
       reason_(std::move(reason)) {}

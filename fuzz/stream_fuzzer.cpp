@@ -2,17 +2,19 @@
 // CaptureReader, the path every source of the daemon and the tools takes: model check, decoder,
 // position packets and the sensor clock, scan assembly. Built once per model (LIDARTAG_FUZZ_MODEL,
 // the decoder fixed to it, as with `model:` in the configuration) and once with "auto" (the model
-// from the product byte and the timing); each corpus holds all three return modes.
+// from the product byte and the timing); each corpus holds all three return modes (shared with
+// the decode_<model> target, which takes the packets one at a time without assembly).
 // Checks: every rotation handed out is within its model's bounds (test/io/scan_invariants.hpp),
 // every packet is counted exactly once, and the rotation counts agree.
+#include <chrono>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
 #include <string>
 
 #include "fuzz_util.hpp"
-#include "io/scan_invariants.hpp"
 #include "lidartag/driver/io/capture_reader.hpp"
+#include "read_rotations.hpp"
 
 using namespace lidartag;
 
@@ -23,15 +25,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   options.model = model;
   velodyne::CaptureReader reader(
       std::make_unique<fuzz::RecordSource>(std::span<const uint8_t>(data, size)), options);
-  uint64_t rotations = 0, complete = 0;
-  while (const Scan* scan = reader.next()) {
-    ++rotations;
-    complete += scan->complete ? 1 : 0;
-    fuzz::check(reader.model().has_value(), "a rotation without a model");
-    const std::string problem = test::scan_problem(*scan, *reader.model());
-    fuzz::check(problem.empty(), "rotation " + std::to_string(rotations) + ": " + problem);
-    fuzz::check(rotations <= size, "more rotations than input bytes");
-  }
+  const auto [rotations, complete] = fuzz::read_rotations(reader, size);
   const velodyne::CaptureCounts& c = reader.counts();
   const velodyne::SourceStats source = reader.source_stats();
   uint64_t errors = 0;
