@@ -1,8 +1,7 @@
 // Faults whose expected behaviour the daemon does not have yet on this branch (test target
 // test_daemon_faults_pending; its ctest entries are disabled unless LIDARTAG_PENDING_TESTS=ON).
-// Each states the exit status, the log line and the counter expected. What fails today:
-// - a full file system under --log-file: every log line is lost without a word (spdlog's file sink
-//   does not check its writes);
+// Each states the exit status, the log line and the counter expected. What fails on this branch
+// (and passes once main's daemon-setup and speed work is merged: enable them then):
 // - an LCM log on a read-only file system: LCM prints its own "Error: Failed to open" line before
 //   lidartagd's, whose reason ("bad provider, or no multicast route") is wrong (issue 10's setup
 //   checks name the path);
@@ -20,30 +19,6 @@ namespace {
 
 #define REQUIRE_DEMO() \
   if (!std::filesystem::exists(kDemo)) GTEST_SKIP() << "no " << kDemo
-
-// --log-file on a full file system: reported once on standard error with the file and the
-// system's reason, the replay publishes every rotation, exit status 0 (the log is not the data).
-TEST(FullDisk, LogFileOnAFullFilesystemIsReportedAndTheRunGoesOn) {
-  REQUIRE_DEMO();
-  IN_NAMESPACES();
-  const std::string full = mount_tmpfs("full", 64, false);
-  fill(full);
-  const std::string logfile = full + "/lidartagd.log", log = temp("fulllog.lcmlog");
-  Process p({kDaemon, "--config", kDemoConfig, "--replay", kDemo, "--max-speed", "--lcm-url",
-             "file://" + log + "?mode=w", "--log-file", logfile, "--log-level", "debug",
-             "--print-detections"},
-            {}, temp("fulllog"));
-  EXPECT_EQ(p.wait(60s), 0) << p.err();
-  const auto err = lines_of(p.err());
-  ASSERT_EQ(err.size(), 1u) << p.err();  // once, not per lost line
-  EXPECT_NE(err[0].find(logfile), std::string::npos) << err[0];
-  EXPECT_NE(err[0].find("No space left on device"), std::string::npos) << err[0];
-  const auto s = last_status(log);
-  ASSERT_TRUE(s.has_value());
-  EXPECT_GT(s->rotations_published, 0);
-  EXPECT_EQ(s->rotations_published, s->rotations_assembled);
-  EXPECT_EQ(static_cast<size_t>(s->rotations_published), lines_in(p.out()));
-}
 
 // An LCM log (file:// URL) on a read-only file system: one line naming the path and the reason,
 // before READY=1, exit status 1.

@@ -1,9 +1,10 @@
 // lidartagd under faults of its surroundings, each with the exit status, the log line and the
 // counters expected: output paths on a read-only file system (a tmpfs mounted read-only in the
-// test's own mount namespace), the replayed capture deleted during --loop, SIGHUP when the log
-// file's directory is gone. The faults whose expected behaviour is not there yet are in
-// fault_pending_test.cpp; the ones issue 10's tests cover (route removed while publishing, LCM log
-// and --record on a full file system, SIGPIPE, SIGUSR1/2) are in daemon_setup_e2e_test.cpp.
+// test's own mount namespace), the replayed capture deleted during --loop, the log file on a full
+// file system (a small tmpfs), SIGHUP when the log file's directory is gone. The faults whose
+// expected behaviour is not there yet are in fault_pending_test.cpp; the ones issue 10's tests
+// cover (route removed while publishing, LCM log and --record on a full file system, SIGPIPE,
+// SIGUSR1/2) are in daemon_setup_e2e_test.cpp.
 #include <gtest/gtest.h>
 
 #include "daemon/process.hpp"
@@ -74,6 +75,30 @@ TEST(Loop, CaptureDeletedDuringALoopEndsTheReplayWithAnErrorNamingIt) {
   ASSERT_TRUE(s.has_value());
   EXPECT_GE(s->rotations_published, 5);
   EXPECT_EQ(s->rotations_published + s->rotations_dropped, s->rotations_assembled);
+  EXPECT_EQ(static_cast<size_t>(s->rotations_published), lines_in(p.out()));
+}
+
+// --log-file on a full file system: reported once on standard error with the file and the
+// system's reason, the replay publishes every rotation, exit status 0 (the log is not the data).
+TEST(FullDisk, LogFileOnAFullFilesystemIsReportedAndTheRunGoesOn) {
+  REQUIRE_DEMO();
+  IN_NAMESPACES();
+  const std::string full = mount_tmpfs("full", 64, false);
+  fill(full);
+  const std::string logfile = full + "/lidartagd.log", log = temp("fulllog.lcmlog");
+  Process p({kDaemon, "--config", kDemoConfig, "--replay", kDemo, "--max-speed", "--lcm-url",
+             "file://" + log + "?mode=w", "--log-file", logfile, "--log-level", "debug",
+             "--print-detections"},
+            {}, temp("fulllog"));
+  EXPECT_EQ(p.wait(60s), 0) << p.err();
+  const auto err = lines_of(p.err());
+  ASSERT_EQ(err.size(), 1u) << p.err();  // once, not per lost line
+  EXPECT_NE(err[0].find(logfile), std::string::npos) << err[0];
+  EXPECT_NE(err[0].find("No space left on device"), std::string::npos) << err[0];
+  const auto s = last_status(log);
+  ASSERT_TRUE(s.has_value());
+  EXPECT_GT(s->rotations_published, 0);
+  EXPECT_EQ(s->rotations_published, s->rotations_assembled);
   EXPECT_EQ(static_cast<size_t>(s->rotations_published), lines_in(p.out()));
 }
 
