@@ -21,6 +21,9 @@ packages=(
   gnuplot-nox
   # lidartagd: LCM type jar and lcm-spy (Java 17), the lcm-spy screenshot under Xvfb, systemd-analyze
   liblcm-java libjchart2d-java openjdk-17-jdk-headless xvfb xauth imagemagick systemd
+  # Fuzz targets (libFuzzer and the sanitizers' runtimes of clang 14); lidartagd.service booted in
+  # a container (scripts/systemd-container-test.sh)
+  clang-14 libclang-rt-14-dev mmdebstrap systemd-container
 )
 missing=()
 for p in "${packages[@]}"; do

@@ -1,16 +1,35 @@
 #!/usr/bin/env bash
 # Quick start, tests: installs the Debian packages, configures, builds everything and runs every
-# test; then the ThreadSanitizer build of the lock-free scan buffer and the AddressSanitizer +
-# UndefinedBehaviorSanitizer build of the driver, detector and daemon-setup tests.
-# Usage: scripts/run-tests.sh [--no-sanitizers]
+# test (load runs and unprivileged runs of lidartagd among them); builds Release; runs the Debian
+# package under a real systemd in a container; then the ThreadSanitizer build of the lock-free
+# scan buffer, the AddressSanitizer + UndefinedBehaviorSanitizer build of the driver, detector and daemon-setup tests, and
+# the libFuzzer targets (clang, ASan + UBSan) over their corpora and for a few seconds each.
+# Usage: scripts/run-tests.sh [--no-sanitizers]   (the flag skips the sanitizer and fuzz builds)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install-deps.sh
 jobs=$(nproc)
 
-cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo
+# Warnings are errors here (LIDARTAG_WERROR; off by default so that users' builds never break on
+# a compiler's new warning).
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLIDARTAG_WERROR=ON
 cmake --build build -j "$jobs"
 ctest --test-dir build --output-on-failure -j "$jobs"
+
+# Every build type builds: Release (-O3) warns where -O2 does not (GCC 12's -Wrestrict and
+# -Warray-bounds false positives); built with warnings as errors, its tests are not run again.
+# Installed under /usr: the build the Debian package comes from.
+echo "== Release build (-O3, warnings as errors) =="
+cmake -S . -B build-release -G Ninja -DCMAKE_BUILD_TYPE=Release -DLIDARTAG_WERROR=ON \
+  -DCMAKE_INSTALL_PREFIX=/usr
+cmake --build build-release -j "$jobs"
+
+# The package in a booted Debian 12 container, systemd as PID 1 (skipped, exit status 77, where
+# containers cannot run: not root, no mmdebstrap or systemd-nspawn).
+echo "== lidartagd.service under systemd (container) =="
+status=0
+scripts/systemd-container-test.sh build-release || status=$?
+[ "$status" -eq 0 ] || [ "$status" -eq 77 ] || exit "$status"
 
 if [ "${1:-}" != "--no-sanitizers" ]; then
   # Only some targets are built here, so their binaries run directly (ctest would list the rest
@@ -39,4 +58,15 @@ if [ "${1:-}" != "--no-sanitizers" ]; then
     ASAN_OPTIONS="detect_leaks=1" UBSAN_OPTIONS="print_stacktrace=1" \
       LSAN_OPTIONS="suppressions=$PWD/test/tools/lsan.supp" timeout 900 "build-asan/bin/$t"
   done
+
+  echo "== libFuzzer targets (clang-14, ASan + UBSan): every corpus once, every target 5 s =="
+  cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+    -DCMAKE_CXX_COMPILER=clang++-14 -DLIDARTAG_FUZZ=ON
+  cmake --build build-fuzz -j "$jobs"
+  # Windows of the real captures as extra seeds (never committed).
+  rm -rf build-fuzz/shared-seeds
+  if [ -d ../shared/captures ]; then
+    build-fuzz/bin/fuzz_make_seeds shared ../shared/captures build-fuzz/shared-seeds
+  fi
+  ctest --test-dir build-fuzz --output-on-failure -j "$jobs"
 fi

@@ -33,6 +33,7 @@ class LogOutput final : public spdlog::sinks::base_sink<std::mutex> {
   void reopen() {
     std::lock_guard lock(mutex_);
     close();
+    failing_ = false;
     open();
   }
 
@@ -43,10 +44,32 @@ class LogOutput final : public spdlog::sinks::base_sink<std::mutex> {
     if (journal_) std::fprintf(file_, "<%d>", priority(msg.level));
     std::fwrite(formatted.data(), 1, formatted.size(), file_);
     if (msg.level >= spdlog::level::warn) std::fflush(file_);
+    check_written(true);
   }
-  void flush_() override { std::fflush(file_); }
+  void flush_() override {
+    std::fflush(file_);
+    check_written(false);
+  }
 
  private:
+  // A log file that cannot be written (full disk, I/O error) is said once on standard error with
+  // the reason, not per lost line; again once a line is written (the file is line-buffered, so
+  // a line written without an error reached the file; a flush of nothing proves nothing).
+  void check_written(bool line) {
+    if (file_ == stderr) return;
+    if (std::ferror(file_) != 0) {
+      const int error = errno;
+      std::clearerr(file_);
+      if (!failing_) {
+        std::fprintf(stderr, "lidartagd: log file '%s': cannot write: %s; log lines are lost\n",
+                     path_.c_str(), std::strerror(error));
+        failing_ = true;
+      }
+    } else if (failing_ && line) {
+      std::fprintf(stderr, "lidartagd: log file '%s': writing again\n", path_.c_str());
+      failing_ = false;
+    }
+  }
   static int priority(spdlog::level::level_enum level) {
     switch (level) {
       case spdlog::level::trace:
@@ -85,6 +108,7 @@ class LogOutput final : public spdlog::sinks::base_sink<std::mutex> {
   std::string path_;
   bool journal_;
   std::FILE* file_ = nullptr;
+  bool failing_ = false;  // the last write to the file failed (and was reported)
 };
 
 Logging::Logging(const LoggingOptions& options) {

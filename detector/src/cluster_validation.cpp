@@ -165,7 +165,7 @@ int count_boundary_points(std::span<const ClusterPoint> points, const Validation
     const ClusterPoint &a = points[i - l], &p = points[i], &b = points[i + l];
     // eq. (5); counting the side where the step is ahead gives one point per transition.
     const float g = std::fabs(b.intensity - p.intensity) - std::fabs(a.intensity - p.intensity);
-    count += (a.ring == p.ring) & (b.ring == p.ring) & (g > thr) ? 1 : 0;
+    count += ((a.ring == p.ring) & (b.ring == p.ring) & (g > thr)) ? 1 : 0;
   }
   return count;
 }

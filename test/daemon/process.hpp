@@ -71,6 +71,7 @@ class Process {
   Process& operator=(const Process&) = delete;
 
   void signal(int sig) const { kill(pid_, sig); }
+  pid_t pid() const { return pid_; }
   // Exit status, or -1 (and the process is killed) when it did not end in time; 128+N for a
   // signal.
   int wait(std::chrono::milliseconds timeout) {

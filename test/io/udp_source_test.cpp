@@ -115,7 +115,7 @@ TEST(UdpSource, HostClockWhenKernelTimestampsAreOff) {
   EXPECT_EQ(source.host_clock_stamps(), 1u);
 }
 
-TEST(UdpSource, OtherSendersAreIgnoredAndCounted) {
+TEST(UdpSource, OtherSendersAreCountedAsForeign) {
   auto options = loopback_options();
   options.sensor_ipv4 = 0xC0A801C9;  // 192.168.1.201: not the loopback sender
   UdpSource source(options);
@@ -123,7 +123,8 @@ TEST(UdpSource, OtherSendersAreIgnoredAndCounted) {
   for (int i = 0; i < 3; ++i) ASSERT_TRUE(sender.send(source.data_port(), payload(1206, 4)));
   RawPacket p;
   EXPECT_EQ(source.next(p, 50ms), ReadStatus::kTimeout);
-  EXPECT_EQ(source.stats().ignored, 3u);
+  EXPECT_EQ(source.stats().foreign_source, 3u);
+  EXPECT_EQ(source.stats().ignored, 0u);
   EXPECT_EQ(source.stats().packets, 0u);
 }
 

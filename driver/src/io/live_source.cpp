@@ -47,6 +47,10 @@ LiveSource::LiveSource(LiveSourceOptions options)
     std::string why = pcap_statustostr(rc);
     const std::string detail = pcap_geterr(pcap);
     if (!detail.empty()) why += " (" + detail + ")";
+    // The one privilege capture needs; say so (systemd: docs/daemon.md's capture drop-in).
+    if (rc == PCAP_ERROR_PERM_DENIED) why += "; capturing needs CAP_NET_RAW";
+    if (detail.find("Address family not supported") != std::string::npos)
+      why += "; capturing needs AF_PACKET sockets (and CAP_NET_RAW)";
     fail(why);
   }
   const int dlt = pcap_datalink(pcap);

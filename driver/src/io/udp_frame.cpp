@@ -161,9 +161,12 @@ bool accept_udp_frame(LinkType link, std::span<const uint8_t> frame, const UdpFi
       ++stats.malformed;
       return false;
   }
-  if ((udp.destination_port != filter.data_port && udp.destination_port != filter.position_port) ||
-      (filter.sensor_ipv4 && udp.source_ipv4 != *filter.sensor_ipv4)) {
+  if (udp.destination_port != filter.data_port && udp.destination_port != filter.position_port) {
     ++stats.ignored;
+    return false;
+  }
+  if (filter.sensor_ipv4 && udp.source_ipv4 != *filter.sensor_ipv4) {
+    ++stats.foreign_source;  // to the sensor's port, from another sender
     return false;
   }
   return true;

@@ -147,7 +147,7 @@ ReadStatus UdpSource::receive(Socket& socket, RawPacket& out) {
   }
   const uint32_t source = ntohl(from.sin_addr.s_addr);
   if (options_.sensor_ipv4 && source != *options_.sensor_ipv4) {
-    ++stats_.ignored;
+    ++stats_.foreign_source;
     return ReadStatus::kTimeout;
   }
   if (!stamped) {

@@ -25,13 +25,13 @@ enum class ReadStatus : uint8_t { kPacket, kTimeout, kEnd, kError };
 struct SourceStats {
   uint64_t packets = 0;  // UDP payloads delivered
   uint64_t bytes = 0;
-  uint64_t ignored = 0;       // other traffic: wrong port, address, protocol, not IPv4/UDP
+  uint64_t ignored = 0;       // other traffic: wrong port, protocol, not IPv4/UDP, fragments
   uint64_t truncated = 0;     // records shorter than their headers claim (never read past)
   uint64_t malformed = 0;     // corrupt headers
   uint64_t kernel_drops = 0;  // reported by the kernel / libpcap
   uint64_t errors = 0;        // read errors
-  // Packets from another sender than the configured sensor address (filtered out; counted by
-  // the sources that filter by sender). 0 until they count it separately from `ignored`.
+  // Packets to the sensor's ports from another sender than the configured sensor address
+  // (filtered out, not in `ignored`).
   uint64_t foreign_source = 0;
 };
 

@@ -24,7 +24,8 @@ enum class ReplayPacing : uint8_t {
 struct PcapSourceOptions {
   uint16_t data_port = kDefaultDataPort;          // UDP destination port of data packets
   uint16_t position_port = kDefaultPositionPort;  // UDP destination port of position packets
-  // Only packets from this sender (IPv4, host byte order) are delivered; others are `ignored`.
+  // Only packets from this sender (IPv4, host byte order) are delivered; others are
+  // counted in `foreign_source`.
   // Empty: any sender. Needed when one capture holds several sensors on the same ports.
   std::optional<uint32_t> sensor_ipv4;
   ReplayPacing pacing = ReplayPacing::kAsFastAsPossible;

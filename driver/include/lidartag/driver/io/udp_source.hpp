@@ -26,7 +26,8 @@ struct UdpSourceOptions {
   uint16_t data_port = kDefaultDataPort;
   uint16_t position_port = kDefaultPositionPort;
   bool open_position_port = true;  // false: data only
-  // Only datagrams from this sender (IPv4, host byte order) are delivered; others are `ignored`.
+  // Only datagrams from this sender (IPv4, host byte order) are delivered; others are
+  // counted in `foreign_source`.
   std::optional<uint32_t> sensor_ipv4;
   // Requested kernel receive buffer per socket, bytes. 8 MiB holds ~1 s of VLS-128 data, enough
   // to ride out scheduling hiccups. The kernel caps it at net.core.rmem_max unless the process may

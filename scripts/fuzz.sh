@@ -1,0 +1,101 @@
+#!/usr/bin/env bash
+# Long fuzzing campaign: every libFuzzer target (fuzz/, ASan + UBSan) for SECONDS each (default
+# 600), or until --runs executions, JOBS targets at a time (default: one per core), at nice 19.
+# Each target starts from its committed corpus (test/fuzz/corpus/<target>/), windows of the real
+# captures in ../shared/captures when present, and what earlier campaigns found
+# (build-fuzz/campaign/<target>/corpus/); crashing inputs are written beside that corpus.
+# Prints a Markdown table (executions, exec/s, coverage, features, corpus, crashes) to paste into
+# docs/robustness.md, and writes it to build-fuzz/campaign/summary.md.
+#
+# Usage: scripts/fuzz.sh [SECONDS] [--runs N] [--jobs J] [--targets "a b ..."] [--merge]
+#   --merge   minimises the campaign's new inputs into the committed corpus (review the diff:
+#             inputs cut from ../shared/captures must not be committed; the merge skips them by
+#             taking only the campaign's own corpus directory).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+seconds=600 runs="" jobs=$(nproc) targets="" targets_given="" merge=0
+while (($#)); do
+  case $1 in
+    --runs) runs=$2; shift 2 ;;
+    --jobs) jobs=$2; shift 2 ;;
+    --targets) targets=$2 targets_given=1; shift 2 ;;
+    --merge) merge=1; shift ;;
+    [0-9]*) seconds=$1; shift ;;
+    *) echo "usage: scripts/fuzz.sh [SECONDS] [--runs N] [--jobs J] [--targets LIST] [--merge]" >&2
+       exit 2 ;;
+  esac
+done
+build=build-fuzz
+cmake -S . -B $build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++-14 \
+  -DLIDARTAG_FUZZ=ON >/dev/null
+cmake --build $build -j "$(nproc)" >/dev/null
+[ -n "$targets" ] || targets=$(cut -d' ' -f1 $build/fuzz-targets.txt)
+if [ -d ../shared/captures ]; then
+  rm -rf $build/shared-seeds
+  $build/bin/fuzz_make_seeds shared ../shared/captures $build/shared-seeds
+fi
+campaign=$build/campaign
+mkdir -p $campaign
+
+run_one() {
+  local t=$1 dir=$campaign/$1
+  local dict corpus
+  dict=$(awk -v t="$t" '$1 == t {print $2}' $build/fuzz-targets.txt)
+  corpus=$(awk -v t="$t" '$1 == t {print $3}' $build/fuzz-targets.txt)
+  mkdir -p "$dir/corpus"
+  rm -f "$dir"/crash-* "$dir"/leak-* "$dir"/timeout-* "$dir"/oom-*
+  local args=(-timeout=10 -rss_limit_mb=2048 -print_final_stats=1 -artifact_prefix="$dir/")
+  [ -n "$dict" ] && [ "$dict" != - ] && args+=(-dict="$dict")
+  [ -n "$runs" ] && args+=(-runs="$runs")
+  args+=(-max_total_time="$seconds")
+  local extra=()
+  [ -d "$build/shared-seeds/$corpus" ] && extra+=("$build/shared-seeds/$corpus")
+  ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+    nice -n 19 "$build/bin/fuzz_$t" "${args[@]}" "$dir/corpus" "test/fuzz/corpus/$corpus" "${extra[@]}" \
+    > "$dir/log.txt" 2>&1 || true
+}
+export -f run_one
+export build campaign seconds runs
+
+start=$(date +%s)
+echo "fuzzing $(echo $targets | wc -w) targets, ${runs:+$runs runs or }$seconds s each, $jobs at a time"
+printf '%s\n' $targets | xargs -P "$jobs" -I{} bash -c 'run_one {}'
+
+summary=$campaign/summary.md
+{
+  echo "| target | executions | exec/s | coverage | features | corpus | crashes |"
+  echo "|---|---:|---:|---:|---:|---:|---:|"
+  for t in $targets; do
+    log=$campaign/$t/log.txt
+    execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
+    rate=$(sed -n 's/^stat::average_exec_per_sec: *//p' "$log" | tail -1)
+    last=$(grep -E '^#[0-9]+' "$log" | tail -1)
+    cov=$(echo "$last" | sed -n 's/.* cov: \([0-9]*\).*/\1/p')
+    ft=$(echo "$last" | sed -n 's/.* ft: \([0-9]*\).*/\1/p')
+    corp=$(echo "$last" | sed -n 's/.* corp: \([0-9]*\)\/.*/\1/p')
+    crashes=$(ls "$campaign/$t" | grep -cE '^(crash|leak|timeout|oom)-' || true)
+    printf '| %s | %s | %s | %s | %s | %s | %s |\n' "$t" "${execs:-?}" "${rate:-?}" "${cov:-?}" \
+      "${ft:-?}" "${corp:-?}" "$crashes"
+  done
+} > $summary
+cat $summary
+echo
+echo "$(($(date +%s) - start)) s; machine: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //'), load $(cut -d' ' -f1-3 /proc/loadavg)"
+echo "command: scripts/fuzz.sh $seconds${runs:+ --runs $runs} --jobs $jobs${targets_given:+ --targets \"$targets\"}"
+failed=0
+for t in $targets; do
+  for a in "$campaign/$t"/crash-* "$campaign/$t"/leak-* "$campaign/$t"/timeout-* "$campaign/$t"/oom-*; do
+    [ -e "$a" ] || continue
+    echo "FOUND: $a (reproduce: $build/bin/fuzz_$t $a)"
+    failed=1
+  done
+done
+if ((merge)); then
+  for t in $targets; do
+    corpus=$(awk -v t="$t" '$1 == t {print $3}' $build/fuzz-targets.txt)
+    "$build/bin/fuzz_$t" -merge=1 "test/fuzz/corpus/$corpus" "$campaign/$t/corpus" \
+      > "$campaign/$t/merge.txt" 2>&1 || echo "merge of $t failed: $campaign/$t/merge.txt"
+  done
+  echo "merged into test/fuzz/corpus/: $(git status --short test/fuzz/corpus | wc -l) new files"
+fi
+exit $failed
