@@ -29,17 +29,18 @@ constexpr int kRingKernelMinColumns = 6;
 #define LIDARTAG_AVX2_CLONE
 #endif
 
-// sin/cos of the azimuth at 0.01 deg steps; linear interpolation between entries is accurate to
+// cos/sin of the azimuth at 0.01 deg steps; linear interpolation between entries is accurate to
 // 4e-9, far below the 0.01 deg resolution of the packets. One spare entry past 360 deg so that an
-// index rounded up to 36000 still has a right neighbour.
+// index rounded up to 36000 still has a right neighbour. Interleaved (cos, sin): a column's
+// lookup reads one cache line, not two (the table is evicted by the scan's writes every rotation).
 constexpr int kTrigSteps = 36000;
 struct TrigTable {
-  std::vector<float> sin_v, cos_v;
-  TrigTable() : sin_v(kTrigSteps + 2), cos_v(kTrigSteps + 2) {
-    for (size_t i = 0; i < sin_v.size(); ++i) {
+  std::vector<float> cos_sin;
+  TrigTable() : cos_sin(2 * (kTrigSteps + 2)) {
+    for (size_t i = 0; i < kTrigSteps + 2; ++i) {
       const double a = static_cast<double>(i) * 0.01 * kDegToRad;
-      sin_v[i] = static_cast<float>(std::sin(a));
-      cos_v[i] = static_cast<float>(std::cos(a));
+      cos_sin[2 * i] = static_cast<float>(std::cos(a));
+      cos_sin[2 * i + 1] = static_cast<float>(std::sin(a));
     }
   }
 };
@@ -332,8 +333,7 @@ Decoder::Decoder(Calibration calibration, DecoderOptions options)
       min_range_m_(options.min_range_m > 0 ? options.min_range_m : spec_->min_range_m),
       max_range_m_(options.max_range_m > 0 ? options.max_range_m : spec_->max_range_m),
       rate_deg_per_us_(kDefaultRateDegPerUs),
-      sin_table_(trig().sin_v.data()),
-      cos_table_(trig().cos_v.data()) {
+      trig_table_(trig().cos_sin.data()) {
   if (calibration_.ring_of_laser.size() != calibration_.lasers.size()) calibration_.update_rings();
   for (int l = 0; l < spec_->lasers; ++l) {
     const auto ul = static_cast<size_t>(l);
@@ -399,10 +399,20 @@ DecodeStatus Decoder::parse(std::span<const uint8_t> payload, const SensorClock&
   const double group_us = fpb * spec.firing_period_us;
 
   // Where each (group, echo, bank) block is; check flags and azimuths first so that a corrupt
-  // packet leaves `out` untouched.
-  std::array<std::array<std::array<int8_t, 4>, 2>, 12> block_of{};
-  std::array<uint16_t, 12> group_azimuth{};
-  for (int g = 0; g < groups; ++g) {
+  // packet leaves `out` untouched. One bank (all but the VLS-128): block g * group_blocks + echo.
+  std::array<std::array<std::array<int8_t, 4>, 2>, 12> block_of;
+  std::array<uint16_t, 12> group_azimuth;
+  if (!banked) {
+    for (int b = 0; b < 12; ++b) {
+      const uint8_t* blk = p + static_cast<size_t>(b) * kBlockSize;
+      if (read_u16(blk + 2) > kMaxAzimuth) return DecodeStatus::kBadAzimuth;
+      if (read_u16(blk) != kBankFlags[0]) return DecodeStatus::kBadBlockFlag;
+    }
+    for (int g = 0; g < groups; ++g)
+      group_azimuth[static_cast<size_t>(g)] =
+          read_u16(p + static_cast<size_t>(g * group_blocks) * kBlockSize + 2);
+  }
+  for (int g = 0; banked && g < groups; ++g) {
     auto& slots = block_of[static_cast<size_t>(g)];
     for (auto& e : slots) e.fill(-1);
     for (int i = 0; i < group_blocks; ++i) {
@@ -411,18 +421,12 @@ DecodeStatus Decoder::parse(std::span<const uint8_t> payload, const SensorClock&
       const uint16_t flag = read_u16(blk);
       const uint16_t az = read_u16(blk + 2);
       if (az > kMaxAzimuth) return DecodeStatus::kBadAzimuth;
-      int bank = 0, echo = 0;
-      if (banked) {
-        bank = bank_of_flag(flag);
-        if (bank < 0) return DecodeStatus::kBadBlockFlag;
-        // Dual: the first block of a bank holds the last echo, the second the strongest.
-        echo = slots[0][static_cast<size_t>(bank)] < 0 ? 0 : 1;
-        if (echo == 1 && (!dual || slots[1][static_cast<size_t>(bank)] >= 0))
-          return DecodeStatus::kBadBlockFlag;
-      } else {
-        if (flag != kBankFlags[0]) return DecodeStatus::kBadBlockFlag;
-        echo = dual ? (i & 1) : 0;
-      }
+      const int bank = bank_of_flag(flag);
+      if (bank < 0) return DecodeStatus::kBadBlockFlag;
+      // Dual: the first block of a bank holds the last echo, the second the strongest.
+      const int echo = slots[0][static_cast<size_t>(bank)] < 0 ? 0 : 1;
+      if (echo == 1 && (!dual || slots[1][static_cast<size_t>(bank)] >= 0))
+        return DecodeStatus::kBadBlockFlag;
       slots[static_cast<size_t>(echo)][static_cast<size_t>(bank)] = static_cast<int8_t>(b);
       if (i == 0) group_azimuth[static_cast<size_t>(g)] = az;
     }
@@ -469,8 +473,7 @@ DecodeStatus Decoder::parse(std::span<const uint8_t> payload, const SensorClock&
   out.decoder = this;
   out.payload = p;
 
-  const float* sin_t = sin_table_;
-  const float* cos_t = cos_table_;
+  const float* trig_t = trig_table_;
   for (int g = 0; g < groups; ++g) {
     const auto ug = static_cast<size_t>(g);
     for (int f = 0; f < fpb; ++f) {
@@ -485,19 +488,26 @@ DecodeStatus Decoder::parse(std::span<const uint8_t> payload, const SensorClock&
       const float idx = col_az_w * 100.0f;
       const auto ti = std::min(static_cast<size_t>(idx), static_cast<size_t>(kTrigSteps));
       const float tf = idx - static_cast<float>(ti);
-      out.cos_az[ucol] = cos_t[ti] + tf * (cos_t[ti + 1] - cos_t[ti]);
-      out.sin_az[ucol] = sin_t[ti] + tf * (sin_t[ti + 1] - sin_t[ti]);
+      const float* cs = trig_t + 2 * ti;  // cos, sin at ti, then at ti + 1
+      out.cos_az[ucol] = cs[0] + tf * (cs[2] - cs[0]);
+      out.sin_az[ucol] = cs[1] + tf * (cs[3] - cs[1]);
       out.rate_deg[ucol] = static_cast<float>(rate[ug]);
       out.rate_rad[ucol] = static_cast<float>(rate[ug] * kDegToRad);
       out.time0_us[ucol] = static_cast<float>(col_t);
       const int ch0 = f * lasers_per_firing * 3 + 4;
+      auto& offsets = out.channel_offset[ucol];
+      if (!banked) {
+        for (int e = 0; e < out.returns; ++e)
+          offsets[static_cast<size_t>(e)][0] =
+              static_cast<uint16_t>((g * group_blocks + e) * static_cast<int>(kBlockSize) + ch0);
+        continue;
+      }
       for (int e = 0; e < out.returns; ++e)
         for (int bank = 0; bank < spec.blocks_per_firing; ++bank)
-          out.channel_offset[ucol][static_cast<size_t>(e)][static_cast<size_t>(bank)] =
-              static_cast<uint16_t>(
-                  block_of[ug][static_cast<size_t>(e)][static_cast<size_t>(bank)] *
-                      static_cast<int>(kBlockSize) +
-                  ch0);
+          offsets[static_cast<size_t>(e)][static_cast<size_t>(bank)] = static_cast<uint16_t>(
+              block_of[ug][static_cast<size_t>(e)][static_cast<size_t>(bank)] *
+                  static_cast<int>(kBlockSize) +
+              ch0);
     }
   }
   return DecodeStatus::kOk;

@@ -187,8 +187,9 @@ class ScanBatcher {
   int64_t last_packet_stamp_ns_ = 0;
   bool next_starts_at_cut_ = false;
   bool overflowed_ = false;
-  double last_rate_deg_per_us_ = 600.0 * 360.0 / 60e6;  // updated from every normal step
-  double rate_steps_deg_ = 0, rate_time_us_ = 0;        // for the rotation's measured rpm
+  // The last normal step (its rate, step / dt, is the rotation rate: 600 rpm at first).
+  double last_rate_step_deg_ = 600.0 * 360.0 / 60e6, last_rate_dt_us_ = 1.0;
+  double rate_steps_deg_ = 0, rate_time_us_ = 0;  // for the rotation's measured rpm
 };
 
 }  // namespace lidartag::velodyne
