@@ -608,24 +608,34 @@ LIDARTAG_AVX2_CLONE void Decoder::write_batch(const ColumnBatch& b, const PointS
   // The echoes of a ring are gathered (scalar: 3-byte fields 100 or 48 bytes apart) one ring
   // ahead of their conversion: the vectorised loops then load them from the cache, not from
   // stores still in flight (which a wide load cannot take from the store buffer: it would wait).
+  // Each column's firing in each echo and bank, once per batch, not once per ring.
+  std::array<std::array<const uint8_t*, RingEchoes::kN>, 4> firing[2];
+  for (int e = 0; e < b.returns; ++e)
+    for (int bank = 0; bank < spec_->blocks_per_firing; ++bank)
+      for (int k = 0; k < count; ++k) {
+        const auto uk = static_cast<size_t>(k);
+        firing[e][static_cast<size_t>(bank)][uk] =
+            b.payload[uk] + b.channel_offset[uk][static_cast<size_t>(e)][static_cast<size_t>(bank)];
+      }
   auto gather = [&](int ring, RingEchoes::Gathered& g) {
     const int l = laser_of_ring_[static_cast<size_t>(ring)];
     const auto bank = static_cast<size_t>(l / lasers_per_firing);
     const auto ch = static_cast<size_t>(l % lasers_per_firing) * 3;
+    const uint8_t* const* f0 = firing[0][bank].data();
     if (!dual) {
       for (int k = 0; k < count; ++k) {
         const auto uk = static_cast<size_t>(k);
-        g.raw[0][uk] = echo_key(b.payload[uk] + b.channel_offset[uk][0][bank] + ch);
+        g.raw[0][uk] = echo_key(f0[uk] + ch);
       }
       g.differ = false;
       return;
     }
+    const uint8_t* const* f1 = firing[1][bank].data();
     uint32_t differ = 0;
     for (int k = 0; k < count; ++k) {
       const auto uk = static_cast<size_t>(k);
-      const auto& off = b.channel_offset[uk];
-      const uint32_t k0 = echo_key(b.payload[uk] + off[0][bank] + ch);
-      const uint32_t k1 = echo_key(b.payload[uk] + off[1][bank] + ch);
+      const uint32_t k0 = echo_key(f0[uk] + ch);
+      const uint32_t k1 = echo_key(f1[uk] + ch);
       g.raw[0][uk] = k0;
       g.raw[1][uk] = k1;
       differ |= k0 ^ k1;

@@ -93,9 +93,10 @@ class ScanBatcher {
     PacketColumns columns;
     std::array<uint8_t, kDataPacketSize> bytes;
   };
-  // Columns decoded together into the scan: packets of few columns (VLS-128) are held until
-  // this many are waiting, so that each ring's run fills whole cache lines.
-  static constexpr int kBatchColumns = 16;
+  // Columns decoded together into the scan: packets are held until this many are waiting, so
+  // that each ring's run fills whole cache lines and its set-up is shared by more columns (32
+  // measured 5-8% faster than 16 on every capture, 40 no faster; ColumnBatch holds 48).
+  static constexpr int kBatchColumns = 32;
   static constexpr int kSlots = kReorderWindow + 3 + kBatchColumns;
   static constexpr int kHistory = 16;  // released packets remembered to recognise duplicates
   static constexpr int kGaps = 8;      // recent gaps counted as missing packets
