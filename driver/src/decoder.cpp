@@ -648,15 +648,18 @@ LIDARTAG_AVX2_CLONE void Decoder::write_batch(const ColumnBatch& b, const PointS
     const size_t cell0 = static_cast<size_t>(ring) * sink.ring_stride;
     const RingEchoes::Gathered& g = echoes.gathered[ring & 1];
     if (ring + 1 < spec_->lasers) gather(ring + 1, echoes.gathered[(ring + 1) & 1]);
-    // The ring's next run lands in the next line of each field: ask for it now (the rings x
-    // returns x fields streams are more than the hardware prefetcher follows).
+    // The ring's next run (the next batch) lands in the next two lines of each field: ask for
+    // them now, into L2 (the rings x returns x fields streams are more than the hardware
+    // prefetcher follows, and the lines are not written before the next batch).
     for (int e = 0; e < b.returns; ++e) {
       const size_t c =
           cell0 + static_cast<size_t>(e) * sink.return_stride + static_cast<size_t>(count);
-      for (float* f : {sink.x, sink.y, sink.z, sink.range, sink.azimuth_deg, sink.time})
-        __builtin_prefetch(f + c + 16, 1);
-      __builtin_prefetch(sink.intensity + c + 64, 1);
-      __builtin_prefetch(sink.return_type + c + 64, 1);
+      for (float* f : {sink.x, sink.y, sink.z, sink.range, sink.azimuth_deg, sink.time}) {
+        __builtin_prefetch(f + c + 16, 1, 2);
+        __builtin_prefetch(f + c + 32, 1, 2);
+      }
+      __builtin_prefetch(sink.intensity + c + 64, 1, 2);
+      __builtin_prefetch(sink.return_type + c + 64, 1, 2);
     }
     const RingContext rc{
         {t.cos_el[ul], t.sin_el[ul], t.v_sin[ul], t.v_cos[ul], t.horiz_offset_m[ul], t.time_us[ul],
