@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <type_traits>
 #include <vector>
 
 #include "angles.hpp"
@@ -16,18 +17,30 @@ constexpr double kMaxRateDegPerUs = 1300.0 * 360.0 / 60e6;
 constexpr double kDefaultRateDegPerUs = 600.0 * 360.0 / 60e6;
 // Runs of at least this many columns are decoded ring by ring, shorter ones firing by firing.
 constexpr int kRingKernelMinColumns = 6;
+// The per-ring loops of write_batch() run 8 floats wide where the CPU has AVX2 (a clone chosen
+// when the library is loaded; the build itself targets baseline x86-64). AVX2 brings no fused
+// multiply-add: the points stay bit-identical to the baseline clone's.
+#if defined(__x86_64__) && defined(__has_attribute)
+#if __has_attribute(target_clones)
+#define LIDARTAG_AVX2_CLONE __attribute__((target_clones("avx2", "default")))
+#endif
+#endif
+#ifndef LIDARTAG_AVX2_CLONE
+#define LIDARTAG_AVX2_CLONE
+#endif
 
-// sin/cos of the azimuth at 0.01 deg steps; linear interpolation between entries is accurate to
+// cos/sin of the azimuth at 0.01 deg steps; linear interpolation between entries is accurate to
 // 4e-9, far below the 0.01 deg resolution of the packets. One spare entry past 360 deg so that an
-// index rounded up to 36000 still has a right neighbour.
+// index rounded up to 36000 still has a right neighbour. Interleaved (cos, sin): a column's
+// lookup reads one cache line, not two (the table is evicted by the scan's writes every rotation).
 constexpr int kTrigSteps = 36000;
 struct TrigTable {
-  std::vector<float> sin_v, cos_v;
-  TrigTable() : sin_v(kTrigSteps + 2), cos_v(kTrigSteps + 2) {
-    for (size_t i = 0; i < sin_v.size(); ++i) {
+  std::vector<float> cos_sin;
+  TrigTable() : cos_sin(2 * (kTrigSteps + 2)) {
+    for (size_t i = 0; i < kTrigSteps + 2; ++i) {
       const double a = static_cast<double>(i) * 0.01 * kDegToRad;
-      sin_v[i] = static_cast<float>(std::sin(a));
-      cos_v[i] = static_cast<float>(std::cos(a));
+      cos_sin[2 * i] = static_cast<float>(std::cos(a));
+      cos_sin[2 * i + 1] = static_cast<float>(std::sin(a));
     }
   }
 };
@@ -74,7 +87,7 @@ inline void sort_echoes(uint16_t d0, uint8_t i0, uint16_t d1, uint8_t i1, uint16
 // Points of one firing, in laser order, branch-free so that it vectorises. The (cos, sin) of a
 // point's azimuth are the firing's, turned by the laser's offset and by eps, the spin during the
 // laser's delay in the sequence (under 0.5 deg: two terms of its series are exact to 1e-10).
-// ring_run() computes the same expressions in the same order (the results are bit-identical).
+// ring_points() computes the same expressions in the same order (the results are bit-identical).
 void compute_firing(const detail::LaserTable& __restrict t, int base, const PacketContext& cc,
                     const Firing& fr, FiringPoints& __restrict pts) {
   // Invariants in locals: the compiler cannot hoist loads that the stores might alias.
@@ -136,83 +149,148 @@ struct LaserConstants {
   double dist_offset;
 };
 
-// One ring over a run of columns: the raw distances and return types of a single-return run
-// gathered from the payload; per slot the distance in metres and 1/0 for a usable return, as
-// floats for the vectorised loops.
+// One ring over a run of columns. Each echo is gathered from the payload as a 24-bit key,
+// distance | intensity << 16 (one load, one compare for a pair of echoes), one ring ahead of
+// its conversion (see write_batch()).
 struct RingEchoes {
   static constexpr size_t kN = ColumnBatch::kMaxColumns;
-  std::array<uint16_t, kN> raw[2];
-  std::array<ReturnType, kN> type[2];
-  std::array<float, kN> distance[2], ok[2];
-  std::array<float, kN> ca, sa;  // of each point's azimuth
+  // As gathered: the last echo and the strongest (or second strongest), or the only one; whether
+  // any cell has two different echoes.
+  struct Gathered {
+    std::array<uint32_t, kN> raw[2];
+    bool differ;
+  } gathered[2];
+  std::array<uint32_t, kN> key[2];   // per slot, dual return with two different echoes
+  std::array<uint32_t, kN> type[2];  // their ReturnType before the range check
+  std::array<float, kN> ok[2];       // 1/0: the slot holds a usable return
 };
 
-// One echo's distance, validity and return type (the same expressions as compute_firing()).
-inline void take_echo(uint16_t raw, ReturnType type, double unit, double dist_off, float min_r,
-                      float max_r, float& d_out, float& ok_out, ReturnType& type_out) {
-  const auto d = static_cast<float>(raw * unit + dist_off);
-  const bool ok = (raw != 0) & (d >= min_r) & (d <= max_r);
-  d_out = d;
-  ok_out = ok ? 1.0f : 0.0f;
-  type_out = static_cast<ReturnType>(static_cast<uint8_t>(type) * uint8_t{ok});
+// The echo at `p` (distance, intensity) as a key. Reads a fourth byte, which is inside the
+// payload for every channel (the last channel of the last block ends 6 bytes before its end).
+inline uint32_t echo_key(const uint8_t* p) {
+  return read_u32(p) & 0xFFFFFFu;
 }
 
-// Distances of a run of echoes in metres and 1/0 validity (the same expressions as
-// compute_firing()); the return type becomes kNone where there is no usable return.
-void echo_ranges(int n, const uint16_t* __restrict raw, const ReturnType* __restrict type_in,
-                 double unit, double dist_off, float min_r, float max_r, float* __restrict d_out,
-                 float* __restrict ok_out, ReturnType* __restrict type_out) {
+// Dual return: the echoes of a run of cells into the scan's slots, branch-free over the run (the
+// same choice as sort_echoes()): slot 0 always holds the strongest echo. k0 is the last echo,
+// k1 the strongest or second strongest.
+[[gnu::always_inline]] inline void select_echoes(int n, const uint32_t* __restrict k0,
+                                                 const uint32_t* __restrict k1,
+                                                 uint32_t* __restrict a, uint32_t* __restrict ta,
+                                                 uint32_t* __restrict b, uint32_t* __restrict tb) {
   for (int k = 0; k < n; ++k) {
-    const auto d = static_cast<float>(raw[k] * unit + dist_off);
-    const bool ok = (raw[k] != 0) & (d >= min_r) & (d <= max_r);
-    d_out[k] = d;
-    ok_out[k] = ok ? 1.0f : 0.0f;
-    type_out[k] = static_cast<ReturnType>(static_cast<uint8_t>(type_in[k]) * uint8_t{ok});
+    const uint32_t e0 = k0[k], e1 = k1[k];
+    const bool both = e0 == e1;
+    const uint32_t d0 = e0 & 0xFFFFu, d1 = e1 & 0xFFFFu;
+    const bool swap = !both & (d1 != 0) & ((d0 == 0) | ((e1 >> 16) > (e0 >> 16)));
+    a[k] = swap ? e1 : e0;
+    b[k] = both ? 0u : (swap ? e0 : e1);
+    ta[k] = static_cast<uint32_t>(both   ? ReturnType::kBoth
+                                  : swap ? ReturnType::kStrongest
+                                         : ReturnType::kLast);
+    tb[k] = static_cast<uint32_t>(both   ? ReturnType::kNone
+                                  : swap ? ReturnType::kLast
+                                         : ReturnType::kSecond);
   }
 }
 
-// The rotation shared by every echo of a ring's run of columns: (cos, sin) of each point's
-// azimuth, the azimuth and the time, written once per column. Restrict-qualified parameters:
-// GCC drops the restrict of local pointers when it inlines, and then gives up on vectorising
-// for the number of run-time alias checks.
-void ring_rotation(const ColumnBatch& b, int n, const LaserConstants& lc, float t_scale,
-                   float* __restrict ca_out, float* __restrict sa_out, float* __restrict az_out,
-                   float* __restrict time_out) {
-  const float* cos_az = b.cos_az.data();
-  const float* sin_az = b.sin_az.data();
-  const float* az0 = b.azimuth_deg.data();
-  const float* rate_deg = b.rate_deg.data();
-  const float* rate_rad = b.rate_rad.data();
-  const float* t0 = b.time0_us.data();
-  const float* t_off = b.time_offset.data();
-  const float lt = lc.time_us, az_off = lc.az_offset, cos_off = lc.cos_off, sin_off = lc.sin_off;
+// What the per-ring kernel needs besides the echoes: the laser's constants, distance unit and
+// limits, the time scale.
+struct RingContext {
+  LaserConstants lc;
+  double unit;
+  float min_r, max_r, t_scale;
+};
+
+// Which slots a ring's run of columns fills: one (single return), slot 0 with slot 1 cleared
+// (dual return, no cell of the run with two different echoes), or both.
+enum class Slots { kOne, kFirstOnly, kBoth };
+
+// The points of a ring's run of columns straight into the scan, vectorised over the columns:
+// each echo's distance in metres and validity, the rotation of the column azimuth by the laser's
+// offset and firing delay (eps: the spin during the delay, under 0.5 deg: two terms of its series
+// are exact to 1e-10), shared by both echoes of a cell, the azimuth, the time and the point. The
+// same expressions in the same order as compute_firing(): the results are bit-identical. One
+// loop, every output a restrict-qualified parameter (GCC then needs no run-time alias checks).
+// ok0/ok1: 1/0 per slot for ring_types().
+template <Slots kSlots>
+[[gnu::always_inline]] inline void ring_points(
+    int n, const RingContext& rc, const uint32_t* __restrict key0, const uint32_t* __restrict key1,
+    const float* __restrict cos_az, const float* __restrict sin_az, const float* __restrict az0,
+    const float* __restrict rate_deg, const float* __restrict rate_rad, const float* __restrict t0,
+    const float* __restrict t_off, float* __restrict x0, float* __restrict y0, float* __restrict z0,
+    float* __restrict r0, float* __restrict a0, float* __restrict tm0, float* __restrict ok0,
+    float* __restrict x1, float* __restrict y1, float* __restrict z1, float* __restrict r1,
+    float* __restrict a1, float* __restrict tm1, float* __restrict ok1) {
+  const float cos_el = rc.lc.cos_el, sin_el = rc.lc.sin_el, v_sin = rc.lc.v_sin;
+  const float v_cos = rc.lc.v_cos, h = rc.lc.horiz;
+  const float lt = rc.lc.time_us, az_off = rc.lc.az_offset;
+  const float cos_off = rc.lc.cos_off, sin_off = rc.lc.sin_off;
+  const double unit = rc.unit, dist_off = rc.lc.dist_offset;
+  const float min_r = rc.min_r, max_r = rc.max_r, t_scale = rc.t_scale;
   for (int k = 0; k < n; ++k) {
     const float cb = cos_az[k] * cos_off + sin_az[k] * sin_off;  // azimuth - offset
     const float sb = sin_az[k] * cos_off - cos_az[k] * sin_off;
     const float eps = rate_rad[k] * lt;
     const float ce = 1.0f - 0.5f * eps * eps;
     const float se = eps * (1.0f - eps * eps * (1.0f / 6.0f));
-    ca_out[k] = cb * ce - sb * se;
-    sa_out[k] = sb * ce + cb * se;
-    az_out[k] = wrap_near(az0[k] + rate_deg[k] * lt - az_off);
-    time_out[k] = t_off[k] + (t0[k] + lt) * t_scale;
+    const float ca = cb * ce - sb * se;
+    const float sa = sb * ce + cb * se;
+    const float az = wrap_near(az0[k] + rate_deg[k] * lt - az_off);
+    const float tm = t_off[k] + (t0[k] + lt) * t_scale;
+    // Invalid returns become zeros by a multiplication, not a branch (which would keep the loop
+    // from vectorising).
+    const auto raw0 = static_cast<int>(key0[k] & 0xFFFFu);
+    const auto d0 = static_cast<float>(raw0 * unit + dist_off);
+    const float okf0 = (raw0 != 0) & (d0 >= min_r) & (d0 <= max_r) ? 1.0f : 0.0f;
+    const float xy0 = d0 * cos_el - v_sin;
+    x0[k] = (xy0 * ca + h * sa) * okf0;
+    y0[k] = (h * ca - xy0 * sa) * okf0;
+    z0[k] = (d0 * sin_el + v_cos) * okf0;
+    r0[k] = d0 * okf0;
+    a0[k] = az;
+    tm0[k] = tm;
+    ok0[k] = okf0;
+    if constexpr (kSlots == Slots::kFirstOnly) {
+      x1[k] = y1[k] = z1[k] = r1[k] = 0.0f;
+      a1[k] = az;
+      tm1[k] = tm;
+    } else if constexpr (kSlots == Slots::kBoth) {
+      const auto raw1 = static_cast<int>(key1[k] & 0xFFFFu);
+      const auto d1 = static_cast<float>(raw1 * unit + dist_off);
+      const float okf1 = (raw1 != 0) & (d1 >= min_r) & (d1 <= max_r) ? 1.0f : 0.0f;
+      const float xy1 = d1 * cos_el - v_sin;
+      x1[k] = (xy1 * ca + h * sa) * okf1;
+      y1[k] = (h * ca - xy1 * sa) * okf1;
+      z1[k] = (d1 * sin_el + v_cos) * okf1;
+      r1[k] = d1 * okf1;
+      a1[k] = az;
+      tm1[k] = tm;
+      ok1[k] = okf1;
+    }
   }
 }
 
-// The points of one echo of a ring's run of columns from their distances and rotations.
-void ring_points(int n, const LaserConstants& lc, const float* __restrict d_in,
-                 const float* __restrict ok_in, const float* __restrict ca,
-                 const float* __restrict sa, float* __restrict x, float* __restrict y,
-                 float* __restrict z, float* __restrict range) {
-  const float cos_el = lc.cos_el, sin_el = lc.sin_el, v_sin = lc.v_sin, v_cos = lc.v_cos;
-  const float h = lc.horiz;
+// Intensities and return types of a ring's run of columns (kNone where a slot holds no usable
+// return). type0/type1 per cell, or null: every slot-0 echo is of type `type`.
+template <Slots kSlots>
+[[gnu::always_inline]] inline void ring_types(
+    int n, const uint32_t* __restrict key0, const uint32_t* __restrict key1,
+    const uint32_t* __restrict type0, const uint32_t* __restrict type1, ReturnType type,
+    const float* __restrict ok0, const float* __restrict ok1, uint8_t* __restrict in0,
+    uint8_t* __restrict ty0, uint8_t* __restrict in1, uint8_t* __restrict ty1) {
+  const auto t = static_cast<uint32_t>(type);
   for (int k = 0; k < n; ++k) {
-    const float d = d_in[k], okf = ok_in[k];
-    const float xy = d * cos_el - v_sin;
-    x[k] = (xy * ca[k] + h * sa[k]) * okf;
-    y[k] = (h * ca[k] - xy * sa[k]) * okf;
-    z[k] = (d * sin_el + v_cos) * okf;
-    range[k] = d * okf;
+    const uint32_t t0 = kSlots == Slots::kBoth ? type0[k] : t;
+    in0[k] = static_cast<uint8_t>(key0[k] >> 16);
+    ty0[k] = static_cast<uint8_t>(t0 * static_cast<uint32_t>(ok0[k] != 0.0f));
+    if constexpr (kSlots == Slots::kFirstOnly) {
+      in1[k] = 0;
+      ty1[k] = 0;
+    } else if constexpr (kSlots == Slots::kBoth) {
+      in1[k] = static_cast<uint8_t>(key1[k] >> 16);
+      ty1[k] = static_cast<uint8_t>(type1[k] * static_cast<uint32_t>(ok1[k] != 0.0f));
+    }
   }
 }
 
@@ -255,8 +333,7 @@ Decoder::Decoder(Calibration calibration, DecoderOptions options)
       min_range_m_(options.min_range_m > 0 ? options.min_range_m : spec_->min_range_m),
       max_range_m_(options.max_range_m > 0 ? options.max_range_m : spec_->max_range_m),
       rate_deg_per_us_(kDefaultRateDegPerUs),
-      sin_table_(trig().sin_v.data()),
-      cos_table_(trig().cos_v.data()) {
+      trig_table_(trig().cos_sin.data()) {
   if (calibration_.ring_of_laser.size() != calibration_.lasers.size()) calibration_.update_rings();
   for (int l = 0; l < spec_->lasers; ++l) {
     const auto ul = static_cast<size_t>(l);
@@ -322,10 +399,20 @@ DecodeStatus Decoder::parse(std::span<const uint8_t> payload, const SensorClock&
   const double group_us = fpb * spec.firing_period_us;
 
   // Where each (group, echo, bank) block is; check flags and azimuths first so that a corrupt
-  // packet leaves `out` untouched.
-  std::array<std::array<std::array<int8_t, 4>, 2>, 12> block_of{};
-  std::array<uint16_t, 12> group_azimuth{};
-  for (int g = 0; g < groups; ++g) {
+  // packet leaves `out` untouched. One bank (all but the VLS-128): block g * group_blocks + echo.
+  std::array<std::array<std::array<int8_t, 4>, 2>, 12> block_of;
+  std::array<uint16_t, 12> group_azimuth;
+  if (!banked) {
+    for (int b = 0; b < 12; ++b) {
+      const uint8_t* blk = p + static_cast<size_t>(b) * kBlockSize;
+      if (read_u16(blk + 2) > kMaxAzimuth) return DecodeStatus::kBadAzimuth;
+      if (read_u16(blk) != kBankFlags[0]) return DecodeStatus::kBadBlockFlag;
+    }
+    for (int g = 0; g < groups; ++g)
+      group_azimuth[static_cast<size_t>(g)] =
+          read_u16(p + static_cast<size_t>(g * group_blocks) * kBlockSize + 2);
+  }
+  for (int g = 0; banked && g < groups; ++g) {
     auto& slots = block_of[static_cast<size_t>(g)];
     for (auto& e : slots) e.fill(-1);
     for (int i = 0; i < group_blocks; ++i) {
@@ -334,18 +421,12 @@ DecodeStatus Decoder::parse(std::span<const uint8_t> payload, const SensorClock&
       const uint16_t flag = read_u16(blk);
       const uint16_t az = read_u16(blk + 2);
       if (az > kMaxAzimuth) return DecodeStatus::kBadAzimuth;
-      int bank = 0, echo = 0;
-      if (banked) {
-        bank = bank_of_flag(flag);
-        if (bank < 0) return DecodeStatus::kBadBlockFlag;
-        // Dual: the first block of a bank holds the last echo, the second the strongest.
-        echo = slots[0][static_cast<size_t>(bank)] < 0 ? 0 : 1;
-        if (echo == 1 && (!dual || slots[1][static_cast<size_t>(bank)] >= 0))
-          return DecodeStatus::kBadBlockFlag;
-      } else {
-        if (flag != kBankFlags[0]) return DecodeStatus::kBadBlockFlag;
-        echo = dual ? (i & 1) : 0;
-      }
+      const int bank = bank_of_flag(flag);
+      if (bank < 0) return DecodeStatus::kBadBlockFlag;
+      // Dual: the first block of a bank holds the last echo, the second the strongest.
+      const int echo = slots[0][static_cast<size_t>(bank)] < 0 ? 0 : 1;
+      if (echo == 1 && (!dual || slots[1][static_cast<size_t>(bank)] >= 0))
+        return DecodeStatus::kBadBlockFlag;
       slots[static_cast<size_t>(echo)][static_cast<size_t>(bank)] = static_cast<int8_t>(b);
       if (i == 0) group_azimuth[static_cast<size_t>(g)] = az;
     }
@@ -392,8 +473,7 @@ DecodeStatus Decoder::parse(std::span<const uint8_t> payload, const SensorClock&
   out.decoder = this;
   out.payload = p;
 
-  const float* sin_t = sin_table_;
-  const float* cos_t = cos_table_;
+  const float* trig_t = trig_table_;
   for (int g = 0; g < groups; ++g) {
     const auto ug = static_cast<size_t>(g);
     for (int f = 0; f < fpb; ++f) {
@@ -408,19 +488,26 @@ DecodeStatus Decoder::parse(std::span<const uint8_t> payload, const SensorClock&
       const float idx = col_az_w * 100.0f;
       const auto ti = std::min(static_cast<size_t>(idx), static_cast<size_t>(kTrigSteps));
       const float tf = idx - static_cast<float>(ti);
-      out.cos_az[ucol] = cos_t[ti] + tf * (cos_t[ti + 1] - cos_t[ti]);
-      out.sin_az[ucol] = sin_t[ti] + tf * (sin_t[ti + 1] - sin_t[ti]);
+      const float* cs = trig_t + 2 * ti;  // cos, sin at ti, then at ti + 1
+      out.cos_az[ucol] = cs[0] + tf * (cs[2] - cs[0]);
+      out.sin_az[ucol] = cs[1] + tf * (cs[3] - cs[1]);
       out.rate_deg[ucol] = static_cast<float>(rate[ug]);
       out.rate_rad[ucol] = static_cast<float>(rate[ug] * kDegToRad);
       out.time0_us[ucol] = static_cast<float>(col_t);
       const int ch0 = f * lasers_per_firing * 3 + 4;
+      auto& offsets = out.channel_offset[ucol];
+      if (!banked) {
+        for (int e = 0; e < out.returns; ++e)
+          offsets[static_cast<size_t>(e)][0] =
+              static_cast<uint16_t>((g * group_blocks + e) * static_cast<int>(kBlockSize) + ch0);
+        continue;
+      }
       for (int e = 0; e < out.returns; ++e)
         for (int bank = 0; bank < spec.blocks_per_firing; ++bank)
-          out.channel_offset[ucol][static_cast<size_t>(e)][static_cast<size_t>(bank)] =
-              static_cast<uint16_t>(
-                  block_of[ug][static_cast<size_t>(e)][static_cast<size_t>(bank)] *
-                      static_cast<int>(kBlockSize) +
-                  ch0);
+          offsets[static_cast<size_t>(e)][static_cast<size_t>(bank)] = static_cast<uint16_t>(
+              block_of[ug][static_cast<size_t>(e)][static_cast<size_t>(bank)] *
+                  static_cast<int>(kBlockSize) +
+              ch0);
     }
   }
   return DecodeStatus::kOk;
@@ -507,7 +594,7 @@ bool ColumnBatch::append(const PacketColumns& pk, int first, int count, float t_
   return true;
 }
 
-void Decoder::write_batch(const ColumnBatch& b, const PointSink& sink) const {
+LIDARTAG_AVX2_CLONE void Decoder::write_batch(const ColumnBatch& b, const PointSink& sink) const {
   const int count = b.columns;
   if (count <= 0) return;
   const bool dual = b.returns == 2;
@@ -518,70 +605,106 @@ void Decoder::write_batch(const ColumnBatch& b, const PointSink& sink) const {
   const detail::LaserTable& t = lasers_;
   const auto min_r = static_cast<float>(min_range_m_), max_r = static_cast<float>(max_range_m_);
   const double unit = calibration_.distance_unit_m;
-  for (int ring = 0; ring < spec_->lasers; ++ring) {
+  // The echoes of a ring are gathered (scalar: 3-byte fields 100 or 48 bytes apart) one ring
+  // ahead of their conversion: the vectorised loops then load them from the cache, not from
+  // stores still in flight (which a wide load cannot take from the store buffer: it would wait).
+  // Each column's firing in each echo and bank, once per batch, not once per ring.
+  std::array<std::array<const uint8_t*, RingEchoes::kN>, 4> firing[2];
+  for (int e = 0; e < b.returns; ++e)
+    for (int bank = 0; bank < spec_->blocks_per_firing; ++bank)
+      for (int k = 0; k < count; ++k) {
+        const auto uk = static_cast<size_t>(k);
+        firing[e][static_cast<size_t>(bank)][uk] =
+            b.payload[uk] + b.channel_offset[uk][static_cast<size_t>(e)][static_cast<size_t>(bank)];
+      }
+  auto gather = [&](int ring, RingEchoes::Gathered& g) {
     const int l = laser_of_ring_[static_cast<size_t>(ring)];
-    const auto ul = static_cast<size_t>(l);
     const auto bank = static_cast<size_t>(l / lasers_per_firing);
     const auto ch = static_cast<size_t>(l % lasers_per_firing) * 3;
-    const double dist_off = t.dist_offset_m[ul];
+    const uint8_t* const* f0 = firing[0][bank].data();
+    if (!dual) {
+      for (int k = 0; k < count; ++k) {
+        const auto uk = static_cast<size_t>(k);
+        g.raw[0][uk] = echo_key(f0[uk] + ch);
+      }
+      g.differ = false;
+      return;
+    }
+    const uint8_t* const* f1 = firing[1][bank].data();
+    uint32_t differ = 0;
+    for (int k = 0; k < count; ++k) {
+      const auto uk = static_cast<size_t>(k);
+      const uint32_t k0 = echo_key(f0[uk] + ch);
+      const uint32_t k1 = echo_key(f1[uk] + ch);
+      g.raw[0][uk] = k0;
+      g.raw[1][uk] = k1;
+      differ |= k0 ^ k1;
+    }
+    g.differ = differ != 0;
+  };
+  gather(0, echoes.gathered[0]);
+  for (int ring = 0; ring < spec_->lasers; ++ring) {
+    const auto ul = static_cast<size_t>(laser_of_ring_[static_cast<size_t>(ring)]);
     const size_t cell0 = static_cast<size_t>(ring) * sink.ring_stride;
-    // The ring's next run lands in the next line of each field: ask for it now (the rings x
-    // returns x fields streams are more than the hardware prefetcher follows).
+    const RingEchoes::Gathered& g = echoes.gathered[ring & 1];
+    if (ring + 1 < spec_->lasers) gather(ring + 1, echoes.gathered[(ring + 1) & 1]);
+    // The ring's next run (the next batch) lands in the next two lines of each field: ask for
+    // them now, into L2 (the rings x returns x fields streams are more than the hardware
+    // prefetcher follows, and the lines are not written before the next batch).
     for (int e = 0; e < b.returns; ++e) {
       const size_t c =
           cell0 + static_cast<size_t>(e) * sink.return_stride + static_cast<size_t>(count);
-      for (float* f : {sink.x, sink.y, sink.z, sink.range, sink.azimuth_deg, sink.time})
-        __builtin_prefetch(f + c + 16, 1);
-      __builtin_prefetch(sink.intensity + c + 64, 1);
-      __builtin_prefetch(sink.return_type + c + 64, 1);
+      for (float* f : {sink.x, sink.y, sink.z, sink.range, sink.azimuth_deg, sink.time}) {
+        __builtin_prefetch(f + c + 16, 1, 2);
+        __builtin_prefetch(f + c + 32, 1, 2);
+      }
+      __builtin_prefetch(sink.intensity + c + 64, 1, 2);
+      __builtin_prefetch(sink.return_type + c + 64, 1, 2);
     }
-    uint8_t* in0 = sink.intensity + cell0;
-    ReturnType* ty0 = sink.return_type + cell0;
+    const RingContext rc{
+        {t.cos_el[ul], t.sin_el[ul], t.v_sin[ul], t.v_cos[ul], t.horiz_offset_m[ul], t.time_us[ul],
+         t.az_offset_deg[ul], t.cos_off[ul], t.sin_off[ul], t.dist_offset_m[ul]},
+        unit,
+        min_r,
+        max_r,
+        sink.time_scale};
+    const size_t c1 = cell0 + (dual ? sink.return_stride : 0);
+    auto* ty0 = reinterpret_cast<uint8_t*>(sink.return_type + cell0);
+    auto* ty1 = reinterpret_cast<uint8_t*>(sink.return_type + c1);
+    // One ring's run, stored as contiguous runs (the layout of a scan: no scatter). Dual return:
+    // mostly no cell of the run has two different echoes (one echo or none: both blocks say the
+    // same); then slot 1 holds no return and is only cleared.
+    auto points = [&](auto slots, const uint32_t* key0, const uint32_t* key1) {
+      ring_points<decltype(slots)::value>(
+          count, rc, key0, key1, b.cos_az.data(), b.sin_az.data(), b.azimuth_deg.data(),
+          b.rate_deg.data(), b.rate_rad.data(), b.time0_us.data(), b.time_offset.data(),
+          sink.x + cell0, sink.y + cell0, sink.z + cell0, sink.range + cell0,
+          sink.azimuth_deg + cell0, sink.time + cell0, echoes.ok[0].data(), sink.x + c1,
+          sink.y + c1, sink.z + c1, sink.range + c1, sink.azimuth_deg + c1, sink.time + c1,
+          echoes.ok[1].data());
+    };
+    using One = std::integral_constant<Slots, Slots::kOne>;
+    using FirstOnly = std::integral_constant<Slots, Slots::kFirstOnly>;
+    using Both = std::integral_constant<Slots, Slots::kBoth>;
     if (!dual) {
-      // Gather (scalar: 3-byte strided fields), then convert in a vectorised loop.
-      for (int k = 0; k < count; ++k) {
-        const auto uk = static_cast<size_t>(k);
-        const uint8_t* c = b.payload[uk] + b.channel_offset[uk][0][bank] + ch;
-        echoes.raw[0][uk] = read_u16(c);
-        in0[k] = c[2];
-      }
-      std::fill_n(echoes.type[0].data(), count, single_type);
-      echo_ranges(count, echoes.raw[0].data(), echoes.type[0].data(), unit, dist_off, min_r, max_r,
-                  echoes.distance[0].data(), echoes.ok[0].data(), ty0);
+      points(One{}, g.raw[0].data(), nullptr);
+      ring_types<Slots::kOne>(count, g.raw[0].data(), nullptr, nullptr, nullptr, single_type,
+                              echoes.ok[0].data(), nullptr, sink.intensity + cell0, ty0, nullptr,
+                              nullptr);
+    } else if (!g.differ) {
+      points(FirstOnly{}, g.raw[0].data(), nullptr);
+      ring_types<Slots::kFirstOnly>(count, g.raw[0].data(), nullptr, nullptr, nullptr,
+                                    ReturnType::kBoth, echoes.ok[0].data(), nullptr,
+                                    sink.intensity + cell0, ty0, sink.intensity + c1, ty1);
     } else {
-      // Gather and sort the echoes (branches: which case a cell is in mispredicts less than
-      // selects cost), then convert both slots in vectorised loops.
-      uint8_t* in1 = in0 + sink.return_stride;
-      for (int k = 0; k < count; ++k) {
-        const auto uk = static_cast<size_t>(k);
-        const auto& off = b.channel_offset[uk];
-        const uint8_t* c0 = b.payload[uk] + off[0][bank] + ch;
-        const uint8_t* c1 = b.payload[uk] + off[1][bank] + ch;
-        sort_echoes(read_u16(c0), c0[2], read_u16(c1), c1[2], echoes.raw[0][uk], in0[k],
-                    echoes.type[0][uk], echoes.raw[1][uk], in1[k], echoes.type[1][uk]);
-      }
-      for (size_t e = 0; e < 2; ++e)
-        echo_ranges(count, echoes.raw[e].data(), echoes.type[e].data(), unit, dist_off, min_r,
-                    max_r, echoes.distance[e].data(), echoes.ok[e].data(),
-                    ty0 + e * sink.return_stride);
-    }
-    const LaserConstants lc{
-        t.cos_el[ul],  t.sin_el[ul],        t.v_sin[ul],   t.v_cos[ul],   t.horiz_offset_m[ul],
-        t.time_us[ul], t.az_offset_deg[ul], t.cos_off[ul], t.sin_off[ul], t.dist_offset_m[ul]};
-    // One ring's run, vectorised over the columns and stored as contiguous runs (the layout
-    // of a scan: no scatter); the rotation is shared by both echoes of a dual-return cell. Same
-    // expressions in the same order as compute_firing(): the results are bit-identical.
-    ring_rotation(b, count, lc, sink.time_scale, echoes.ca.data(), echoes.sa.data(),
-                  sink.azimuth_deg + cell0, sink.time + cell0);
-    for (int e = 0; e < b.returns; ++e) {
-      const size_t c = cell0 + static_cast<size_t>(e) * sink.return_stride;
-      const auto ue = static_cast<size_t>(e);
-      if (e > 0) {
-        std::copy_n(sink.azimuth_deg + cell0, count, sink.azimuth_deg + c);
-        std::copy_n(sink.time + cell0, count, sink.time + c);
-      }
-      ring_points(count, lc, echoes.distance[ue].data(), echoes.ok[ue].data(), echoes.ca.data(),
-                  echoes.sa.data(), sink.x + c, sink.y + c, sink.z + c, sink.range + c);
+      // Which echo goes to which slot, then both slots converted together.
+      select_echoes(count, g.raw[0].data(), g.raw[1].data(), echoes.key[0].data(),
+                    echoes.type[0].data(), echoes.key[1].data(), echoes.type[1].data());
+      points(Both{}, echoes.key[0].data(), echoes.key[1].data());
+      ring_types<Slots::kBoth>(count, echoes.key[0].data(), echoes.key[1].data(),
+                               echoes.type[0].data(), echoes.type[1].data(), ReturnType::kNone,
+                               echoes.ok[0].data(), echoes.ok[1].data(), sink.intensity + cell0,
+                               ty0, sink.intensity + c1, ty1);
     }
   }
 }

@@ -24,7 +24,7 @@ constexpr double kMaxLatePackets = 16;
 // Time of a packet's last column.
 int64_t last_stamp(const PacketColumns& pk) {
   const auto last = static_cast<size_t>(std::max(pk.columns - 1, 0));
-  return pk.stamp_ns + static_cast<int64_t>(std::llround(pk.column_time_us[last] * 1e3));
+  return pk.stamp_ns + round_half_away(pk.column_time_us[last] * 1e3);
 }
 
 // Signed difference of two azimuths, (-180, 180].
@@ -425,8 +425,7 @@ bool ScanBatcher::run(const PacketColumns& pk, int first, Scan& scan, bool may_e
   for (int c = first; c < pk.columns; ++c) {
     const auto uc = static_cast<size_t>(c);
     const double az = pk.column_azimuth_deg[uc];
-    const int64_t stamp =
-        pk.stamp_ns + static_cast<int64_t>(std::llround(pk.column_time_us[uc] * 1e3));
+    const int64_t stamp = pk.stamp_ns + round_half_away(pk.column_time_us[uc] * 1e3);
     uint32_t missing = 0;
     bool cut = false, jump = false;
     if (c == first && pending_evaluated_) {
@@ -441,15 +440,17 @@ bool ScanBatcher::run(const PacketColumns& pk, int first, Scan& scan, bool may_e
         ++stats_.azimuth_jumps;
         jump = true;
       } else {
-        const double rate = last_rate_deg_per_us_;
-        const double normal_step = rate * fp;
-        if (dt > 1.5 * fp && step > 1.5 * normal_step + 0.02 && step < 360.0 - 1.5 * normal_step) {
+        // A time gap: compared with the step at the rate of the last normal step (divided only
+        // here, not for every column).
+        const bool gap = dt > 1.5 * fp;
+        const double normal_step = gap ? last_rate_step_deg_ / last_rate_dt_us_ * fp : 0.0;
+        if (gap && step > 1.5 * normal_step + 0.02 && step < 360.0 - 1.5 * normal_step) {
           // Time and azimuth advanced together: packets were lost on the way.
           const double lost_columns = std::max(0.0, std::round(dt / fp) - 1.0);
           missing = static_cast<uint32_t>(std::ceil(lost_columns / per_packet));
           stats_.missing_packets += missing;
           gaps_[static_cast<size_t>(gap_next_++ % kGaps)] = {last_column_stamp_ns_, stamp, missing};
-        } else if (dt > 1.5 * fp) {
+        } else if (gap) {
           // Time gap, azimuth continuous: the sensor paused outside its field of view.
           ++stats_.fov_gaps;
         } else if (step > options_.max_column_step_deg &&
@@ -460,7 +461,10 @@ bool ScanBatcher::run(const PacketColumns& pk, int first, Scan& scan, bool may_e
         } else if (step > 0) {
           rate_steps_deg_ += step;
           rate_time_us_ += dt;
-          if (dt > 0.5 * fp) last_rate_deg_per_us_ = step / dt;
+          if (dt > 0.5 * fp) {
+            last_rate_step_deg_ = step;
+            last_rate_dt_us_ = dt;
+          }
         }
         cut = crossed_cut(last_column_azimuth_, az);
       }

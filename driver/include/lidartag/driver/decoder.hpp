@@ -154,8 +154,7 @@ class Decoder {
   detail::LaserTable lasers_{};
   std::array<uint8_t, 128> laser_of_ring_{};
   double rate_deg_per_us_;
-  const float* sin_table_;  // sin of azimuth in 0.01 deg steps, 36002 entries
-  const float* cos_table_;
+  const float* trig_table_;  // cos, sin of the azimuth in 0.01 deg steps, 36002 pairs
   // Previous packet, to measure the rate where a packet holds one azimuth (VLS-128 dual).
   bool have_previous_ = false;
   uint16_t previous_azimuth_ = 0;

@@ -95,9 +95,10 @@ class ScanBatcher {
     PacketColumns columns;
     std::array<uint8_t, kDataPacketSize> bytes;
   };
-  // Columns decoded together into the scan: packets of few columns (VLS-128) are held until
-  // this many are waiting, so that each ring's run fills whole cache lines.
-  static constexpr int kBatchColumns = 16;
+  // Columns decoded together into the scan: packets are held until this many are waiting, so
+  // that each ring's run fills whole cache lines and its set-up is shared by more columns (32
+  // measured 5-8% faster than 16 on every capture, 40 no faster; ColumnBatch holds 48).
+  static constexpr int kBatchColumns = 32;
   static constexpr int kSlots = kReorderWindow + 3 + kBatchColumns;
   static constexpr int kHistory = 16;  // released packets remembered to recognise duplicates
   static constexpr int kGaps = 8;      // recent gaps counted as missing packets
@@ -203,8 +204,9 @@ class ScanBatcher {
   int64_t last_packet_stamp_ns_ = 0;
   bool next_starts_at_cut_ = false;
   bool overflowed_ = false;
-  double last_rate_deg_per_us_ = 600.0 * 360.0 / 60e6;  // updated from every normal step
-  double rate_steps_deg_ = 0, rate_time_us_ = 0;        // for the rotation's measured rpm
+  // The last normal step (its rate, step / dt, is the rotation rate: 600 rpm at first).
+  double last_rate_step_deg_ = 600.0 * 360.0 / 60e6, last_rate_dt_us_ = 1.0;
+  double rate_steps_deg_ = 0, rate_time_us_ = 0;  // for the rotation's measured rpm
 };
 
 }  // namespace lidartag::velodyne
