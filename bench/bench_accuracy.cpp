@@ -52,7 +52,7 @@ struct Args {
   bool board_outline = false;  // --board-outline: pose.border_refine off (the earlier placement)
   std::vector<std::string> cells;  // --cell: only these
   std::string out;
-  std::string captures = (fs::path(__FILE__).parent_path() / "../../shared/captures").string();
+  std::string captures = LIDARTAG_SHARED_DIR "/captures";
   std::string command;
 };
 

@@ -35,7 +35,7 @@ struct Capture {
 };
 
 std::string pcap(const char* name) {
-  return (std::filesystem::path(__FILE__).parent_path() / "../pcaps" / name).string();
+  return (std::filesystem::path(LIDARTAG_SOURCE_DIR) / "pcaps" / name).string();
 }
 
 const Capture& capture(const std::string& name) {

@@ -286,6 +286,24 @@ TEST(DetectorEndToEnd, TurnedTagsArePlacedWithoutTheBoardsBias) {
   }
 }
 
+// The sampling limit far out: a VLP-32C at 24 m with the tag turned 45 degrees returns about one
+// point per cell. In this rotation the code's nearest rivals differ from it in cells no ring
+// crosses well inside but one; the kernel tails of those cells once read code 23 as code 2 with a
+// margin of 1.7 cells. The seen cells alone prefer code 23: rejected as ambiguous, not misread.
+TEST(DetectorEndToEnd, FarTurnedTagIsNeverReadFromKernelTailsAlone) {
+  const sim::Simulator simulator(eval::accuracy_scene(velodyne::Model::kVLP32C, 24.0, 45, 23));
+  eval::SimScans scans(simulator);
+  Detector det{DetectorOptions{}};
+  ScanResult result;
+  const sim::Truth truth = scans.run(1, 1000 * 23 + 173 + 1 + 500, [&](const Scan& s, size_t k) {
+    if (k == 0) det.detect(s, result);
+  });
+  ASSERT_FALSE(truth.rotations.empty());
+  const auto s = eval::score_tag(result.detections, truth.rotations[0].tags[0]);
+  EXPECT_FALSE(s.wrong_id);
+  ASSERT_FALSE(result.candidates.empty());  // it reached decoding
+}
+
 // A tag of a family that is not configured: with only the configured dictionary its pattern still
 // has a best code there, which the margin (codes of one family) cannot rule out. Decoding against
 // the other built-in families too rejects it; without that check the same scenes are misread.

@@ -119,6 +119,7 @@ struct DecodeWorkspace {
   std::vector<float> varying;   // the evidence on the dictionary's varying cells
   std::vector<float> tables;    // per group of 8 varying cells: the sum for each sign pattern
   std::vector<float> scores;    // per function, without the cells common to all functions
+  std::vector<uint8_t> seen;    // seen_cells_lead: the cells that hold a decoded point
   // Of the last decode_prepared that scored: what the cells common to every function add, and
   // the sum of the evidence's magnitudes (a function's normalised score is (scores + common) /
   // total).
@@ -162,6 +163,14 @@ DecodeResult decode_prepared(const RkhsDictionary& dict, const DecodeOptions& op
 // After a decode_prepared that scored (DecodeResult::function >= 0): the normalised score of every
 // function of its dictionary into `out` (one per function, <= 1), from ws.scores.
 void normalised_scores(const DecodeWorkspace& ws, std::vector<float>& out);
+
+// After a decode_prepared against `dict`: how far `function` leads every other function on the
+// cells that hold a decoded point (its evidence minus the best other's there, summed over the
+// varying cells, evidence units). A cell no ring crosses only carries its neighbours' kernel tails;
+// a negative lead means that another code (or rotation) fits the cells actually seen better, and
+// the decision rests on guesses about the others. Overwrites ws.scores.
+double seen_cells_lead(const RkhsDictionary& dict, int function, const DecodeOptions& opt,
+                       DecodeWorkspace& ws);
 
 // `points` are pulled back into the estimated tag frame (x normal, y right, z up, metres) with
 // their intensities; t is the tag size.
