@@ -49,10 +49,10 @@ struct DecodeOptions {
   // otherwise reads as some code of the configured one (a tag16h5 as tag25h9 in 29 of 36 rotations
   // at 2-12 m, scores up to 0.94), since the margin compares codes of one family only.
   bool reject_other_families = true;
-  // Cell votes for evidence over rotations (Candidate, ScanResult::cell_votes): a decoded point
-  // votes for the colour of its cell only when it lies at least this many cells inside the cell's
-  // borders (a beam's footprint near a border sees both colours). Default 0.1. Does not change
-  // a single rotation's decision.
+  // A decoded point counts as seeing its cell only when it lies at least this many cells inside
+  // the cell's borders (a beam's footprint near a border sees both colours): for the cell votes
+  // (Candidate, ScanResult::cell_votes, evidence over rotations) and for seen_cells_lead (a
+  // decision the seen cells contradict is rejected as ambiguous). Default 0.1.
   double vote_inset_cells = 0.1;
 };
 
