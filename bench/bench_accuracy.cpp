@@ -7,7 +7,7 @@
 // mount, face-on and turned 45 degrees about the vertical, at 2-16 m in 2 m steps and 18, 20 m;
 // N rotations per cell (default 50), each with its own noise seed; VLP-32C, VLP-16 and VLS-128
 // at 600 rpm with the simulator's default noise. Per cell: detection rate, wrong IDs, translation
-// and rotation (geodesic, eq. (so3err)) error, mean and median.
+// and rotation (geodesic, eq. (23)) error, mean and median.
 // False positives: the real captures in --captures (none holds a tag) and N simulated rotations of
 // tagless clutter (default 1000) from a moving sensor, with three families and three sizes.
 // With --out DIR: DIR/accuracy.md (tables, the command, targets met or not) and DIR/accuracy.png
@@ -336,7 +336,7 @@ int run(const Args& args) {
         "1.2 m, family tag16h5). A detection counts when its centre is within t/2 of the truth "
         "and its ID is right; a wrong ID is a detection at the tag with another ID; errors are "
         "the distance between centres and the geodesic angle between orientations, eq. "
-        "(so3err), over the detected rotations.\n\n"
+        "(23), over the detected rotations.\n\n"
      << "![error vs distance](accuracy.png)\n\n## Targets\n\n"
      << tgt;
   for (auto model : {velodyne::Model::kVLP32C, velodyne::Model::kVLP16, velodyne::Model::kVLS128})

@@ -104,26 +104,31 @@ void BM_EdgeFeatures(benchmark::State& state, const std::string& name) {
   std::vector<float> gradient;
   size_t i = 0;
   for (auto _ : state) {
-    detector::detect_edge_features(c.rotations[i++ % c.rotations.size()], fo, features, gradient);
+    detector::detect_edge_features(c.rotations[i++ % c.rotations.size()], fo, 0.0f, features,
+                                   gradient);
     benchmark::DoNotOptimize(features.data());
   }
 }
 
 void BM_Clustering(benchmark::State& state, const std::string& name) {
   const Capture& c = capture(name);
-  detector::FeatureOptions fo;
-  fo.max_pair_chord_m = 1.2f * 1.415f * 1.1f;
+  // The detector's derived limits for its largest tag, 1.2 m.
+  detector::DetectorOptions options;
+  options.tag_sizes_m = {1.2};
+  const detector::Detector det(options);
+  const detector::DetectorLimits& limits = det.limits();
   std::vector<std::vector<detector::Feature>> features(c.rotations.size());
   std::vector<float> gradient;
   for (size_t k = 0; k < c.rotations.size(); ++k)
-    detector::detect_edge_features(c.rotations[k], fo, features[k], gradient);
-  detector::ClusterOptions co;
-  co.max_extent_m = 1.2f * 1.415f * 1.25f;
+    detector::detect_edge_features(c.rotations[k], options.features, limits.max_pair_chord_m,
+                                   features[k], gradient);
+  const detector::ClusterOptions co;
   std::vector<detector::Cluster> clusters;
   std::vector<int> labels;
   size_t i = 0;
   for (auto _ : state) {
-    detector::cluster_features(features[i++ % features.size()], 0.42f, co, clusters, labels);
+    detector::cluster_features(features[i++ % features.size()], limits.tau_m, limits.max_extent_m,
+                               co, clusters, labels);
     benchmark::DoNotOptimize(clusters.data());
   }
 }

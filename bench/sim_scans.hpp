@@ -82,7 +82,7 @@ class SimScans final : public velodyne::ScanSink {
   size_t index_ = 0;
 };
 
-// Geodesic distance between two rotations, eq. (so3err), degrees.
+// Geodesic distance between two rotations, eq. (23), degrees.
 inline double rotation_error_deg(const Eigen::Quaterniond& estimate,
                                  const Eigen::Vector4d& truth_wxyz) {
   const Eigen::Quaterniond t(truth_wxyz[0], truth_wxyz[1], truth_wxyz[2], truth_wxyz[3]);

@@ -13,7 +13,7 @@
 #include <type_traits>
 #include <utility>
 
-#include "lidartag/detector/tag_family.hpp"
+#include "lidartag/detector/options.hpp"
 #include "lidartag/driver/io/udp_frame.hpp"
 
 namespace lidartag::daemon {
@@ -124,16 +124,6 @@ Names<JournalMode> journal_modes() {
           {"always", JournalMode::kAlways},
           {"never", JournalMode::kNever}};
 }
-Names<detector::PoseAlgorithm> pose_algorithms() {
-  Names<detector::PoseAlgorithm> names;
-  for (auto a : {detector::PoseAlgorithm::kMMA, detector::PoseAlgorithm::kCCSAQ,
-                 detector::PoseAlgorithm::kSLSQP, detector::PoseAlgorithm::kSBPLX,
-                 detector::PoseAlgorithm::kBOBYQA}) {
-    names.emplace_back(std::string(detector::pose_algorithm_name(a)), a);
-  }
-  return names;
-}
-
 // ---- Text form of values (the printer, and the value quoted in errors). ----
 
 template <class T>
@@ -205,7 +195,7 @@ class Reader {
   }
 
   template <class T, class Check = Any>
-  void field(const char* key, T& value, Check check = {}) {
+  void field(const char* key, T& value, Check check = {}, std::string_view /*unit*/ = {}) {
     const YAML::Node n = take(key);
     if (!n.IsDefined()) return;
     const std::string name = join_key(path_, key);
@@ -352,7 +342,7 @@ class Checker {
   explicit Checker(std::string path) : path_(std::move(path)) {}
 
   template <class T, class Check = Any>
-  void field(const char* key, T& value, Check check = {}) {
+  void field(const char* key, T& value, Check check = {}, std::string_view /*unit*/ = {}) {
     const std::string name = join_key(path_, key);
     if constexpr (std::is_invocable_v<Check, const T&>) {
       if (std::string reason = check(value); !reason.empty()) {
@@ -393,7 +383,7 @@ class Printer {
   explicit Printer(YAML::Emitter& out) : out_(out) {}
 
   template <class T, class Check = Any>
-  void field(const char* key, T& value, Check = {}) {
+  void field(const char* key, T& value, Check = {}, std::string_view /*unit*/ = {}) {
     out_ << YAML::Key << key << YAML::Value;
     if constexpr (std::is_same_v<T, std::string>) {
       out_ << YAML::DoubleQuoted << value;
@@ -438,90 +428,8 @@ class Printer {
 
 // ---- The mapping: every key of config/lidartagd.yaml, with its rule. ----
 
-auto family_exists() {
-  return [](const std::string& name) -> std::string {
-    try {
-      (void)tags::resolve_family(name);
-      return {};
-    } catch (const std::exception& e) {
-      return e.what();
-    }
-  };
-}
-
-template <class V>
-void visit_detector(V& v, detector::DetectorOptions& o) {
-  v.field("tag_sizes_m", o.tag_sizes_m, [](double t) {
-    return t > 0.0 && t < 20.0 ? std::string() : std::string("tag sizes must be in (0, 20) m");
-  });
-  v.field("families", o.families, family_exists());
-  v.field("cluster_diagnostics", o.cluster_diagnostics);
-  v.section("features", [&](V& s) {
-    // max_pair_chord_m is not a setting: the detector derives it from the largest tag size.
-    s.field("ell", o.features.ell, at_least(1));
-    s.field("zeta_m", o.features.zeta_m, above(0.0f));
-    s.field("n", o.features.n, at_least(0));
-    s.field("max_gap", o.features.max_gap, at_least(0));
-    s.field("min_range_m", o.features.min_range_m, at_least(0.0f));
-    s.field("max_range_m", o.features.max_range_m, above(0.0f));
-  });
-  v.section("cluster", [&](V& s) {
-    // max_extent_m is not a setting either: the detector derives it from the largest tag size.
-    s.field("linkage_scale", o.cluster.linkage_scale, above(0.0f));
-    s.field("ring_gap", o.cluster.ring_gap, at_least(1));
-  });
-  v.section("validation", [&](V& s) {
-    s.field("min_features", o.validation.min_features, at_least(1));
-    s.field("min_rings", o.validation.min_rings, at_least(1));
-    s.field("min_returns_per_cell", o.validation.min_returns_per_cell, at_least(0.0f));
-    s.field("max_points_scale", o.validation.max_points_scale, above(0.0f));
-    s.field("fill_margin_m", o.validation.fill_margin_m, at_least(0.0f));
-    s.field("gi_ell", o.validation.gi_ell, at_least(1));
-    s.field("boundary_ratio", o.validation.boundary_ratio, at_least(0.0f));
-    s.field("min_intensity_step", o.validation.min_intensity_step, at_least(0.0f));
-    s.field("boundary_scale", o.validation.boundary_scale, at_least(0.0f));
-    s.field("min_ring_width", o.validation.min_ring_width, half_open(0.0f, 1.0f));
-  });
-  v.section("plane", [&](V& s) {
-    s.field("inlier_m", o.plane.inlier_m, above(0.0f));
-    s.field("max_outlier_ratio", o.plane.max_outlier_ratio, half_open(0.0f, 1.0f));
-    s.field("iterations", o.plane.iterations, at_least(1));
-    s.field("score_points", o.plane.score_points, at_least(0));
-  });
-  v.section("corners", [&](V& s) {
-    s.field("line_inlier_m", o.corners.line_inlier_m, above(0.0f));
-    s.field("line_iterations", o.corners.line_iterations, at_least(1));
-    s.field("min_line_points", o.corners.min_line_points, at_least(2));
-    s.field("corner_exclusion", o.corners.corner_exclusion, half_open(0.0f, 0.5f));
-    s.field("size_tolerance", o.corners.size_tolerance, above(0.0f));
-    s.field("max_side_angle_deg", o.corners.max_side_angle_deg, open_closed(0.0f, 90.0f));
-  });
-  v.section("pose", [&](V& s) {
-    s.choice("algorithm", o.pose.algorithm, pose_algorithms());
-    s.field("translation_bound_m", o.pose.translation_bound_m, above(0.0));
-    s.field("rotation_bound_rad", o.pose.rotation_bound_rad, above(0.0));
-    s.field("xtol_rel", o.pose.xtol_rel, above(0.0));
-    s.field("xtol_abs", o.pose.xtol_abs, at_least(0.0));
-    s.field("max_evaluations", o.pose.max_evaluations, at_least(1));
-    s.field("min_depth_epsilon_m", o.pose.min_depth_epsilon_m, above(0.0));
-    s.field("max_mean_cost_m", o.pose.max_mean_cost_m, above(0.0));
-    s.field("min_coverage", o.pose.min_coverage, closed(0.0, 1.0));
-    s.field("max_points", o.pose.max_points, at_least(8));
-    s.field("polish_evaluations", o.pose.polish_evaluations, at_least(0));
-  });
-  v.section("decode", [&](V& s) {
-    s.field("samples_per_cell", o.decode.samples_per_cell, closed(1, 8));
-    s.field("length_scale_cells", o.decode.length_scale_cells, above(0.0));
-    s.field("intensity_length_scale", o.decode.intensity_length_scale, above(0.0));
-    s.field("lift_cells", o.decode.lift_cells, at_least(0.0));
-    s.field("min_contrast", o.decode.min_contrast, at_least(0.0));
-    s.field("min_score", o.decode.min_score, closed(0.0, 1.0));
-    s.field("min_margin_bits", o.decode.min_margin_bits, at_least(0.0));
-    s.field("parallel_min_functions", o.decode.parallel_min_functions, at_least(1));
-    s.field("max_points", o.decode.max_points, at_least(16));
-    s.field("reject_other_families", o.decode.reject_other_families);
-  });
-}
+// The detector's section is the detector library's own rule table (detector::visit_options): the
+// same keys, units and rules for the daemon, `lidartag detect --config` and options built in code.
 
 template <class V>
 void visit_sensor(V& v, SensorOptions& o) {
@@ -585,7 +493,18 @@ void visit(V& v, DaemonOptions& o) {
     s.choice("journald", o.logging.journald, journal_modes());
   });
   v.field("record_pcap", o.record_pcap);
-  v.section("detector", [&](V& s) { visit_detector(s, o.detector); });
+  v.section("detector", [&](V& s) { detector::visit_options(s, o.detector); });
+}
+
+// The detector's rules (each field's, also on options built in code, and those between fields),
+// as a ConfigError naming the key under `detector.`.
+void check_detector(const detector::DetectorOptions& o) {
+  try {
+    detector::validate_options(o);
+  } catch (const detector::OptionsError& e) {
+    throw ConfigError(e.key().empty() ? std::string("detector") : "detector." + e.key(), e.value(),
+                      e.reason());
+  }
 }
 
 // Rules between fields, after each field passed its own.
@@ -635,16 +554,7 @@ void check_relations(const DaemonOptions& o) {
       }
     }
   }
-  const auto& f = o.detector.features;
-  if (f.max_range_m <= f.min_range_m) {
-    throw ConfigError("detector.features.max_range_m", to_text(f.max_range_m),
-                      "must be above detector.features.min_range_m");
-  }
-  try {
-    detector::validate_options(o.detector);
-  } catch (const std::exception& e) {
-    throw ConfigError("detector", "", e.what());
-  }
+  check_detector(o.detector);
 }
 
 // "a.b[2].c" -> the node, created when missing (a list index may be one past the end: append).
@@ -749,13 +659,9 @@ detector::DetectorOptions load_detector_config(const std::string& path) {
   }
   DaemonOptions options;
   Reader reader(root.IsMap() ? root["detector"] : YAML::Node(), "detector");
-  visit_detector(reader, options.detector);
+  detector::visit_options(reader, options.detector);
   reader.finish();
-  try {
-    detector::validate_options(options.detector);
-  } catch (const std::exception& e) {
-    throw ConfigError("detector", "", e.what());
-  }
+  check_detector(options.detector);
   return options.detector;
 }
 

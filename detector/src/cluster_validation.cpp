@@ -133,6 +133,15 @@ double max_tag_points(std::span<const ClusterPoint> points, double t_max,
   return rings * t_max * std::sqrt(2.0) / (d * std::sin(horizontal_resolution_rad));
 }
 
+Rejection check_point_counts(std::span<const ClusterPoint> points, int min_points, double t_max,
+                             double horizontal_resolution_rad, const ValidationOptions& opt) {
+  const auto n = static_cast<int>(points.size());
+  if (n < min_points) return Rejection::kTooFewPoints;
+  if (n > opt.max_points_scale * max_tag_points(points, t_max, horizontal_resolution_rad))
+    return Rejection::kTooManyPoints;
+  return Rejection::kNone;
+}
+
 int rings_in(std::span<const ClusterPoint> points) {
   int n = 0, last = -1;
   for (const auto& p : points)
@@ -154,7 +163,7 @@ int count_boundary_points(std::span<const ClusterPoint> points, const Validation
   // Points come ring by ring: i - l and i + l on the ring of i means all three are on one ring.
   for (size_t i = l; i + l < points.size(); ++i) {
     const ClusterPoint &a = points[i - l], &p = points[i], &b = points[i + l];
-    // eq. (GI); counting the side where the step is ahead gives one point per transition.
+    // eq. (5); counting the side where the step is ahead gives one point per transition.
     const float g = std::fabs(b.intensity - p.intensity) - std::fabs(a.intensity - p.intensity);
     count += (a.ring == p.ring) & (b.ring == p.ring) & (g > thr) ? 1 : 0;
   }

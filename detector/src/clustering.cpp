@@ -92,8 +92,9 @@ void split_cluster(std::span<const Feature> features, float tau, int ring_gap, i
 
 }  // namespace
 
-void cluster_features(std::span<const Feature> features, float tau, const ClusterOptions& opt,
-                      std::vector<Cluster>& clusters, std::vector<int>& labels) {
+void cluster_features(std::span<const Feature> features, float tau, float max_extent_m,
+                      const ClusterOptions& opt, std::vector<Cluster>& clusters,
+                      std::vector<int>& labels) {
   clusters.clear();
   labels.assign(features.size(), -1);
   // The live clusters a feature may still link to, in index order. Features come ring by ring, so
@@ -130,7 +131,7 @@ void cluster_features(std::span<const Feature> features, float tau, const Cluste
       const Cluster& cl = clusters[static_cast<size_t>(c)];
       if (cl.parent >= 0 || cl.max_ring + opt.ring_gap < f.ring) continue;  // merged, or behind
       active[kept++] = c;
-      // eq. (linkage): inside the tau-padded x-y box and within one ring of the ring span.
+      // eq. (2): inside the tau-padded x-y box and within one ring of the ring span.
       if (f.x >= cl.min_x - tau && f.x <= cl.max_x + tau && f.y >= cl.min_y - tau &&
           f.y <= cl.max_y + tau && f.ring >= cl.min_ring - opt.ring_gap)
         link(c);
@@ -151,16 +152,28 @@ void cluster_features(std::span<const Feature> features, float tau, const Cluste
     labels[k] = target;
   }
   for (auto& l : labels) l = find_root(clusters, l);
-  if (opt.max_extent_m <= 0.0f) return;
-  // The box rule snowballs (see ClusterOptions::max_extent_m): oversized clusters are split into
+  if (max_extent_m <= 0.0f) return;
+  // The box rule snowballs (see cluster_features in the header): oversized clusters are split into
   // their features' single-linkage components.
   const size_t live = clusters.size();
   for (size_t c = 0; c < live; ++c) {
     const Cluster& cl = clusters[c];
-    if (cl.parent < 0 &&
-        (cl.max_x - cl.min_x > opt.max_extent_m || cl.max_y - cl.min_y > opt.max_extent_m))
+    if (cl.parent < 0 && (cl.max_x - cl.min_x > max_extent_m || cl.max_y - cl.min_y > max_extent_m))
       split_cluster(features, tau, opt.ring_gap, static_cast<int>(c), clusters, labels);
   }
+}
+
+void group_by_cluster(std::span<const int> labels, size_t clusters, std::vector<int>& offsets,
+                      std::vector<int>& order) {
+  // Counts shifted by two, so that offsets[c + 1] is cluster c's insertion cursor while the
+  // features are placed and ends as the start of cluster c + 1.
+  offsets.assign(clusters + 2, 0);
+  for (int l : labels) ++offsets[static_cast<size_t>(l) + 2];
+  for (size_t c = 2; c < offsets.size(); ++c) offsets[c] += offsets[c - 1];
+  order.resize(labels.size());
+  for (size_t k = 0; k < labels.size(); ++k)
+    order[static_cast<size_t>(offsets[static_cast<size_t>(labels[k]) + 1]++)] = static_cast<int>(k);
+  offsets.pop_back();
 }
 
 }  // namespace lidartag::detector

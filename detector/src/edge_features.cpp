@@ -20,7 +20,7 @@ float dist(const Scan& s, size_t a, size_t b) {
   return std::sqrt(dx * dx + dy * dy + dz * dz);
 }
 
-// When both neighbours return and their ranges are close, neither distance of eq. (GD) can exceed
+// When both neighbours return and their ranges are close, neither distance of eq. (1) can exceed
 // zeta (|p_j - p_i| <= |r_j - r_i| + r * angle between the beams): no square root needed. Written
 // without branches so that the loop over a ring is vectorised; nearly every point is quiet.
 inline bool quiet(float ri, float rl, float rr, float lateral, float zeta) {
@@ -73,7 +73,7 @@ struct Ring {
     return false;
   }
 
-  // The signed eq. (GD) value at column c (a usable point that is not quiet) when it is an edge
+  // The signed eq. (1) value at column c (a usable point that is not quiet) when it is an edge
   // point on the near side of its jump; 0 otherwise.
   float edge_value(int c) const {
     const size_t i = base + static_cast<size_t>(c);
@@ -84,7 +84,7 @@ struct Ring {
     const bool has_l = inside ? neighbour_inside(c, -1, il, dl) : neighbour(c, -1, il, dl);
     const bool has_r = inside ? neighbour_inside(c, 1, ir, dr) : neighbour(c, 1, ir, dr);
     if (!has_l && !has_r) return 0.0f;  // an isolated return: noise, not an edge
-    // eq. (GD): grad D = |p_{i+l} - p_i| - |p_{i-l} - p_i|.
+    // eq. (1): grad D = |p_{i+l} - p_i| - |p_{i-l} - p_i|.
     const float g = std::isinf(dr) ? kInf : std::isinf(dl) ? -kInf : dr - dl;
     if (std::fabs(g) <= opt.zeta_m) return 0.0f;
     // Keep the near side of the jump only: the feature lies on the foreground object.
@@ -97,8 +97,8 @@ struct Ring {
 
 }  // namespace
 
-void detect_edge_features(const Scan& scan, const FeatureOptions& opt, std::vector<Feature>& out,
-                          std::vector<float>& edges) {
+void detect_edge_features(const Scan& scan, const FeatureOptions& opt, float max_pair_chord_m,
+                          std::vector<Feature>& out, std::vector<float>& edges) {
   out.clear();
   const int cols = scan.columns;
   const int ell = opt.ell;
@@ -112,7 +112,7 @@ void detect_edge_features(const Scan& scan, const FeatureOptions& opt, std::vect
   for (int ring = 0; ring < scan.rings; ++ring) {
     const Ring rg{scan, opt, scan.at(0, ring, 0), cols, wraps};
     const float* range = scan.range.data() + rg.base;
-    // The ring's edge points in column order, as (column, signed eq. (GD) value) pairs.
+    // The ring's edge points in column order, as (column, signed eq. (1) value) pairs.
     edges.clear();
     auto consider = [&](int c) {
       const float g = rg.edge_value(c);
@@ -202,10 +202,10 @@ void detect_edge_features(const Scan& scan, const FeatureOptions& opt, std::vect
         f.z = scan.z[i];
         f.range = scan.range[i];
         f.side = side;
-        if (side > 0 && run_start_feature >= 0 && opt.max_pair_chord_m > 0.0f) {
+        if (side > 0 && run_start_feature >= 0 && max_pair_chord_m > 0.0f) {
           const Feature& s = out[static_cast<size_t>(run_start_feature)];
           const float dx = s.x - f.x, dy = s.y - f.y, dz = s.z - f.z;
-          if (dx * dx + dy * dy + dz * dz <= opt.max_pair_chord_m * opt.max_pair_chord_m)
+          if (dx * dx + dy * dy + dz * dz <= max_pair_chord_m * max_pair_chord_m)
             f.partner = run_start_feature;
         }
         out.push_back(f);

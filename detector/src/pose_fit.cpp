@@ -59,7 +59,7 @@ Eigen::Matrix3d right_jacobian(const Eigen::Vector3d& w) {
          (th - std::sin(th)) / (th2 * th) * W * W;
 }
 
-// eq. (L1cost) and its derivative in lambda.
+// eq. (7) and its derivative in lambda.
 inline double l1(double lambda, double a, double& d) {
   const double m = std::abs(lambda);
   if (m <= a) {
@@ -149,7 +149,7 @@ PoseSolver::~PoseSolver() {
   delete impl_;
 }
 
-// theta = (w, dq): x_bar_i = Exp(w) y_i + q0 + dq. Cost eq. (JKHcost); closed-form gradient:
+// theta = (w, dq): x_bar_i = Exp(w) y_i + q0 + dq. Cost eq. (8); closed-form gradient:
 // dC/ddq = sum r_i, dC/dw = J_r(w)^T sum y_i x (Exp(w)^T r_i), r_i the per-axis L1 slopes. With
 // y_i = Exp(w)^T (x_bar_i - q): sum y_i x (Exp(w)^T r_i) = Exp(w)^T (sum x_bar_i x r_i - q x sum
 // r_i), which the loop accumulates without rotating anything back.
@@ -186,7 +186,7 @@ double PoseSolver::objective(const double* theta, double* grad) const {
         const float x0 = r00 * y0 + r01 * y1 + r02 * y2 + q0;
         const float x1 = r10 * y0 + r11 * y1 + r12 * y2 + q1;
         const float x2 = r20 * y0 + r21 * y1 + r22 * y2 + q2;
-        // eq. (L1cost) per coordinate and its slope r (0 inside the template, +-w outside).
+        // eq. (7) per coordinate and its slope r (0 inside the template, +-w outside).
         const float a0 = std::fabs(x0) - eps, a1 = std::fabs(x1) - half, a2 = std::fabs(x2) - half;
         cost[l] += wi * (std::max(a0, 0.0f) + std::max(a1, 0.0f) + std::max(a2, 0.0f));
         const float e0 = a0 > 0.0f ? std::copysign(wi, x0) : 0.0f;
@@ -281,6 +281,45 @@ PoseFitResult PoseSolver::fit(std::span<const ClusterPoint> points, double t, do
   res.pose.p = q - R * s.c;  // x_bar = R (X - c) + q
   res.cost = f;
   return res;
+}
+
+void select_pose_points(std::span<const ClusterPoint> points, int max_points,
+                        std::vector<ClusterPoint>& subset, std::vector<float>& weights) {
+  subset.clear();
+  weights.clear();
+  size_t edges = 0;
+  for (const auto& p : points) edges += p.edge ? 1 : 0;
+  const size_t cap = static_cast<size_t>(std::max(max_points, 8));
+  const size_t interior = points.size() - edges;
+  const size_t keep = cap > edges ? cap - edges : 0;
+  const size_t stride = keep > 0 ? std::max<size_t>(1, (interior + keep - 1) / keep) : 0;
+  size_t n_interior = 0;
+  for (const auto& p : points) {
+    if (p.edge || (stride > 0 && n_interior++ % stride == 0)) {
+      subset.push_back(p);
+      weights.push_back(p.edge ? 1.0f : 0.0f);
+    }
+  }
+  const size_t kept = subset.size() - edges;
+  const float interior_weight =
+      kept > 0 ? static_cast<float>(interior) / static_cast<float>(kept) : 0.0f;
+  for (size_t i = 0; i < subset.size(); ++i)
+    if (!subset[i].edge) weights[i] = interior_weight;
+}
+
+PoseFitResult fit_tag_pose(PoseSolver& solver, std::span<const ClusterPoint> points,
+                           const RigidPose& initial, double t_fit, double epsilon,
+                           const PoseOptions& opt, TagPoseWorkspace& ws) {
+  select_pose_points(points, opt.max_points, ws.subset, ws.weights);
+  PoseFitResult fit = solver.fit(ws.subset, t_fit, epsilon, initial, opt, ws.weights);
+  if (ws.subset.size() < points.size() && opt.polish_evaluations > 0) {
+    PoseOptions polish = opt;
+    polish.max_evaluations = opt.polish_evaluations;
+    polish.translation_bound_m = 0.02;
+    polish.rotation_bound_rad = 0.02;
+    fit = solver.fit(points, t_fit, epsilon, fit.pose, polish);
+  }
+  return fit;
 }
 
 double coverage_ratio(std::span<const ClusterPoint> points, const RigidPose& pose, double t,

@@ -108,7 +108,7 @@ DecodeResult decode_tag(std::span<const ClusterPoint> points, const IntensityLev
 
 namespace {
 
-// eq. (InnerProduct) against a template function is a sum over its sample points; per cell of a
+// eq. (18) against a template function is a sum over its sample points; per cell of a
 // W x W template, the white-minus-black kernel sums of the prepared points make every code's inner
 // product a signed sum over cells. Fills `evidence` (W x W, row-major) and returns the sum of its
 // magnitudes.
@@ -152,7 +152,7 @@ double accumulate_evidence(int W, const DecodeOptions& opt, DecodeWorkspace& ws,
   };
   for (const auto& p : ws.prepared) {
     const double label = p.label, yn = p.yn, zn = p.zn;
-    // 3-D lifting remark: the normal coordinate carries the intensity.
+    // eq. (22), the 3-D lifting remark: the normal coordinate carries the intensity.
     const double xl = p.xn + lift * label;
     // Sample j sits at (j + 0.5) / N - 0.5 across (y) and 0.5 - (j + 0.5) / N down (z).
     const double fc = (yn + 0.5) * N - 0.5, fr = (0.5 - zn) * N - 0.5;
@@ -161,7 +161,7 @@ double accumulate_evidence(int W, const DecodeOptions& opt, DecodeWorkspace& ws,
     const int c0 = std::max(0, ic - reach), c1 = std::min(N - 1, ic + reach + 1);
     const int r0 = std::max(0, ir - reach), r1 = std::min(N - 1, ir + reach + 1);
     if (c0 > c1 || r0 > r1) continue;
-    // eq. (kernel) along the normal and eq. (kernel_intensity), against a white and a black
+    // eq. (19) along the normal and eq. (21), against a white and a black
     // template point, times the spatial kernel of the first sample in reach. Single precision
     // exponentials: the weights need no more than the float evidence they add to.
     const double first = -a * ((c0 - fc) * (c0 - fc) + (r0 - fr) * (r0 - fr));
@@ -220,7 +220,7 @@ DecodeResult decode_prepared(const RkhsDictionary& dict, const DecodeOptions& op
   payload /= pw * pw;
   if (total <= 0.0 || payload <= 0.0) return res;
 
-  // eq. (InnerProduct) of every function: the cells common to all functions add `common`; the
+  // eq. (18) of every function: the cells common to all functions add `common`; the
   // varying cells, in groups of 8, add one entry per group of a table of the 256 sign patterns.
   const auto& vary = dict.varying_cells();
   ws.varying.resize(vary.size());
@@ -280,6 +280,8 @@ DecodeResult decode_prepared(const RkhsDictionary& dict, const DecodeOptions& op
       second = f;
     }
   }
+  ws.common = common;
+  ws.total = total;
   res.function = best;
   res.code_index = best / 4;
   res.quarter_turns = best % 4;
@@ -297,6 +299,17 @@ DecodeResult decode_prepared(const RkhsDictionary& dict, const DecodeOptions& op
   else
     res.rejection = Rejection::kNone;
   return res;
+}
+
+void normalised_scores(const DecodeWorkspace& ws, std::vector<float>& out) {
+  out.resize(ws.scores.size());
+  if (!(ws.total > 0.0)) {
+    std::fill(out.begin(), out.end(), 0.0f);
+    return;
+  }
+  // As DecodeResult::score is computed, so that the best function's entry equals it.
+  for (size_t f = 0; f < ws.scores.size(); ++f)
+    out[f] = static_cast<float>((ws.scores[f] + ws.common) / ws.total);
 }
 
 }  // namespace lidartag::detector

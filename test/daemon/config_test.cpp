@@ -58,10 +58,11 @@ constexpr size_t field_count() {
 // The detector's option structs are still growing: a new field must get its key in config.cpp
 // (visit_detector) and config/lidartagd.yaml, then its count here.
 TEST(Config, EveryDetectorOptionIsMapped) {
-  // keep_tag_points is lcm.publish_tag_points (outside the detector section).
-  EXPECT_EQ(field_count<detector::DetectorOptions>(), 11u);
-  EXPECT_EQ(field_count<detector::FeatureOptions>(), 7u);  // max_pair_chord_m is derived
-  EXPECT_EQ(field_count<detector::ClusterOptions>(), 3u);  // max_extent_m is derived
+  // keep_tag_points is lcm.publish_tag_points (outside the detector section); keep_cluster_points
+  // is for tools that draw clusters.
+  EXPECT_EQ(field_count<detector::DetectorOptions>(), 12u);
+  EXPECT_EQ(field_count<detector::FeatureOptions>(), 6u);
+  EXPECT_EQ(field_count<detector::ClusterOptions>(), 2u);
   EXPECT_EQ(field_count<detector::ValidationOptions>(), 10u);
   EXPECT_EQ(field_count<detector::PlaneOptions>(), 4u);
   EXPECT_EQ(field_count<detector::CornerOptions>(), 6u);
@@ -210,7 +211,7 @@ TEST(Config, EachBadKeyOrValueNamesKeyValueAndReason) {
       {"detector: {decode: {samples_per_cell: 9}}", "detector.decode.samples_per_cell", "9",
        "[1, 8]"},
       {"detector: {features: {min_range_m: 50}}", "detector.features.max_range_m", "40",
-       "above detector.features.min_range_m"},
+       "above features.min_range_m"},
       {"detector: {features: [1, 2]}", "detector.features", "[1, 2]", "expected a map"},
       {"[1, 2]", "config", "[1, 2]", "expected a map"},
   };

@@ -1,4 +1,4 @@
-// Stage 3: fill-in, point-count bounds, payload boundary points eq. (GI).
+// Stage 3: fill-in, point-count bounds, payload boundary points eq. (5).
 #include "lidartag/detector/cluster_validation.hpp"
 
 #include <gtest/gtest.h>
@@ -38,9 +38,7 @@ Filled fill_tag(double distance, uint8_t white, uint8_t black) {
   }
   std::vector<Feature> f;
   std::vector<float> g;
-  FeatureOptions fo;
-  fo.max_pair_chord_m = 1.9f;
-  detect_edge_features(out.scan, fo, f, g);
+  detect_edge_features(out.scan, FeatureOptions{}, 1.9f, f, g);
   std::vector<int> members;
   Cluster cl;
   cl.min_x = cl.min_y = 1e9f;
@@ -108,7 +106,7 @@ TEST(ClusterValidation, UpperBoundHoldsForAFaceOnTag) {
 
 TEST(ClusterValidation, PayloadBoundaryPointsNeedContrast) {
   const Filled tag = fill_tag(6, 220, 20);
-  const int psi = 2 * (4 + 2);  // eq. (psi) for tag16h5
+  const int psi = 2 * (4 + 2);  // eq. (6) for tag16h5
   EXPECT_GE(count_boundary_points(tag.points, ValidationOptions{}), psi);
   const Filled flat = fill_tag(6, 120, 118);  // the same tag printed with no contrast
   EXPECT_EQ(count_boundary_points(flat.points, ValidationOptions{}), 0);

@@ -1,4 +1,4 @@
-// Stage 2: single linkage with eq. (linkage).
+// Stage 2: single linkage with eq. (2).
 #include "lidartag/detector/clustering.hpp"
 
 #include <gtest/gtest.h>
@@ -25,7 +25,7 @@ TEST(Clustering, NearbyFeaturesOnAdjacentRingsLink) {
   const std::vector<Feature> f = {at(5, 0, 3), at(5, 0.3f, 4), at(5, 0.5f, 5), at(9, 4, 3)};
   std::vector<Cluster> cs;
   std::vector<int> labels;
-  cluster_features(f, 0.42f, ClusterOptions{}, cs, labels);
+  cluster_features(f, 0.42f, 0.0f, ClusterOptions{}, cs, labels);
   EXPECT_EQ(live(cs), 2);
   EXPECT_EQ(labels[0], labels[1]);
   EXPECT_EQ(labels[1], labels[2]);
@@ -41,13 +41,13 @@ TEST(Clustering, TauAndRingGapBoundTheLinkage) {
   const std::vector<Feature> f = {at(5, 0, 3), at(5, 0.5f, 3), at(5, 0, 6)};
   std::vector<Cluster> cs;
   std::vector<int> labels;
-  cluster_features(f, 0.42f, ClusterOptions{}, cs, labels);
+  cluster_features(f, 0.42f, 0.0f, ClusterOptions{}, cs, labels);
   EXPECT_EQ(live(cs), 3);  // 0.5 m apart > tau; ring 6 is 3 rings away
-  cluster_features(f, 0.6f, ClusterOptions{}, cs, labels);
+  cluster_features(f, 0.6f, 0.0f, ClusterOptions{}, cs, labels);
   EXPECT_EQ(live(cs), 2);
   ClusterOptions wide;
   wide.ring_gap = 3;
-  cluster_features(f, 0.6f, wide, cs, labels);
+  cluster_features(f, 0.6f, 0.0f, wide, cs, labels);
   EXPECT_EQ(live(cs), 1);
 }
 
@@ -55,7 +55,7 @@ TEST(Clustering, AFeatureBridgingTwoClustersMergesThem) {
   const std::vector<Feature> f = {at(5, 0, 3), at(5, 0.8f, 3), at(5, 0.4f, 4)};
   std::vector<Cluster> cs;
   std::vector<int> labels;
-  cluster_features(f, 0.42f, ClusterOptions{}, cs, labels);
+  cluster_features(f, 0.42f, 0.0f, ClusterOptions{}, cs, labels);
   EXPECT_EQ(live(cs), 1);
   EXPECT_EQ(labels[0], labels[1]);
   EXPECT_EQ(labels[0], labels[2]);
@@ -71,10 +71,10 @@ TEST(Clustering, PartnersJoinAcrossATagWidth) {
   }
   std::vector<Cluster> cs;
   std::vector<int> labels;
-  cluster_features(f, 0.42f, ClusterOptions{}, cs, labels);
+  cluster_features(f, 0.42f, 0.0f, ClusterOptions{}, cs, labels);
   EXPECT_EQ(live(cs), 1);
   for (auto& p : f) p.partner = -1;
-  cluster_features(f, 0.42f, ClusterOptions{}, cs, labels);
+  cluster_features(f, 0.42f, 0.0f, ClusterOptions{}, cs, labels);
   EXPECT_EQ(live(cs), 2);
 }
 
@@ -91,11 +91,9 @@ TEST(Clustering, OversizedClustersSplitIntoTheirComponents) {
   for (int k = 0; k < 12; ++k) f.push_back(at(6.0f + 0.3f * static_cast<float>(k), 0.0f, 11));
   std::vector<Cluster> cs;
   std::vector<int> labels;
-  cluster_features(f, 0.35f, ClusterOptions{}, cs, labels);  // the paper's rule alone
+  cluster_features(f, 0.35f, 0.0f, ClusterOptions{}, cs, labels);  // the paper's rule alone
   EXPECT_EQ(live(cs), 1);
-  ClusterOptions split;
-  split.max_extent_m = 2.1f;
-  cluster_features(f, 0.35f, split, cs, labels);
+  cluster_features(f, 0.35f, 2.1f, ClusterOptions{}, cs, labels);
   EXPECT_EQ(live(cs), 2);
   for (size_t k = 1; k < tag_end; ++k) EXPECT_EQ(labels[k], labels[0]);
   for (size_t k = tag_end; k < f.size(); ++k) EXPECT_NE(labels[k], labels[0]);
@@ -115,16 +113,27 @@ TEST(Clustering, APartnerLinkKeepsAnOldClusterReachable) {
   std::vector<Feature> f = {at(5, 0, 0), at(5, 0, 5, 0), at(5, 0.1f, 6)};
   std::vector<Cluster> cs;
   std::vector<int> labels;
-  cluster_features(f, 0.42f, ClusterOptions{}, cs, labels);
+  cluster_features(f, 0.42f, 0.0f, ClusterOptions{}, cs, labels);
   EXPECT_EQ(live(cs), 1);
   EXPECT_EQ(labels[1], labels[0]);
   EXPECT_EQ(labels[2], labels[0]);
   EXPECT_EQ(cs[static_cast<size_t>(labels[0])].max_ring, 6);
   f[1].partner = -1;  // without the link: three rings apart, three clusters
-  cluster_features(f, 0.42f, ClusterOptions{}, cs, labels);
+  cluster_features(f, 0.42f, 0.0f, ClusterOptions{}, cs, labels);
   EXPECT_EQ(live(cs), 2);
   EXPECT_NE(labels[1], labels[0]);
   EXPECT_EQ(labels[2], labels[1]);
+}
+
+TEST(Clustering, FeaturesGroupedByClusterInTheirOrder) {
+  const std::vector<int> labels = {2, 0, 2, 1, 0, 2};
+  std::vector<int> offsets, order;
+  group_by_cluster(labels, 4, offsets, order);
+  EXPECT_EQ(offsets, (std::vector<int>{0, 2, 3, 6, 6}));  // cluster 3 has no features
+  EXPECT_EQ(order, (std::vector<int>{1, 4, 3, 0, 2, 5}));
+  group_by_cluster({}, 2, offsets, order);
+  EXPECT_EQ(offsets, (std::vector<int>{0, 0, 0}));
+  EXPECT_TRUE(order.empty());
 }
 
 }  // namespace

@@ -7,4 +7,7 @@ namespace lidartag::testing {
 // operator new calls since the program started.
 long heap_allocations();
 
+// The allocation after the next `n` ones throws std::bad_alloc (once); -1 cancels.
+void fail_allocation_after(long n);
+
 }  // namespace lidartag::testing

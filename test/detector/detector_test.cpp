@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <functional>
@@ -232,6 +233,157 @@ TEST(Detector, TagPointsAddNoAllocationOnceGrown) {
   ASSERT_EQ(res.detections.size(), 2u);
   EXPECT_EQ(res.tag_points.data(), storage);
   EXPECT_EQ(res.points_of(res.detections[1]).size(), static_cast<size_t>(res.detections[1].points));
+}
+
+// Every cluster that reached decoding is a candidate: a detection's, with its index, and one
+// rejected at the decode stage, with its pose and the evidence of every code (for a tracker).
+TEST(Detector, CandidatesCarryThePoseAndTheEvidenceOfEveryCode) {
+  const TwoTags s;
+  Detector det(s.options);
+  ScanResult res;
+  det.detect(s.scan, res);
+  ASSERT_EQ(res.detections.size(), 2u);
+  ASSERT_GE(res.candidates.size(), 2u);
+  int accepted = 0;
+  for (const Candidate& k : res.candidates) {
+    if (k.rejection != Rejection::kNone) continue;
+    ++accepted;
+    ASSERT_GE(k.detection, 0);
+    const Detection& d = res.detections[static_cast<size_t>(k.detection)];
+    EXPECT_EQ(k.family_index, d.family_index);
+    EXPECT_EQ(k.id, d.id);
+    EXPECT_EQ(k.position, d.position);
+    EXPECT_EQ(k.orientation.coeffs(), d.orientation.coeffs());
+    EXPECT_EQ(k.score, d.score);
+    EXPECT_EQ(k.margin, d.margin);
+    EXPECT_EQ(k.points, d.points);
+    // The decoded frame is the undecoded one turned by the quarter turns about its normal.
+    const Eigen::Matrix3d u = k.undecoded_orientation.toRotationMatrix();
+    const Eigen::Matrix3d r = k.orientation.toRotationMatrix();
+    EXPECT_LT((u.col(0) - r.col(0)).norm(), 1e-9);
+    // One evidence block per configured family; the detection's family's best function is its
+    // code at its quarter turns, scored as the detection.
+    const auto evidence = res.evidence_of(k);
+    ASSERT_EQ(evidence.size(), s.options.families.size());
+    for (size_t f = 0; f < evidence.size(); ++f) {
+      EXPECT_EQ(evidence[f].family_index, static_cast<int>(f));
+      const auto scores = res.scores_of(evidence[f]);
+      ASSERT_EQ(scores.size(), static_cast<size_t>(det.dictionaries()[f].functions()));
+      EXPECT_GT(evidence[f].cells_per_score, 0.0f);
+      if (static_cast<int>(f) != k.family_index) continue;
+      const auto best = std::max_element(scores.begin(), scores.end()) - scores.begin();
+      EXPECT_EQ(best, 4 * k.id + k.quarter_turns);
+      EXPECT_FLOAT_EQ(scores[static_cast<size_t>(best)], static_cast<float>(k.score));
+    }
+    // The decoded grid of the detection's family.
+    EXPECT_EQ(k.grid_width, det.dictionaries()[static_cast<size_t>(k.family_index)].width());
+    EXPECT_EQ(res.cells_of(k).size(), static_cast<size_t>(k.grid_width * k.grid_width));
+    // Linked to its cluster's diagnostic.
+    ASSERT_GE(k.cluster, 0);
+    EXPECT_EQ(res.diagnostics[static_cast<size_t>(k.cluster)].candidate,
+              static_cast<int>(&k - res.candidates.data()));
+  }
+  EXPECT_EQ(accepted, 2);
+
+  // With an impossible margin gate both tags are rejected as ambiguous, and stay candidates with
+  // the same pose and evidence.
+  DetectorOptions strict = s.options;
+  strict.decode.min_margin_bits = 1e6;
+  Detector strict_det(strict);
+  ScanResult rej;
+  strict_det.detect(s.scan, rej);
+  EXPECT_TRUE(rej.detections.empty());
+  ASSERT_EQ(rej.candidates.size(), res.candidates.size());
+  for (size_t i = 0; i < res.candidates.size(); ++i) {
+    const Candidate &a = res.candidates[i], &b = rej.candidates[i];
+    if (a.rejection != Rejection::kNone) continue;
+    EXPECT_EQ(b.rejection, Rejection::kAmbiguous);
+    EXPECT_EQ(b.detection, -1);
+    EXPECT_EQ(b.position, a.position);
+    EXPECT_EQ(b.id, a.id);
+    const auto ea = res.evidence_of(a), eb = rej.evidence_of(b);
+    ASSERT_EQ(ea.size(), eb.size());
+    for (size_t f = 0; f < ea.size(); ++f) {
+      const auto sa = res.scores_of(ea[f]), sb = rej.scores_of(eb[f]);
+      EXPECT_TRUE(std::equal(sa.begin(), sa.end(), sb.begin(), sb.end()));
+    }
+  }
+}
+
+TEST(Detector, ClusterPointsOnlyWhenAskedForAsEachClusterWasLeft) {
+  const TwoTags s;
+  DetectorOptions with = s.options;
+  with.keep_cluster_points = true;
+  with.keep_tag_points = true;
+  Detector plain(s.options), keeping(with);
+  ScanResult without_points, res;
+  plain.detect(s.scan, without_points);
+  EXPECT_TRUE(without_points.cluster_points.empty());
+  for (const auto& c : without_points.diagnostics) EXPECT_TRUE(without_points.points_of(c).empty());
+  keeping.detect(s.scan, res);
+  ASSERT_EQ(res.diagnostics.size(), without_points.diagnostics.size());
+  size_t total = 0;
+  for (const auto& c : res.diagnostics) {
+    const auto pts = res.points_of(c);
+    total += pts.size();
+    if (c.rejection == Rejection::kFewFeatures || c.rejection == Rejection::kTooLarge) {
+      EXPECT_TRUE(pts.empty());  // never filled in
+      continue;
+    }
+    // Before the plane fit, every point of the fill-in; after it, at most that many.
+    if (stage_of(c.rejection) == Stage::kValidation) {
+      EXPECT_EQ(pts.size(), static_cast<size_t>(c.points));
+    } else {
+      EXPECT_FALSE(pts.empty()) << rejection_name(c.rejection);
+      EXPECT_LE(pts.size(), static_cast<size_t>(c.points));
+    }
+  }
+  EXPECT_EQ(total, res.cluster_points.size());
+  // A detection's candidate holds the points its pose was fitted to.
+  for (const auto& k : res.candidates) {
+    if (k.detection < 0) continue;
+    const auto a = res.points_of(k);
+    const auto b = res.points_of(res.detections[static_cast<size_t>(k.detection)]);
+    ASSERT_EQ(a.size(), b.size());
+    for (size_t i = 0; i < a.size(); ++i) EXPECT_EQ(a[i].col, b[i].col);
+  }
+  // Nothing else changes, and the next rotation does not allocate.
+  ASSERT_EQ(res.detections.size(), without_points.detections.size());
+  for (size_t i = 0; i < res.detections.size(); ++i)
+    EXPECT_EQ(res.detections[i].position, without_points.detections[i].position);
+  const long before = testing::heap_allocations();
+  keeping.detect(s.scan, res);
+  EXPECT_EQ(testing::heap_allocations() - before, 0);
+}
+
+// Memory running out part-way is said, not hidden: the result is flagged, never a crash, and
+// whatever was found before stands.
+TEST(Detector, AnAllocationFailureTruncatesTheRotationAndSaysSo) {
+  const TwoTags s;
+  ScanResult clean;
+  Detector(s.options).detect(s.scan, clean);
+  ASSERT_EQ(clean.detections.size(), 2u);
+  EXPECT_FALSE(clean.truncated);
+  int truncated = 0;
+  for (long n : {0L, 3L, 10L, 30L, 100L, 300L}) {
+    Detector det(s.options);  // fresh buffers: the first rotation allocates
+    ScanResult res;
+    res.detections.reserve(4);
+    testing::fail_allocation_after(n);
+    det.detect(s.scan, res);
+    testing::fail_allocation_after(-1);
+    truncated += res.truncated ? 1 : 0;
+    EXPECT_LE(res.detections.size(), 2u);
+    if (!res.truncated) {
+      EXPECT_EQ(res.detections.size(), 2u) << n;
+    }
+    for (const auto& d : res.detections) EXPECT_TRUE(d.position.allFinite());
+    // The same detector works on the next rotation.
+    det.detect(s.scan, res);
+    EXPECT_FALSE(res.truncated);
+    EXPECT_EQ(res.detections.size(), 2u);
+  }
+  EXPECT_GT(truncated, 0);
 }
 
 TEST(Detector, NothingInATaglessClutteredScene) {
@@ -551,6 +703,7 @@ TEST(DetectorHostileScans, ScanWhoseSizesDisagreeWithItsStorageGivesNothing) {
   s.columns = s.column_capacity + 100;
   det.detect(s, res);
   EXPECT_TRUE(res.detections.empty());
+  EXPECT_TRUE(res.refused);
   Scan t = tag_scan();
   t.rings = 64;  // storage for 32
   det.detect(t, res);
@@ -565,6 +718,10 @@ TEST(DetectorHostileScans, ScanWhoseSizesDisagreeWithItsStorageGivesNothing) {
   v.returns = 0;
   det.detect(v, res);
   EXPECT_TRUE(res.detections.empty());
+  EXPECT_TRUE(res.refused);
+  det.detect(tag_scan(), res);  // a sound scan is not
+  EXPECT_FALSE(res.refused);
+  EXPECT_EQ(res.detections.size(), 1u);
 }
 
 }  // namespace

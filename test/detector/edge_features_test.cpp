@@ -1,4 +1,4 @@
-// Stage 1: distance-gradient features, eq. (GD), and the one-edge-among-n+1 rule.
+// Stage 1: distance-gradient features, eq. (1), and the one-edge-among-n+1 rule.
 #include "lidartag/detector/edge_features.hpp"
 
 #include <gtest/gtest.h>
@@ -35,7 +35,7 @@ TEST(EdgeFeatures, MarksTheNearSideOfEachJump) {
   const Scan s = ring_of(r);
   std::vector<Feature> f;
   std::vector<float> g;
-  detect_edge_features(s, FeatureOptions{}, f, g);
+  detect_edge_features(s, FeatureOptions{}, 0.0f, f, g);
   ASSERT_EQ(f.size(), 2u);
   EXPECT_EQ(f[0].col, 15);
   EXPECT_EQ(f[0].side, -1);
@@ -50,11 +50,11 @@ TEST(EdgeFeatures, StepsBelowZetaAreNotEdges) {
   const Scan s = ring_of(r);
   std::vector<Feature> f;
   std::vector<float> g;
-  detect_edge_features(s, FeatureOptions{}, f, g);
+  detect_edge_features(s, FeatureOptions{}, 0.0f, f, g);
   EXPECT_TRUE(f.empty());
   FeatureOptions o;
   o.zeta_m = 0.2f;
-  detect_edge_features(s, o, f, g);
+  detect_edge_features(s, o, 0.0f, f, g);
   EXPECT_EQ(f.size(), 2u);
 }
 
@@ -66,13 +66,13 @@ TEST(EdgeFeatures, RunsOfEdgesAreNotFeatures) {
   const Scan s = ring_of(r);
   std::vector<Feature> f;
   std::vector<float> g;
-  detect_edge_features(s, FeatureOptions{}, f, g);
+  detect_edge_features(s, FeatureOptions{}, 0.0f, f, g);
   ASSERT_EQ(f.size(), 2u);  // only the outer ends have a window of n+1 = 3 with one edge
   EXPECT_EQ(f[0].col, 10);
   EXPECT_EQ(f[1].col, 17);
   FeatureOptions keep;
   keep.n = 0;  // every edge point is a feature
-  detect_edge_features(s, keep, f, g);
+  detect_edge_features(s, keep, 0.0f, f, g);
   EXPECT_EQ(f.size(), 6u);
 }
 
@@ -82,13 +82,12 @@ TEST(EdgeFeatures, MissingNeighboursCountAsFarAndShortRunsArePaired) {
   const Scan s = ring_of(r);
   std::vector<Feature> f;
   std::vector<float> g;
-  FeatureOptions o;
-  o.max_pair_chord_m = 2.0f;  // the run is 19 * 0.2 deg * 5 m = 0.33 m long
-  detect_edge_features(s, o, f, g);
+  const FeatureOptions o;
+  // The run is 19 * 0.2 deg * 5 m = 0.33 m long.
+  detect_edge_features(s, o, 2.0f, f, g);
   ASSERT_EQ(f.size(), 2u);
   EXPECT_EQ(f[1].partner, 0);
-  o.max_pair_chord_m = 0.1f;
-  detect_edge_features(s, o, f, g);
+  detect_edge_features(s, o, 0.1f, f, g);
   ASSERT_EQ(f.size(), 2u);
   EXPECT_EQ(f[1].partner, -1);
 }
@@ -107,9 +106,7 @@ TEST(EdgeFeatures, ATagInAFullRotationHasTwoFeaturesPerRingAcrossTheCut) {
   ASSERT_TRUE(rotation_wraps(s));
   std::vector<Feature> f;
   std::vector<float> g;
-  FeatureOptions o;
-  o.max_pair_chord_m = 2.0f;
-  detect_edge_features(s, o, f, g);
+  detect_edge_features(s, FeatureOptions{}, 2.0f, f, g);
   int on_tag = 0, paired = 0;
   for (const auto& x : f)
     if (std::abs(x.x - 6.0f) < 0.05f) {
@@ -129,12 +126,12 @@ TEST(EdgeFeatures, ShortDropoutsOnASurfaceAreNotEdges) {
   const Scan s = ring_of(r);
   std::vector<Feature> f;
   std::vector<float> g;
-  detect_edge_features(s, FeatureOptions{}, f, g);
+  detect_edge_features(s, FeatureOptions{}, 0.0f, f, g);
   EXPECT_TRUE(f.empty());
   // Every missing return is a jump without the gap rule: each dropout makes two edges.
   FeatureOptions no_gap;
   no_gap.max_gap = 0;
-  detect_edge_features(s, no_gap, f, g);
+  detect_edge_features(s, no_gap, 0.0f, f, g);
   EXPECT_EQ(f.size(), 4u);
 }
 
@@ -145,7 +142,7 @@ TEST(EdgeFeatures, LongGapsAndRealStepsAcrossADropoutStayEdges) {
   const Scan s = ring_of(r);
   std::vector<Feature> f;
   std::vector<float> g;
-  detect_edge_features(s, FeatureOptions{}, f, g);
+  detect_edge_features(s, FeatureOptions{}, 0.0f, f, g);
   ASSERT_EQ(f.size(), 3u);
   EXPECT_EQ(f[0].col, 10);  // against the sky (more than max_gap columns without a return)
   EXPECT_EQ(f[1].col, 24);  // the step to the background behind the dropout
@@ -163,7 +160,7 @@ TEST(EdgeFeatures, EdgesAreFoundWhereverTheyFallInARing) {
     const Scan s = ring_of(r);
     std::vector<Feature> f;
     std::vector<float> g;
-    detect_edge_features(s, FeatureOptions{}, f, g);
+    detect_edge_features(s, FeatureOptions{}, 0.0f, f, g);
     ASSERT_EQ(f.size(), 2u) << "object at columns " << start << "-" << end;
     EXPECT_EQ(f[0].col, start);
     EXPECT_EQ(f[0].side, -1);
@@ -186,7 +183,7 @@ TEST(EdgeFeatures, DropoutsAreBridgedTheSameWayAnywhereInARing) {
       const Scan s = ring_of(r);
       std::vector<Feature> f;
       std::vector<float> g;
-      detect_edge_features(s, opt, f, g);
+      detect_edge_features(s, opt, 0.0f, f, g);
       // The object's right end is an edge whether the wall behind the dropout is reached (a
       // range step of 4 m) or not (no return: infinitely far).
       const auto has = [&](int col, int side) {

@@ -4,7 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <random>
 
@@ -203,6 +205,80 @@ TEST(PoseFit, AbsoluteToleranceStopsEarlyAtTheSamePose) {
   std::printf("evaluations per fit: %.1f with xtol_abs, %.1f without\n", evals / 10.0,
               evals_tight / 10.0);
   EXPECT_LT(evals, evals_tight);
+}
+
+// A tag cloud as fill_cluster emits it, mapped to the sensor by (R, c): tag_cloud's rows (5 cm
+// apart in the tag's z) are the rings, the first and last point of each an edge point.
+std::vector<ClusterPoint> with_outline(std::vector<ClusterPoint> pts, const Eigen::Matrix3d& R,
+                                       const Eigen::Vector3d& c) {
+  for (auto& p : pts) p.ring = static_cast<int>(std::lround((p.z + 1.0) / 0.05));
+  std::stable_sort(pts.begin(), pts.end(),
+                   [](const ClusterPoint& a, const ClusterPoint& b) { return a.ring < b.ring; });
+  for (size_t i = 0; i < pts.size(); ++i) {
+    pts[i].edge = i == 0 || i + 1 == pts.size() || pts[i - 1].ring != pts[i].ring ||
+                  pts[i + 1].ring != pts[i].ring;
+    const Eigen::Vector3d q = R * Eigen::Vector3d(pts[i].x, pts[i].y, pts[i].z) + c;
+    pts[i].x = static_cast<float>(q.x());
+    pts[i].y = static_cast<float>(q.y());
+    pts[i].z = static_cast<float>(q.z());
+  }
+  return pts;
+}
+
+TEST(PoseFit, SelectedPointsKeepTheOutlineAndStandForTheInterior) {
+  const auto pts =
+      with_outline(tag_cloud(Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero(), 1.2, 0.0, 1),
+                   Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero());
+  size_t edges = 0;
+  for (const auto& p : pts) edges += p.edge ? 1u : 0u;
+  ASSERT_GT(edges, 20u);
+  ASSERT_GT(pts.size(), 400u);
+  std::vector<ClusterPoint> subset;
+  std::vector<float> weights;
+  select_pose_points(pts, 100, subset, weights);
+  ASSERT_EQ(subset.size(), weights.size());
+  EXPECT_LE(subset.size(), 100u + 1);  // the strided interior may round up by one
+  size_t kept_edges = 0;
+  double total = 0.0;
+  float interior = -1.0f;  // every kept interior point stands for as many
+  for (size_t i = 0; i < subset.size(); ++i) {
+    kept_edges += subset[i].edge ? 1u : 0u;
+    if (!subset[i].edge && interior < 0) interior = weights[i];
+    EXPECT_EQ(weights[i], subset[i].edge ? 1.0f : interior) << i;
+    total += weights[i];
+  }
+  EXPECT_GT(interior, 1.0f);
+  EXPECT_EQ(kept_edges, edges);
+  // Together they weigh as much as all the points.
+  EXPECT_NEAR(total, static_cast<double>(pts.size()), 1e-3);
+  // A cap above the size keeps every point at weight 1.
+  select_pose_points(pts, 100000, subset, weights);
+  EXPECT_EQ(subset.size(), pts.size());
+  for (float w : weights) EXPECT_EQ(w, 1.0f);
+}
+
+TEST(PoseFit, TagPoseFitsTheSubsampleThenPolishesOnEveryPoint) {
+  const Eigen::Matrix3d R = truth_rotation();
+  const Eigen::Vector3d c(8, 2, 0.5);
+  std::mt19937 rng(4);
+  const auto pts = with_outline(
+      tag_cloud(Eigen::Matrix3d::Identity(), Eigen::Vector3d::Zero(), 1.2, 0.005, 11), R, c);
+  const RigidPose init = perturbed_start(R, c, 0.03, 0.02, rng);
+  PoseSolver solver(PoseAlgorithm::kMMA);
+  TagPoseWorkspace ws;
+  PoseOptions opt;
+  opt.max_points = 120;
+  const PoseFitResult fit = fit_tag_pose(solver, pts, init, 1.2, 0.01, opt, ws);
+  EXPECT_LT(ws.subset.size(), pts.size());
+  // The cost reported is the polish's, on every point with weight 1.
+  EXPECT_NEAR(fit.cost, fitting_cost(pts, fit.pose, 1.2, 0.01), 1e-3 * (1 + fit.cost));
+  EXPECT_LE(fit.evaluations, opt.polish_evaluations);
+  EXPECT_LT((fit.pose.R.transpose() * fit.pose.p + c).norm(), 0.02);
+  // Without the polish the cost is the subsample's weighted one.
+  opt.polish_evaluations = 0;
+  const PoseFitResult sub = fit_tag_pose(solver, pts, init, 1.2, 0.01, opt, ws);
+  EXPECT_NEAR(sub.cost, fitting_cost(pts, sub.pose, 1.2, 0.01), 0.5 * (1 + sub.cost));
+  EXPECT_GT(sub.evaluations, 0);
 }
 
 }  // namespace

@@ -1,5 +1,5 @@
-// Stage 3 (paper Sec. IV-C): fill-in of a cluster from the scan, point-count bounds and payload
-// boundary points, eq. (GI).
+// Stage 3 (paper Sec. IV-C): fill-in of a cluster from the scan, point-count bounds, eqs. (3) and
+// (4), and payload boundary points, eq. (5) [GI] with the bound eq. (6) [psi].
 #pragma once
 
 #include <span>
@@ -26,7 +26,7 @@ struct ValidationOptions {
   // Fill-in: points within this distance (metres) outside the features' x-y box are kept.
   // Default 0.02.
   float fill_margin_m = 0.02f;
-  // eq. (GI): l (columns) and the threshold, a fraction of the cluster's mean intensity (default
+  // eq. (5): l (columns) and the threshold, a fraction of the cluster's mean intensity (default
   // 0.5, as published) but at least min_intensity_step (default 8 of 255).
   int gi_ell = 1;
   float boundary_ratio = 0.5f;
@@ -60,10 +60,16 @@ size_t trim_narrow_rings(std::vector<ClusterPoint>& points, float min_width_m);
 double max_tag_points(std::span<const ClusterPoint> points, double t_max,
                       double horizontal_resolution_rad);
 
+// The point-count gates of a cluster after fill-in: at least `min_points` (eq. (3), the family's
+// lower bound) and at most max_points_scale times max_tag_points (eq. (4), for the largest tag
+// t_max at the cluster's distance). Returns kNone, kTooFewPoints or kTooManyPoints.
+Rejection check_point_counts(std::span<const ClusterPoint> points, int min_points, double t_max,
+                             double horizontal_resolution_rad, const ValidationOptions& opt);
+
 // Number of rings holding points (M in the paper's upper bound).
 int rings_in(std::span<const ClusterPoint> points);
 
-// eq. (GI) along each ring: grad I = |I_{i+l} - I_i| - |I_{i-l} - I_i|; a point whose gradient
+// eq. (5) along each ring: grad I = |I_{i+l} - I_i| - |I_{i-l} - I_i|; a point whose gradient
 // exceeds the threshold is a payload boundary point. Returns their number.
 int count_boundary_points(std::span<const ClusterPoint> points, const ValidationOptions& opt);
 

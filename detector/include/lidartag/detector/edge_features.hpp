@@ -1,4 +1,4 @@
-// Stage 1 (paper Sec. IV-A): distance-gradient edge points per ring, eq. (GD).
+// Stage 1 (paper Sec. IV-A): distance-gradient edge points per ring, eq. (1) [GD].
 #pragma once
 
 #include <vector>
@@ -9,10 +9,10 @@
 namespace lidartag::detector {
 
 struct FeatureOptions {
-  // l of eq. (GD): the neighbours compared are l columns away. Default 1 (the paper's). Larger
+  // l of eq. (1): the neighbours compared are l columns away. Default 1 (the paper's). Larger
   // values tolerate noisier rings but blur the edges.
   int ell = 1;
-  // zeta of eq. (GD), metres. Default 0.5. A tag must stand this far in front of its background;
+  // zeta of eq. (1), metres. Default 0.5. A tag must stand this far in front of its background;
   // smaller values find tags closer to walls but give more clutter clusters.
   float zeta_m = 0.5f;
   // "One edge among n+1 consecutive points" (the paper's n). Default 2. Drops runs of edges
@@ -28,10 +28,6 @@ struct FeatureOptions {
   // 1.2 m tag has too few points to decode on a 32-beam sensor.
   float min_range_m = 0.5f;
   float max_range_m = 40.0f;
-  // Longest run (metres, chord between its ends) whose two edges are paired as the two sides of
-  // one object, so that a tag mounted as a square (left and right sides a full tag apart) forms
-  // one cluster. Set by the detector from the largest tag size; 0 disables pairing.
-  float max_pair_chord_m = 0.0f;
 };
 
 // True when the scan's columns cover the full circle, so that the last column neighbours the
@@ -42,8 +38,12 @@ bool rotation_wraps(const Scan& scan);
 // ring by ring from ring 0 upward and by column within a ring. A missing neighbour (no return
 // within max_gap further columns) counts as infinitely far, so a tag against the sky still has
 // edges. Only the near side of a jump is an edge point: the features lie on the foreground object.
+// `max_pair_chord_m` is the longest run (metres, chord between its ends) whose two edges are
+// paired as the two sides of one object (Feature::partner), so that a tag mounted as a square
+// (left and right sides a full tag apart) forms one cluster; the detector passes 1.1 x the largest
+// tag's diagonal; 0 disables pairing.
 // `edge_buffer` is a work buffer (one ring's edge points), kept by the caller between rotations.
-void detect_edge_features(const Scan& scan, const FeatureOptions& opt, std::vector<Feature>& out,
-                          std::vector<float>& edge_buffer);
+void detect_edge_features(const Scan& scan, const FeatureOptions& opt, float max_pair_chord_m,
+                          std::vector<Feature>& out, std::vector<float>& edge_buffer);
 
 }  // namespace lidartag::detector

@@ -1,6 +1,7 @@
-// Stage 5 (paper Sec. V): Procrustes initial guess, eq. (procrustes); the L1-inspired fitting cost,
-// eqs. (L1cost) and (JKHcost), minimised with NLopt using its closed-form gradient, eq. (Pose); the
-// coverage check (convex hull, surveyor's formula).
+// Stage 5 (paper Sec. V): Procrustes initial guess, eq. (10) [procrustes], solved by eqs.
+// (11)-(16); the L1-inspired fitting cost, eqs. (7) [L1cost] and (8) [JKHcost], minimised with
+// NLopt using its closed-form gradient, eq. (9) [Pose]; the coverage check (convex hull, surveyor's
+// formula).
 #pragma once
 
 #include <Eigen/Core>
@@ -25,7 +26,7 @@ std::string_view pose_algorithm_name(PoseAlgorithm a);
 std::optional<PoseAlgorithm> pose_algorithm_from_name(std::string_view name);
 
 struct PoseOptions {
-  // NLopt algorithm for eq. (Pose). Default MMA: in the comparison printed by
+  // NLopt algorithm for eq. (9). Default MMA: in the comparison printed by
   // test/detector/pose_fit_test.cpp (PoseFit.AlgorithmsCompared) it had the lowest mean
   // translation error with the fewest evaluations (about 56, against about 200 for LN_SBPLX).
   PoseAlgorithm algorithm = PoseAlgorithm::kMMA;
@@ -41,7 +42,7 @@ struct PoseOptions {
   double xtol_rel = 1e-6;
   double xtol_abs = 1e-4;
   int max_evaluations = 200;
-  // epsilon of eq. (JKHcost): the depth slack, the plane's smallest principal standard deviation
+  // epsilon of eq. (8): the depth slack, the plane's smallest principal standard deviation
   // but at least this many metres. Default 0.01.
   double min_depth_epsilon_m = 0.01;
   // Fit-error gate: largest mean cost per point after the fit, metres. Default 0.05 (the paper
@@ -70,11 +71,11 @@ struct RigidPose {
 // (0, -t/2, t/2) (bottom-left, bottom-right, top-right, top-left seen from the front).
 std::array<Eigen::Vector3d, 4> template_corners(double t);
 
-// eq. (procrustes): the rotation and translation taking `corners` (sensor frame, in template
+// eq. (10): the rotation and translation taking `corners` (sensor frame, in template
 // order) onto the template, with the corners' mean mapped to the origin.
 RigidPose procrustes_initial_guess(const std::array<Eigen::Vector3d, 4>& corners, double t);
 
-// eq. (JKHcost) of the points pulled back by `pose`, with eq. (L1cost) per coordinate.
+// eq. (8) of the points pulled back by `pose`, with eq. (7) per coordinate.
 double fitting_cost(std::span<const ClusterPoint> points, const RigidPose& pose, double t,
                     double epsilon);
 
@@ -86,7 +87,7 @@ struct PoseFitResult {
   bool solver_ok = false;  // NLopt returned a success code
 };
 
-// Minimises eq. (JKHcost) over SE(3) near `initial` with NLopt. One instance per thread; the
+// Minimises eq. (8) over SE(3) near `initial` with NLopt. One instance per thread; the
 // NLopt object and buffers are kept between calls.
 class PoseSolver {
  public:
@@ -109,6 +110,29 @@ class PoseSolver {
   struct Impl;
   Impl* impl_;
 };
+
+// The points of a cluster's pose fit: every ring's two end points (`edge`: the outline, which
+// sets the in-plane pose) and evenly spaced interior points (the depth term), at most max_points
+// in all, into `subset`; `weights` gets 1 for an edge point and, for an interior point, the number
+// of interior points each kept one stands for, so that the depth term keeps its weight against
+// the outline (else the fit tilts the plane to pull edge points in).
+void select_pose_points(std::span<const ClusterPoint> points, int max_points,
+                        std::vector<ClusterPoint>& subset, std::vector<float>& weights);
+
+// Work buffers of fit_tag_pose, kept by the caller between clusters.
+struct TagPoseWorkspace {
+  std::vector<ClusterPoint> subset;  // select_pose_points
+  std::vector<float> weights;
+};
+
+// eq. (9) for one cluster from the initial guess `initial` (eq. (10)): minimises eq. (8) with a
+// template of size t_fit and depth slack epsilon on the points of select_pose_points (ws.subset),
+// then, when that was a subsample, polishes with opt.polish_evaluations evaluations on every
+// point within 2 cm and 0.02 rad (the subsample's depth term is noisier). The cost is that of
+// the last fit (on every point when polished).
+PoseFitResult fit_tag_pose(PoseSolver& solver, std::span<const ClusterPoint> points,
+                           const RigidPose& initial, double t_fit, double epsilon,
+                           const PoseOptions& opt, TagPoseWorkspace& ws);
 
 // Fraction of t^2 covered by the convex hull of the pulled-back points in the tag's y-z plane
 // (surveyor's formula).

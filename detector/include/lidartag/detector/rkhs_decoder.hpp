@@ -1,6 +1,7 @@
-// Stage 6 (paper Sec. VI): decoding by inner products of RKHS functions, eqs. (InnerProduct),
-// (kernel), (kernel_intensity) and the 3-D lifting remark, against a function dictionary of every
-// code x 4 rotations built from the family's code words.
+// Stage 6 (paper Sec. VI): decoding by inner products of RKHS functions, eq. (18) [InnerProduct]
+// with the kernels eqs. (19) [kernel] and (21) [kernel_intensity] and the 3-D lifting, eq. (22),
+// against a function dictionary of every code x 4 rotations built from the family's code words.
+// (Equations are numbered as in the paper's PDF; docs/detector.md lists them.)
 #pragma once
 
 #include <array>
@@ -17,14 +18,14 @@ struct DecodeOptions {
   // Template points per cell along each axis (the dictionary functions' representers).
   // Default 2.
   int samples_per_cell = 2;
-  // Length scale of the spatial kernel eq. (kernel), in cells. Default 0.25: the paper's half a
+  // Length scale of the spatial kernel eq. (19), in cells. Default 0.25: the paper's half a
   // bit lets the eight neighbours of an isolated cell outweigh it (flipped-cell tests mis-decode).
   double length_scale_cells = 0.25;
-  // l_I of eq. (kernel_intensity) on intensities normalised to black 0, white 1. Default 0.35 (the
+  // l_I of eq. (21) on intensities normalised to black 0, white 1. Default 0.35 (the
   // paper's 10 of 255 assumes one fixed contrast).
   double intensity_length_scale = 0.35;
-  // 3-D lifting: a white point moves this many cells along the normal. Default 0.5 (the paper's
-  // t / (2 (d+4)) for the brightest point).
+  // 3-D lifting, eq. (22): a white point moves this many cells along the normal. Default 0.5 (the
+  // paper's t / (2 (d+4)) for the brightest point).
   double lift_cells = 0.5;
   // Fewest intensity units between the black and the white level. Default 8.
   double min_contrast = 8.0;
@@ -113,6 +114,11 @@ struct DecodeWorkspace {
   std::vector<float> varying;   // the evidence on the dictionary's varying cells
   std::vector<float> tables;    // per group of 8 varying cells: the sum for each sign pattern
   std::vector<float> scores;    // per function, without the cells common to all functions
+  // Of the last decode_prepared that scored: what the cells common to every function add, and
+  // the sum of the evidence's magnitudes (a function's normalised score is (scores + common) /
+  // total).
+  double common = 0.0;
+  double total = 0.0;
   // The cell evidence depends on the points and the family's width only: kept per width until
   // the next prepare_decode, so families of the same width share it.
   struct Evidence {
@@ -147,6 +153,10 @@ void prepare_decode(std::span<const ClusterPoint> points, const IntensityLevels&
                     DecodeWorkspace& ws);
 DecodeResult decode_prepared(const RkhsDictionary& dict, const DecodeOptions& opt,
                              DecodeWorkspace& ws);
+
+// After a decode_prepared that scored (DecodeResult::function >= 0): the normalised score of every
+// function of its dictionary into `out` (one per function, <= 1), from ws.scores.
+void normalised_scores(const DecodeWorkspace& ws, std::vector<float>& out);
 
 // `points` are pulled back into the estimated tag frame (x normal, y right, z up, metres) with
 // their intensities; t is the tag size.

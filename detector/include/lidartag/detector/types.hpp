@@ -13,11 +13,11 @@ enum class Rejection : uint8_t {
   kTooLarge,           // the x-y box is larger than the largest tag could be
   kTooFewPoints,       // fill-in: fewer points than the family's lower bound (eta)
   kTooManyPoints,      // fill-in: more points than a tag can return at that distance
-  kFewBoundaryPoints,  // eq. (GI): fewer payload boundary points than psi
+  kFewBoundaryPoints,  // eq. (5): fewer payload boundary points than psi
   kPlaneOutliers,      // plane fit: outlier ratio above kappa
   kCorners,            // no four edge lines (too few edge points on the sides)
   kSize,               // side length far from every configured tag size
-  kFitCost,            // eq. (JKHcost) gate: mean fitting cost too high
+  kFitCost,            // eq. (8) gate: mean fitting cost too high
   kCoverage,           // convex hull of the pulled-back points below the coverage ratio
   kLowContrast,        // no two intensity levels to decode
   kLowScore,           // RKHS decoding: best score below the threshold
@@ -31,7 +31,7 @@ inline constexpr int kRejectionCount = static_cast<int>(Rejection::kCount);
 std::string_view rejection_name(Rejection r);
 std::string_view rejection_stage(Rejection r);
 
-// An edge feature of eq. (GD): a point of the scan where the distance jumps.
+// An edge feature of eq. (1): a point of the scan where the distance jumps.
 struct Feature {
   int ring = 0;
   int col = 0;

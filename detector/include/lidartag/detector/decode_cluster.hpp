@@ -1,0 +1,65 @@
+// Stage 6 for one cluster (paper Sec. VI): its points pulled back into the fitted tag frame,
+// decoded against every configured dictionary (eqs. (18), (19), (21), (22)) at one or several
+// shifts along an axis the outline could not place, the hypotheses arbitrated, and the built-in
+// families that are not configured tried, so that a tag of another family is not read as one of
+// ours.
+#pragma once
+
+#include <Eigen/Core>
+#include <span>
+#include <vector>
+
+#include "lidartag/detector/pose_fit.hpp"
+#include "lidartag/detector/rkhs_decoder.hpp"
+#include "lidartag/detector/types.hpp"
+
+namespace lidartag::detector {
+
+// One decoded (shift, family) pair.
+struct DecodeHypothesis {
+  DecodeResult result;
+  int family = 0;      // index of the configured family
+  double shift = 0.0;  // metres along the unseen axis
+};
+
+// The best hypothesis of one configured family and its evidence (FamilyEvidence in ScanResult).
+struct FamilyDecode {
+  bool scored = false;  // some shift gave a score (else: no contrast)
+  DecodeResult result;  // at its best shift (its margin only over that shift's functions)
+  double shift = 0.0;
+  std::vector<float> scores;  // normalised score of every function at that shift
+  std::vector<float> cells;   // W x W cell evidence at that shift (decode_evidence_cells)
+};
+
+// Scratch memory of decode_cluster, kept by the caller between clusters.
+struct ClusterDecodeWorkspace {
+  std::vector<ClusterPoint> pulled;  // the points in the tag frame, at the current shift
+  std::vector<DecodeHypothesis> hypotheses;
+  std::vector<double> shifts;  // tried along the unseen axis, in order
+  std::vector<FamilyDecode> families;
+  DecodeWorkspace decode;
+};
+
+struct ClusterDecode {
+  // The best hypothesis over every family and shift, its margin taken against the best other
+  // function of its family at any shift, and the decision (rejection kNone, kLowContrast,
+  // kLowScore, kAmbiguous or kOtherFamily).
+  DecodeResult best;
+  int family = 0;      // index of its configured family
+  double shift = 0.0;  // metres along the unseen axis (0 when every side was seen)
+  // The best score of a built-in family that is not configured, over every shift; -1 when not
+  // decoded (no decoys, or the best failed min_score).
+  double other_family_score = -1.0;
+};
+
+// `points`: the cluster (sensor frame); `pose` pulls them back into the fitted tag frame; t the
+// tag size; `unseen_axis` (sensor frame, unit, or zero) the axis along which the outline could not
+// place the tag (TagOutline::unseen_axis). At most opt.max_points points (evenly spaced) are
+// decoded. The evidence of each configured family's best hypothesis is left in ws.families.
+ClusterDecode decode_cluster(std::span<const ClusterPoint> points, const RigidPose& pose,
+                             const Eigen::Vector3d& unseen_axis, double t,
+                             std::span<const RkhsDictionary> dictionaries,
+                             std::span<const RkhsDictionary> decoys, const DecodeOptions& opt,
+                             ClusterDecodeWorkspace& ws);
+
+}  // namespace lidartag::detector
