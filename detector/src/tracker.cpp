@@ -1,5 +1,5 @@
-// The tracker: association by pose, evidence summed per function in each track's own frame,
-// confirmation by the summed margin, and the mean pose and spread over a window.
+// The tracker: association by pose, cell votes summed in each track's own frame, confirmation by
+// the margin of the leading function over the votes, and the mean pose and spread over a window.
 #include "lidartag/detector/tracker.hpp"
 
 #include <algorithm>
