@@ -103,8 +103,6 @@ ClusterDecode decode_cluster(std::span<const ClusterPoint> points, const RigidPo
         fd.shift = shift;
         normalised_scores(ws.decode, fd.scores);
         fd.cells.assign(ws.decode.evidence.begin(), ws.decode.evidence.end());
-        cell_votes(ws.decode, dictionaries[f].width(), opt.vote_inset_cells, fd.votes,
-                   fd.vote_counts);
       }
     }
   };

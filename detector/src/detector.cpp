@@ -254,7 +254,6 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
   const int points = static_cast<int>(b.points.size());
   diag.candidate =
       add_candidate(dec, frame.center, frame.undecoded, t, points, fit.cost, diag.coverage, out);
-  out.candidates[static_cast<size_t>(diag.candidate)].searched = !outline.unseen_axis.isZero();
   if (dec.best.rejection != Rejection::kNone) return finish(Stage::kDecode, dec.best.rejection);
 
   // The detection: the pose with the decoded quarter turns (Sec. V remark).
@@ -307,9 +306,6 @@ int Detector::add_candidate(const ClusterDecode& dec, const Eigen::Vector3d& cen
       k.first_cell = static_cast<int>(out.cell_evidence.size());
       k.grid_width = dicts_[f].width();
       out.cell_evidence.insert(out.cell_evidence.end(), fd.cells.begin(), fd.cells.end());
-      out.cell_votes.insert(out.cell_votes.end(), fd.votes.begin(), fd.votes.end());
-      out.cell_vote_counts.insert(out.cell_vote_counts.end(), fd.vote_counts.begin(),
-                                  fd.vote_counts.end());
     }
   }
   return static_cast<int>(out.candidates.size()) - 1;

@@ -312,25 +312,4 @@ void normalised_scores(const DecodeWorkspace& ws, std::vector<float>& out) {
     out[f] = static_cast<float>((ws.scores[f] + ws.common) / ws.total);
 }
 
-void cell_votes(const DecodeWorkspace& ws, int width, double inset_cells, std::vector<float>& votes,
-                std::vector<float>& counts) {
-  const auto cells = static_cast<size_t>(width) * static_cast<size_t>(width);
-  votes.assign(cells, 0.0f);
-  counts.assign(cells, 0.0f);
-  if (!ws.prepared_ok || width <= 0) return;
-  const double w = width;
-  for (const DecodePoint& p : ws.prepared) {
-    // Cell coordinates: column from the left (-y), row from the top (+z).
-    const double fc = (p.yn + 0.5) * w, fr = (0.5 - p.zn) * w;
-    if (!(fc >= 0.0 && fc < w && fr >= 0.0 && fr < w)) continue;
-    const int c = static_cast<int>(fc), r = static_cast<int>(fr);
-    const double dc = fc - c, dr = fr - r;
-    if (dc < inset_cells || dc > 1.0 - inset_cells || dr < inset_cells || dr > 1.0 - inset_cells)
-      continue;
-    const auto i = static_cast<size_t>(r) * static_cast<size_t>(width) + static_cast<size_t>(c);
-    votes[i] += static_cast<float>(std::clamp(2.0 * p.label - 1.0, -1.0, 1.0));
-    counts[i] += 1.0f;
-  }
-}
-
 }  // namespace lidartag::detector

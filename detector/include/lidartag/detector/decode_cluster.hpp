@@ -29,7 +29,6 @@ struct FamilyDecode {
   double shift = 0.0;
   std::vector<float> scores;  // normalised score of every function at that shift
   std::vector<float> cells;   // W x W cell evidence at that shift (decode_evidence_cells)
-  std::vector<float> votes, vote_counts;  // W x W cell votes at that shift (cell_votes)
 };
 
 // Scratch memory of decode_cluster, kept by the caller between clusters.

@@ -120,12 +120,6 @@ struct Candidate {
   // it, which the best code's image turned quarter_turns times clockwise matches.
   int first_cell = 0;
   int grid_width = 0;
-  // The same grid's votes, what the tracker sums over rotations, are at first_cell in
-  // ScanResult::cell_votes and cell_vote_counts (detector::cell_votes).
-  // True when the position along an axis the outline could not place (a square-mounted tag whose
-  // top and bottom no ring crossed) was chosen by decoding: its votes then agree with its code by
-  // construction.
-  bool searched = false;
   // With keep_cluster_points: its points in ScanResult::cluster_points (-1 / 0 otherwise).
   int first_point = -1;
   int point_count = 0;
@@ -148,7 +142,6 @@ struct ScanResult {
   std::vector<FamilyEvidence> family_evidence;
   std::vector<float> evidence_scores;
   std::vector<float> cell_evidence;
-  std::vector<float> cell_votes, cell_vote_counts;  // laid out as cell_evidence
   // When DetectorOptions::keep_tag_points: the points each detection's pose was fitted to (sensor
   // frame), one detection after the other; one vector for all, so that it is reused.
   std::vector<ClusterPoint> tag_points;
@@ -166,9 +159,6 @@ struct ScanResult {
   std::span<const float> scores_of(const FamilyEvidence& e) const;
   // A candidate's decoded grid (grid_width^2 cells).
   std::span<const float> cells_of(const Candidate& c) const;
-  // Its votes and their counts, laid out as its decoded grid.
-  std::span<const float> votes_of(const Candidate& c) const;
-  std::span<const float> vote_counts_of(const Candidate& c) const;
   // Clusters rejected at a stage (sum over that stage's reasons).
   uint32_t rejected_at(Stage s) const;
   // Empties every list and counter (keeps the capacity).

@@ -49,11 +49,6 @@ struct DecodeOptions {
   // otherwise reads as some code of the configured one (a tag16h5 as tag25h9 in 29 of 36 rotations
   // at 2-12 m, scores up to 0.94), since the margin compares codes of one family only.
   bool reject_other_families = true;
-  // Cell votes for evidence over rotations (ScanResult::cell_votes, the tracker): a decoded point
-  // votes for the cell it lies in when it is at least this many cells inside it (a point nearer a
-  // cell border may belong to the neighbour under a pose error of a centimetre). Default 0.1: 15 mm
-  // for a 1.2 m tag16h5; single-rotation poses scatter by 1-3 mm.
-  double vote_inset_cells = 0.1;
 };
 
 // The function dictionary of one family: for code k and quarter turn q (clockwise, seen from the
@@ -162,14 +157,6 @@ DecodeResult decode_prepared(const RkhsDictionary& dict, const DecodeOptions& op
 // After a decode_prepared that scored (DecodeResult::function >= 0): the normalised score of every
 // function of its dictionary into `out` (one per function, <= 1), from ws.scores.
 void normalised_scores(const DecodeWorkspace& ws, std::vector<float>& out);
-
-// After prepare_decode: per cell of a width x width marker grid (row-major, row 0 at the top, as
-// the dictionary's signs), the votes of the prepared points that lie at least `inset_cells`
-// inside the cell: votes = sum of clamp(2 label - 1, -1, 1) (> 0 reads white), counts = how many.
-// Unlike the kernel evidence, a cell no point fell well inside has no vote at all, whatever its
-// neighbours show.
-void cell_votes(const DecodeWorkspace& ws, int width, double inset_cells, std::vector<float>& votes,
-                std::vector<float>& counts);
 
 // `points` are pulled back into the estimated tag frame (x normal, y right, z up, metres) with
 // their intensities; t is the tag size.
