@@ -286,6 +286,7 @@ int Detector::add_candidate(const ClusterDecode& dec, const Eigen::Vector3d& cen
   k.score = dec.best.score;
   k.margin = dec.best.margin_bits;
   k.other_family_score = dec.other_family_score;
+  k.shift_searched = dec.shift_searched;
   k.points = points;
   k.fit_cost = fit_cost;
   k.coverage = coverage;
@@ -305,7 +306,11 @@ int Detector::add_candidate(const ClusterDecode& dec, const Eigen::Vector3d& cen
     if (scored && static_cast<int>(f) == dec.family) {
       k.first_cell = static_cast<int>(out.cell_evidence.size());
       k.grid_width = dicts_[f].width();
+      const auto& ws = buf_->decode;
       out.cell_evidence.insert(out.cell_evidence.end(), fd.cells.begin(), fd.cells.end());
+      out.cell_votes.insert(out.cell_votes.end(), ws.votes.begin(), ws.votes.end());
+      out.cell_vote_counts.insert(out.cell_vote_counts.end(), ws.vote_counts.begin(),
+                                  ws.vote_counts.end());
     }
   }
   return static_cast<int>(out.candidates.size()) - 1;

@@ -235,6 +235,7 @@ void visit_options(V& v, DetectorOptions& o) {
     s.field("parallel_min_functions", o.decode.parallel_min_functions, at_least(1), "functions");
     s.field("max_points", o.decode.max_points, at_least(16), "points");
     s.field("reject_other_families", o.decode.reject_other_families, Any{}, "");
+    s.field("vote_inset_cells", o.decode.vote_inset_cells, half_open(0.0, 0.5), "cells");
   });
 }
 

@@ -49,6 +49,11 @@ struct DecodeOptions {
   // otherwise reads as some code of the configured one (a tag16h5 as tag25h9 in 29 of 36 rotations
   // at 2-12 m, scores up to 0.94), since the margin compares codes of one family only.
   bool reject_other_families = true;
+  // Cell votes for evidence over rotations (Candidate, ScanResult::cell_votes): a decoded point
+  // votes for the colour of its cell only when it lies at least this many cells inside the cell's
+  // borders (a beam's footprint near a border sees both colours). Default 0.1. Does not change
+  // a single rotation's decision.
+  double vote_inset_cells = 0.1;
 };
 
 // The function dictionary of one family: for code k and quarter turn q (clockwise, seen from the
