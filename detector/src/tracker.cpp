@@ -310,7 +310,7 @@ void Tracker::add(Track& t, const Candidate& c, const ScanResult& result, int64_
   // would agree with the decoder by construction.
   const int W = fam.dict.width();
   const auto votes = result.votes_of(c), counts = result.vote_counts_of(c);
-  for (int r = 0; r < W && !c.searched; ++r)
+  for (int r = 0; r < W && !c.shift_searched; ++r)
     for (int col = 0; col < W; ++col) {
       int rr = r, cc = col;
       for (int k = 0; k < t.delta; ++k) {

@@ -62,7 +62,7 @@ void add(ScanResult& r, const RkhsDictionary& dict, const Cand& c) {
   d.other_family_score = c.other_family_score;
   d.points = 500;
   d.fit_cost = 1.0;
-  d.searched = c.shift_searched;
+  d.shift_searched = c.shift_searched;
   d.first_evidence = static_cast<int>(r.family_evidence.size());
   d.evidence_count = 1;
   FamilyEvidence& e = r.family_evidence.emplace_back();
@@ -385,48 +385,6 @@ TEST_F(TrackerTest, SteadyStateDoesNotAllocate) {
   }
   EXPECT_EQ(testing::heap_allocations() - before, 0);
   EXPECT_EQ(out.tags.size(), 2u);
-}
-
-// The detector's evidence for the tracker: points well inside a cell vote for it by their
-// intensity; points near a border, outside the marker or without levels do not vote.
-TEST(CellVotes, PointsWellInsideACellVoteByTheirIntensity) {
-  const double t = 0.8;  // 8 cells of 0.1 m
-  std::vector<ClusterPoint> points;
-  auto point = [&](double y, double z, float intensity) {
-    ClusterPoint p;
-    p.y = static_cast<float>(y);
-    p.z = static_cast<float>(z);
-    p.intensity = intensity;
-    points.push_back(p);
-  };
-  // Cell (row 0, column 0) is at y in [-0.4, -0.3], z in [0.3, 0.4]: two white points at its
-  // centre, one black. Cell (row 7, column 7): one black point inside, one 5 mm from its border.
-  point(-0.35, 0.35, 200.0f);
-  point(-0.34, 0.36, 200.0f);
-  point(-0.36, 0.34, 10.0f);
-  point(0.35, -0.35, 10.0f);
-  point(0.305, -0.35, 200.0f);  // 0.05 cells from the left border of its cell
-  point(0.5, 0.0, 200.0f);      // outside the marker
-  DecodeWorkspace ws;
-  prepare_decode(points, intensity_levels(points, ws), t, ws);
-  std::vector<float> votes, counts;
-  cell_votes(ws, 8, 0.1, votes, counts);
-  ASSERT_EQ(votes.size(), 64u);
-  EXPECT_FLOAT_EQ(counts[0], 3.0f);
-  EXPECT_FLOAT_EQ(votes[0], 1.0f);  // +1 +1 -1
-  EXPECT_FLOAT_EQ(counts[63], 1.0f);
-  EXPECT_FLOAT_EQ(votes[63], -1.0f);
-  float total = 0.0f;
-  for (float c : counts) total += c;
-  EXPECT_FLOAT_EQ(total, 4.0f);
-  // With no inset the point near the border votes too.
-  cell_votes(ws, 8, 0.0, votes, counts);
-  EXPECT_FLOAT_EQ(counts[63], 2.0f);
-  // No levels (a single intensity): no votes.
-  for (auto& p : points) p.intensity = 50.0f;
-  prepare_decode(points, IntensityLevels{}, t, ws);
-  cell_votes(ws, 8, 0.1, votes, counts);
-  for (float c : counts) EXPECT_EQ(c, 0.0f);
 }
 
 TEST(TrackerOptionsTest, EveryRuleOfTheTableIsChecked) {
