@@ -58,6 +58,9 @@ struct PoseOptions {
   // Then this many evaluations on every point, from the subsample's optimum within 2 cm and
   // 0.02 rad (the subsample's depth term is noisier). Default 20; 0 skips it.
   int polish_evaluations = 20;
+  // Place the tag in its plane on the black square's outline (square_fit.hpp) rather than on the
+  // board's. Default true.
+  bool border_refine = true;
 };
 
 // H_T^L: x_tag = R x_sensor + p (the paper's pull-back to the template at the origin).
