@@ -519,6 +519,10 @@ int run(const Args& args) {
   for (const auto& [name, counts] : fp.captures)
     std::printf("false positives %s: %zu detections in %zu rotations\n", name.c_str(),
                 counts.second, counts.first);
+  // Said on every run, so that a smoke test without the real captures does not pass for one that
+  // read them.
+  if (fp.captures.empty())
+    std::printf("false positives real captures: skipped, no .pcap in %s\n", args.captures.c_str());
   std::printf("false positives simulated clutter: %zu detections in %zu rotations (%zu scenes)\n",
               fp.sim_found, fp.sim_rotations, fp.sim_scenes);
   const double seconds =

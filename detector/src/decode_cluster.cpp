@@ -168,10 +168,12 @@ ClusterDecode decode_cluster(std::span<const ClusterPoint> points, const RigidPo
   // margin only compares codes of one family): the built-in families left out are decoded at the
   // same shifts, and one that fits strictly better makes it another family's tag. Identical
   // patterns tie and stay with the configured family. Clusters rejected at the decode stage are
-  // checked too (below min_score only at the best shift, which is cheap), so that evidence added
-  // up over rotations can be checked the same way.
+  // checked too (below min_score only at the best shift, and not below other_family_min_score,
+  // where the cluster is no tag of any family), so that evidence added up over rotations can be
+  // checked the same way.
   const bool low = out.best.rejection == Rejection::kLowScore;
-  for (size_t si = 0; !decoys.empty() && si < ws.shifts.size(); ++si) {
+  const bool check = !low || out.best.score >= opt.other_family_min_score;
+  for (size_t si = 0; check && !decoys.empty() && si < ws.shifts.size(); ++si) {
     const double shift = ws.shifts[si];
     if (low && shift != out.shift) continue;
     if (shifted.applied() != shift) shifted.move_to(shift);

@@ -237,6 +237,13 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
   // would all cost, and the fit would slide toward the side with more rings). Gates: the mean
   // cost, and the coverage of the pull-back's convex hull (surveyor's formula).
   const double t = outline.size_m;
+  // The coverage gate's upper bound first: a cluster that cannot pass it is not fitted (most of
+  // the boards and walls of a configured size that reach this stage).
+  const double bound = coverage_bound(b.corners.hull, t);
+  if (bound < opt_.pose.min_coverage) {
+    diag.coverage = bound;
+    return finish(Stage::kPose, Rejection::kCoverage);
+  }
   PoseFitResult fit = fit_tag_pose(
       b.solver, b.points, procrustes_initial_guess(outline.corners, t), std::max(t, outline.side_m),
       std::max(opt_.pose.min_depth_epsilon_m, plane.depth_sigma), opt_.pose, b.pose);

@@ -56,10 +56,19 @@ void border_crossings(std::span<const ClusterPoint> points, const RigidPose& pos
 
 namespace {
 
-// Signed distance of q to the boundary of `s` (> 0 outside) and its gradient in (angle, cx, cy,
-// half).
-double square_residual(const Square2& s, const Eigen::Vector2d& q, Eigen::Vector4d& j) {
-  const double ca = std::cos(s.angle), sa = std::sin(s.angle);
+// A square with its angle's cosine and sine, computed once per pass over the points rather than
+// once per point (they were most of the fits' cost).
+struct Placed {
+  explicit Placed(const Square2& sq) : s(sq), ca(std::cos(sq.angle)), sa(std::sin(sq.angle)) {}
+  const Square2& s;
+  double ca, sa;
+};
+
+// Signed distance of q to the boundary of the square (> 0 outside) and its gradient in (angle,
+// cx, cy, half).
+double square_residual(const Placed& sq, const Eigen::Vector2d& q, Eigen::Vector4d& j) {
+  const Square2& s = sq.s;
+  const double ca = sq.ca, sa = sq.sa;
   const Eigen::Vector2d d = q - s.center;
   // In the square's frame: its sides along the axes.
   const double u = ca * d.x() + sa * d.y(), v = -sa * d.x() + ca * d.y();
@@ -77,9 +86,9 @@ double square_residual(const Square2& s, const Eigen::Vector2d& q, Eigen::Vector
 
 // Which side of `s` q lies nearest to: 0 (-u), 1 (+u), 2 (-v), 3 (+v); -1 within `corner` of a
 // diagonal.
-int side_of(const Square2& s, const Eigen::Vector2d& q, double corner) {
-  const double ca = std::cos(s.angle), sa = std::sin(s.angle);
-  const Eigen::Vector2d d = q - s.center;
+int side_of(const Placed& sq, const Eigen::Vector2d& q, double corner) {
+  const double ca = sq.ca, sa = sq.sa;
+  const Eigen::Vector2d d = q - sq.s.center;
   const double u = ca * d.x() + sa * d.y(), v = -sa * d.x() + ca * d.y();
   if (std::abs(std::abs(u) - std::abs(v)) < corner) return -1;
   if (std::abs(u) >= std::abs(v)) return u < 0 ? 0 : 1;
@@ -95,9 +104,10 @@ SquareFit fit_square(std::span<const Eigen::Vector2d> points, const Square2& sta
   // Points near the start square only; which side each lies on decides what can be placed.
   std::array<int, 4> per_side{};
   Eigen::Vector4d j;
+  const Placed placed_start(start);
   for (const auto& q : points) {
-    const int side = side_of(start, q, opt.corner_m);
-    if (side < 0 || std::abs(square_residual(start, q, j)) > opt.gate_m) continue;
+    const int side = side_of(placed_start, q, opt.corner_m);
+    if (side < 0 || std::abs(square_residual(placed_start, q, j)) > opt.gate_m) continue;
     ++per_side[static_cast<size_t>(side)];
     ++fit.points;
   }
@@ -120,9 +130,10 @@ SquareFit fit_square(std::span<const Eigen::Vector2d> points, const Square2& sta
   for (int it = 0; it < opt.iterations; ++it) {
     Eigen::Matrix4d jtj = Eigen::Matrix4d::Zero();
     Eigen::Vector4d jtr = Eigen::Vector4d::Zero();
+    const Placed placed(s);
     for (const auto& q : points) {
-      const double r = square_residual(s, q, j);
-      if (std::abs(r) > opt.gate_m || side_of(s, q, opt.corner_m) < 0) continue;
+      const double r = square_residual(placed, q, j);
+      if (std::abs(r) > opt.gate_m || side_of(placed, q, opt.corner_m) < 0) continue;
       const double w = std::abs(r) <= opt.huber_m ? 1.0 : opt.huber_m / std::abs(r);
       jtj += w * j * j.transpose();
       jtr += w * r * j;
@@ -147,9 +158,10 @@ SquareFit fit_square(std::span<const Eigen::Vector2d> points, const Square2& sta
   double sum = 0.0;
   int n = 0;
   fit.per_side = {};
+  const Placed placed(s);
   for (const auto& q : points) {
-    const double r = square_residual(s, q, j);
-    const int side = side_of(s, q, opt.corner_m);
+    const double r = square_residual(placed, q, j);
+    const int side = side_of(placed, q, opt.corner_m);
     if (std::abs(r) > opt.gate_m || side < 0) continue;
     sum += r * r;
     ++n;

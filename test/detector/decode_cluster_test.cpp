@@ -5,6 +5,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <cmath>
 #include <vector>
 
 namespace lidartag::detector {
@@ -195,6 +196,13 @@ TEST(DecodeCluster, ATagOfAFamilyNotConfiguredIsRejected) {
                                            configured, decoys, strict, ws);
   EXPECT_EQ(low.best.rejection, Rejection::kLowScore);
   EXPECT_GT(low.other_family_score, low.best.score);
+  // ... but not below other_family_min_score: no tag of any family, the check is skipped.
+  strict.other_family_min_score = std::nextafter(low.best.score, 2.0);
+  const ClusterDecode hopeless = decode_cluster(tag.points, tag.pull_back, Eigen::Vector3d::Zero(),
+                                                1.2, configured, decoys, strict, ws);
+  EXPECT_EQ(hopeless.best.rejection, Rejection::kLowScore);
+  EXPECT_EQ(hopeless.best.function, low.best.function);
+  EXPECT_EQ(hopeless.other_family_score, -1.0);
 }
 
 TEST(DecodeCluster, OneIntensityGivesNothingToDecode) {

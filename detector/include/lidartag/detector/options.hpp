@@ -238,6 +238,7 @@ void visit_options(V& v, DetectorOptions& o) {
     s.field("parallel_min_functions", o.decode.parallel_min_functions, at_least(1), "functions");
     s.field("max_points", o.decode.max_points, at_least(16), "points");
     s.field("reject_other_families", o.decode.reject_other_families, Any{}, "");
+    s.field("other_family_min_score", o.decode.other_family_min_score, closed(0.0, 1.0), "");
     s.field("vote_inset_cells", o.decode.vote_inset_cells, half_open(0.0, 0.5), "cells");
   });
 }

@@ -142,4 +142,15 @@ PoseFitResult fit_tag_pose(PoseSolver& solver, std::span<const ClusterPoint> poi
 double coverage_ratio(std::span<const ClusterPoint> points, const RigidPose& pose, double t,
                       std::vector<Eigen::Vector2d>& buffer, std::vector<Eigen::Vector2d>& hull);
 
+// An upper bound of coverage_ratio before the pose fit, from the hull of the ring ends in the
+// cluster's own plane (CornerWorkspace::hull): its area over t^2, divided by kCoverageBoundSlack.
+// A rigid pull-back projects the points onto the tag's y-z plane, which cannot enlarge the hull
+// of a planar set, and the fit uses a subset of the cluster's points. The slack covers what is not
+// quite planar: a ring curves a little between its ends (a cone cut by the plane) and the plane
+// fit's normal may be tilted against the pose fit's by a degree or two. A cluster whose bound is
+// below pose.min_coverage is rejected without the fit (boards of a configured size but not square,
+// half-seen walls).
+inline constexpr double kCoverageBoundSlack = 0.98;
+double coverage_bound(const std::vector<Eigen::Vector2d>& plane_hull, double t);
+
 }  // namespace lidartag::detector

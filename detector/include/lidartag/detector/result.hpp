@@ -61,7 +61,7 @@ struct ClusterDiagnostic {
   double outlier_ratio = -1;  // plane fit
   double side_m = -1;         // corners: measured side length
   double mean_cost_m = -1;    // pose: eq. (8) per point after the fit
-  double coverage = -1;       // pose: convex hull / t^2
+  double coverage = -1;       // pose: convex hull / t^2 (its upper bound when that rejected)
   double score = -1;          // decode: best normalised score
   double margin = -1;         // decode: best minus second best, payload cells
   int candidate = -1;         // index into ScanResult::candidates when it reached decoding
@@ -105,8 +105,8 @@ struct Candidate {
   double score = -1.0;   // best normalised score of the configured families
   double margin = -1.0;  // its margin, payload cells (over every shift, as the decision uses it)
   // Best score of a built-in family that is not configured (decode.reject_other_families), over
-  // every shift (below min_score: at the best shift only); -1 when not decoded (check off, or
-  // nothing could be scored).
+  // every shift (below min_score: at the best shift only); -1 when not decoded (check off, score
+  // below decode.other_family_min_score, or nothing could be scored).
   double other_family_score = -1.0;
   // The outline placed the tag along one axis only (a square mount): decoding chose the shift
   // along the other, so votes and scores agree with the decoder by construction there.

@@ -49,6 +49,12 @@ struct DecodeOptions {
   // otherwise reads as some code of the configured one (a tag16h5 as tag25h9 in 29 of 36 rotations
   // at 2-12 m, scores up to 0.94), since the margin compares codes of one family only.
   bool reject_other_families = true;
+  // A cluster below min_score is decoded against those families too (at its best shift only), for
+  // a tracker's evidence over rotations, but only from this score on: below it the cluster is no
+  // tag of any family (a checkerboard or a sign scores 0.01-0.6) and the check, most of its decode
+  // cost (tag36h10's 9,280 functions), is skipped (Candidate::other_family_score stays -1).
+  // Default 0.5.
+  double other_family_min_score = 0.5;
   // A decoded point counts as seeing its cell only when it lies at least this many cells inside
   // the cell's borders (a beam's footprint near a border sees both colours): for the cell votes
   // (Candidate, ScanResult::cell_votes, evidence over rotations) and for seen_cells_lead (a
