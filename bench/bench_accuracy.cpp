@@ -2,17 +2,24 @@
 // counts of its Table IV, for the detector with its default thresholds.
 //
 //   bench_accuracy [--rotations N] [--clutter N] [--quick] [--out DIR] [--captures DIR]
+//                  [--cell MODEL,DISTANCE,ANGLE[,SIZE,ABOVE[,ID]] ...] [--verbose]
+//                  [--board-outline]
 //
 // Accuracy: a 1.2 m tag16h5 tag on an easel stand, centre at the sensor's height (1 m), diamond
-// mount, face-on and turned 45 degrees about the vertical, at 2-16 m in 2 m steps and 18, 20 m;
-// N rotations per cell (default 50), each with its own noise seed; VLP-32C, VLP-16 and VLS-128
-// at 600 rpm with the simulator's default noise. Per cell: detection rate, wrong IDs, translation
-// and rotation (geodesic, eq. (23)) error, mean and median.
+// mount, face-on and turned 45 degrees about the vertical, at 2-20 m in 2 m steps; VLP-32C,
+// VLP-16 and VLS-128 at 600 rpm with the simulator's default noise; then issue 11's rows: the
+// VLP-16 at 5 and 7 m, the VLP-32C at 22 and 24 m, and 0.6 and 1.0 m tags in the VLP-32C's sparse
+// upper beams. N rotations per cell (default 50), each with its own noise seed. Per cell:
+// detection rate, wrong IDs, translation and rotation (geodesic, eq. (23)) error, mean and median.
 // False positives: the real captures in --captures (none holds a tag) and N simulated rotations of
 // tagless clutter (default 1000) from a moving sensor, with three families and three sizes.
 // With --out DIR: DIR/accuracy.md (tables, the command, targets met or not) and DIR/accuracy.png
-// (gnuplot). --quick: 3 rotations per cell and 30 clutter rotations (a smoke test for CI). Exit
-// status 1 when any wrong ID or false positive was seen.
+// (gnuplot). --quick: 3 rotations per cell and 30 clutter rotations (a smoke test for CI).
+// --cell: only these cells (tag SIZE metres, its centre ABOVE the sensor's height, code ID or
+// "all" for every code in turn), no
+// false-positive part, no files; --verbose: what happened in each rotation; --board-outline: the
+// tag placed on the board's outline (pose.border_refine off), as before issue 11. Exit status 1
+// when any wrong ID or false positive was seen.
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -21,7 +28,9 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <memory>
 #include <numbers>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -39,8 +48,11 @@ struct Args {
   int rotations = 50;
   int clutter = 1000;
   bool quick = false;
+  bool verbose = false;
+  bool board_outline = false;  // --board-outline: pose.border_refine off (the earlier placement)
+  std::vector<std::string> cells;  // --cell: only these
   std::string out;
-  std::string captures = (fs::path(__FILE__).parent_path() / "../../shared/captures").string();
+  std::string captures = LIDARTAG_SHARED_DIR "/captures";
   std::string command;
 };
 
@@ -48,13 +60,99 @@ struct Cell {
   velodyne::Model model{};
   double distance = 0;
   int angle = 0;
+  double size = 1.2;          // tag size, metres
+  double above = 0.0;         // tag centre above the sensor, metres
+  bool sweep = false;         // every rotation another code (all 30 of tag16h5 in turn)
+  std::set<int> codes_found;  // sweep: the codes detected at least once
+  int id = 0;                 // the tag's code (and the seeds)
   int rotations = 0, detected = 0, wrong = 0, false_pos = 0;
   std::vector<double> trans_m, rot_deg;
   double min_score = 1.0, min_margin = 1e9;  // of the correct detections
   std::map<std::string, int> misses;         // why the tag's cluster was dropped, when it was
 
   double rate() const { return rotations ? 100.0 * detected / rotations : 0.0; }
+  // The paper's setup: a 1.2 m tag at the sensor's height.
+  bool standard() const { return size == 1.2 && above == 0.0 && !sweep; }
 };
+
+// The cells: the paper's Table I grid (1.2 m tag at the sensor's height, 2-20 m, face-on and 45
+// degrees) on three sensors, then the rows of issue 11: the VLP-16 at 5 and 7 m, the VLP-32C at
+// 22 and 24 m, and small tags in the VLP-32C's sparse upper beams. Each cell has its own code;
+// the first 60 keep the codes they had before the extra rows.
+std::vector<Cell> all_cells(int rotations, bool quick) {
+  std::vector<Cell> cells;
+  auto add = [&](velodyne::Model m, double d, int angle, double size = 1.2, double above = 0.0) {
+    Cell c;
+    c.model = m;
+    c.distance = d;
+    c.angle = angle;
+    c.size = size;
+    c.above = above;
+    c.rotations = rotations;
+    c.id = static_cast<int>(cells.size() % 30);
+    cells.push_back(c);
+  };
+  for (auto model : {velodyne::Model::kVLP32C, velodyne::Model::kVLP16, velodyne::Model::kVLS128})
+    for (double d : {2, 4, 6, 8, 10, 12, 14, 16, 18, 20})
+      for (int angle : {0, 45}) add(model, d, angle);
+  for (int angle : {0, 45}) {
+    add(velodyne::Model::kVLP16, 5, angle);
+    add(velodyne::Model::kVLP16, 7, angle);
+    add(velodyne::Model::kVLP32C, 22, angle);
+    add(velodyne::Model::kVLP32C, 24, angle);
+    // A 0.6 m tag whose centre is 0.3 m above the sensor at 4 m: its upper half is sampled by the
+    // VLP-32C's sparse beams (1.67-10.3 degrees); the same tag at the sensor's height, and a
+    // 1.0 m tag at the same place, for comparison.
+    add(velodyne::Model::kVLP32C, 4, angle, 0.6, 0.3);
+    add(velodyne::Model::kVLP32C, 4, angle, 0.6, 0.0);
+    add(velodyne::Model::kVLP32C, 4, angle, 1.0, 0.3);
+  }
+  // Whether a sparse scan decodes depends on the code (two codes may differ only in cells no ring
+  // crosses): issue 11's rows again with every code of the family, one after the other.
+  // Two rotations per code by default (60 per row); --quick: its 3 rotations (codes 0-2).
+  const int per_code_rotations = quick ? rotations : std::max(1, rotations / 25) * 30;
+  auto sweep = [&](velodyne::Model m, double d, int angle, double size = 1.2, double above = 0.0) {
+    add(m, d, angle, size, above);
+    cells.back().sweep = true;
+    cells.back().rotations = per_code_rotations;
+  };
+  for (int angle : {0, 45}) {
+    for (double d : {5, 6, 7, 8, 10}) sweep(velodyne::Model::kVLP16, d, angle);
+    for (double d : {20, 24}) sweep(velodyne::Model::kVLP32C, d, angle);
+    sweep(velodyne::Model::kVLP32C, 4, angle, 0.6, 0.3);
+  }
+  std::stable_sort(cells.begin(), cells.end(), [](const Cell& a, const Cell& b) {
+    const auto order = [](velodyne::Model m) {
+      return m == velodyne::Model::kVLP32C ? 0 : m == velodyne::Model::kVLP16 ? 1 : 2;
+    };
+    return std::make_tuple(a.sweep, order(a.model), !a.standard(), a.size, a.above, a.distance,
+                           a.angle) < std::make_tuple(b.sweep, order(b.model), !b.standard(),
+                                                      b.size, b.above, b.distance, b.angle);
+  });
+  return cells;
+}
+
+// --cell MODEL,DISTANCE,ANGLE[,SIZE,ABOVE[,ID]] (ID "all": every code in turn)
+bool parse_cell(const std::string& spec, int rotations, Cell& c) {
+  std::vector<std::string> f;
+  std::stringstream in(spec);
+  for (std::string part; std::getline(in, part, ',');) f.push_back(part);
+  if (f.size() != 3 && f.size() != 5 && f.size() != 6) return false;
+  const auto model = velodyne::model_from_name(f[0]);
+  if (!model) return false;
+  c.model = *model;
+  c.distance = std::atof(f[1].c_str());
+  c.angle = std::atoi(f[2].c_str());
+  if (f.size() >= 5) {
+    c.size = std::atof(f[3].c_str());
+    c.above = std::atof(f[4].c_str());
+  }
+  c.rotations = rotations;
+  c.sweep = f.size() == 6 && f[5] == "all";
+  c.id = f.size() == 6 ? std::atoi(f[5].c_str()) % 30
+                       : static_cast<int>(std::lround(c.distance * 7 + c.angle)) % 30;
+  return c.distance > 0 && c.size > 0;
+}
 
 double mean(const std::vector<double>& v) {
   if (v.empty()) return NAN;
@@ -78,33 +176,60 @@ detector::DetectorOptions all_families() {
   return o;
 }
 
-void run_cell(Cell& c, int id) {
-  const sim::Simulator simulator(eval::accuracy_scene(c.model, c.distance, c.angle, id));
-  eval::SimScans scans(simulator);
+// One line about the cluster that explains a rotation (--verbose).
+std::string describe(const detector::ClusterDiagnostic& d) {
+  char b[256];
+  std::snprintf(b, sizeof b,
+                "rings %d-%d points %d boundary %d side %.3f cost %.4f coverage %.2f score %.2f "
+                "margin %.2f -> %s/%s",
+                d.min_ring, d.max_ring, d.points, d.boundary_points, d.side_m, d.mean_cost_m,
+                d.coverage, d.score, d.margin,
+                std::string(detector::rejection_stage(d.rejection)).c_str(),
+                std::string(detector::rejection_name(d.rejection)).c_str());
+  return b;
+}
+
+void run_cell(Cell& c, int id, bool verbose, bool border_refine) {
+  // A sweep cell shows the rotations' tag a different code each, all 30 in turn.
+  std::unique_ptr<sim::Simulator> simulator;
+  std::unique_ptr<eval::SimScans> scans;
+  auto scene_for = [&](int code) {
+    simulator = std::make_unique<sim::Simulator>(
+        eval::accuracy_scene(c.model, c.distance, c.angle, code, c.size, c.above));
+    scans = std::make_unique<eval::SimScans>(*simulator);
+  };
+  if (!c.sweep) scene_for(id);
   detector::DetectorOptions options;
+  options.tag_sizes_m = {c.size};
   options.cluster_diagnostics = true;
+  options.pose.border_refine = border_refine;
   detector::Detector det(options);
   detector::ScanResult result;
   for (int i = 0; i < c.rotations; ++i) {
     std::vector<detector::Detection> found;
     std::string why = "no cluster";
     bool seen = false;
-    const sim::Truth truth =
-        scans.run(1, static_cast<uint64_t>(1000 * id + i + 1), [&](const Scan& scan, size_t k) {
-          if (k != 0) return;
-          det.detect(scan, result);
-          found = result.detections;
-          seen = true;
-          // The cluster with the most points around the tag's centre explains a miss.
-          int most = -1;
-          for (const auto& d : result.diagnostics)
-            if (d.min_x - 0.3f <= c.distance && d.max_x + 0.3f >= c.distance && d.min_y <= 0.3f &&
-                d.max_y >= -0.3f && d.points + d.features > most) {
-              most = d.points + d.features;
-              why = std::string(detector::rejection_stage(d.rejection)) + "/" +
-                    std::string(detector::rejection_name(d.rejection));
-            }
-        });
+    const int code = c.sweep ? i % 30 : id;
+    if (c.sweep) scene_for(code);
+    const uint64_t seed = static_cast<uint64_t>(1000 * code + i + 1) + (c.sweep ? 500 : 0);
+    const sim::Truth truth = scans->run(1, seed, [&](const Scan& scan, size_t k) {
+      if (k != 0) return;
+      det.detect(scan, result);
+      found = result.detections;
+      seen = true;
+      // The cluster with the most points around the tag's centre explains a miss.
+      int most = -1;
+      const detector::ClusterDiagnostic* at = nullptr;
+      for (const auto& d : result.diagnostics)
+        if (d.min_x - 0.3f <= c.distance && d.max_x + 0.3f >= c.distance && d.min_y <= 0.3f &&
+            d.max_y >= -0.3f && d.points + d.features > most) {
+          most = d.points + d.features;
+          at = &d;
+          why = std::string(detector::rejection_stage(d.rejection)) + "/" +
+                std::string(detector::rejection_name(d.rejection));
+        }
+      if (verbose && at != nullptr) std::printf("    rotation %d: %s\n", i, describe(*at).c_str());
+    });
     if (!seen || truth.rotations.empty()) continue;
     const auto& tag = truth.rotations.front().tags.front();
     const eval::TagScore s = eval::score_tag(found, tag);
@@ -116,6 +241,10 @@ void run_cell(Cell& c, int id) {
     c.wrong += s.wrong_id ? 1 : 0;
     c.false_pos += eval::false_positives(found, truth.rotations.front());
     if (!s.detected) ++c.misses[why];
+    if (c.sweep && s.detected) c.codes_found.insert(code);
+    if (verbose && s.detected)
+      std::printf("    rotation %d: translation %.1f mm, rotation %.2f deg\n", i,
+                  1000 * s.translation_m, s.rotation_deg);
     if (s.detected) {
       ++c.detected;
       c.trans_m.push_back(s.translation_m);
@@ -165,6 +294,22 @@ FalsePositives run_false_positives(const Args& args, int clutter_rotations) {
   return fp;
 }
 
+// The boards people put in front of LiDARs (pcaps/boards.pcap, issue 11 item 5: checkerboards,
+// boards with holes, retro-reflective strips, signs; no tag), every rotation: rotations and
+// detections (all false positives), with the false-positive detector (three families and sizes).
+std::pair<size_t, size_t> board_false_positives() {
+  detector::Detector det(all_families());
+  detector::ScanResult result;
+  velodyne::CaptureReader reader(LIDARTAG_SOURCE_DIR "/pcaps/boards.pcap", {});
+  size_t rotations = 0, found = 0;
+  while (const Scan* scan = reader.next()) {
+    det.detect(*scan, result);
+    ++rotations;
+    found += result.detections.size();
+  }
+  return {rotations, found};
+}
+
 std::string fmt_num(double v, int digits) {
   if (std::isnan(v)) return "–";
   char b[32];
@@ -172,53 +317,112 @@ std::string fmt_num(double v, int digits) {
   return b;
 }
 
+std::string row(const Cell& c) {
+  std::ostringstream o;
+  o << fmt_num(c.distance, 0) << " | " << c.angle << "° | " << c.rotations << " | "
+    << fmt_num(c.rate(), 1) << " % | " << c.wrong << " | " << c.false_pos << " | "
+    << fmt_num(1000 * mean(c.trans_m), 1) << " | " << fmt_num(1000 * median(c.trans_m), 1) << " | "
+    << fmt_num(mean(c.rot_deg), 2) << " | " << fmt_num(median(c.rot_deg), 2) << " |";
+  return o.str();
+}
+
+constexpr const char* kColumns =
+    "distance (m) | angle | rotations | detected | wrong ID | false pos. | translation mean (mm) | "
+    "translation median (mm) | rotation mean (°) | rotation median (°) |\n";
+constexpr const char* kAlign = "---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+
+// The 1.2 m tag at the sensor's height on one sensor.
 std::string table(const std::vector<Cell>& cells, velodyne::Model model) {
   std::ostringstream o;
-  o << "| distance (m) | angle | rotations | detected | wrong ID | false pos. | translation mean "
-       "(mm) | translation median (mm) | rotation mean (°) | rotation median (°) |\n";
-  o << "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+  o << "| " << kColumns << "|" << kAlign;
+  for (const auto& c : cells)
+    if (c.model == model && c.standard()) o << "| " << row(c) << "\n";
+  return o.str();
+}
+
+// The other tags (sizes and heights).
+std::string small_table(const std::vector<Cell>& cells) {
+  std::ostringstream o;
+  o << "| sensor | tag (m) | centre above the sensor (m) | " << kColumns << "|---|---:|---:|"
+    << kAlign;
+  for (const auto& c : cells)
+    if (!c.standard() && !c.sweep)
+      o << "| " << velodyne::model_spec(c.model).name << " | " << fmt_num(c.size, 1) << " | "
+        << fmt_num(c.above, 1) << " | " << row(c) << "\n";
+  return o.str();
+}
+
+// The code sweeps: every code of the family in turn.
+std::string sweep_table(const std::vector<Cell>& cells) {
+  std::ostringstream o;
+  o << "| sensor | tag (m) | above (m) | distance (m) | angle | rotations | detected | codes "
+       "detected | wrong ID | translation median (mm) | rotation median (°) | why the others "
+       "were not |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n";
   for (const auto& c : cells) {
-    if (c.model != model) continue;
-    o << "| " << fmt_num(c.distance, 0) << " | " << c.angle << "° | " << c.rotations << " | "
-      << fmt_num(c.rate(), 1) << " % | " << c.wrong << " | " << c.false_pos << " | "
-      << fmt_num(1000 * mean(c.trans_m), 1) << " | " << fmt_num(1000 * median(c.trans_m), 1)
-      << " | " << fmt_num(mean(c.rot_deg), 2) << " | " << fmt_num(median(c.rot_deg), 2) << " |\n";
+    if (!c.sweep) continue;
+    std::string why;
+    for (const auto& [reason, count] : c.misses)
+      why += (why.empty() ? "" : ", ") + reason + " " + std::to_string(count);
+    o << "| " << velodyne::model_spec(c.model).name << " | " << fmt_num(c.size, 1) << " | "
+      << fmt_num(c.above, 1) << " | " << fmt_num(c.distance, 0) << " | " << c.angle << "° | "
+      << c.rotations << " | " << fmt_num(c.rate(), 1) << " % | " << c.codes_found.size()
+      << " of 30 | " << c.wrong << " | " << fmt_num(1000 * median(c.trans_m), 1) << " | "
+      << fmt_num(median(c.rot_deg), 2) << " | " << (why.empty() ? "–" : why) << " |\n";
   }
   return o.str();
 }
 
-// The issue's targets, on the VLP-32C cells.
+// Issue 11's targets (single rotations: a tracker adds evidence over rotations on top), then the
+// earlier ones.
 std::string targets(const std::vector<Cell>& cells) {
-  bool det14 = true, det16 = true, wrong0 = true, trans10 = true, rot10 = true;
-  double worst14 = 100, worst16 = 100, worst_t = 0, worst_r = 0;
+  double vlp16_near = 100, vlp16_10 = 100, vlp32_far = 100, small = 100, det14 = 100, det16 = 100;
+  double t45 = 0, t0 = 0, r10 = 0, worse_far_t = 0;
   int wrong = 0;
   for (const auto& c : cells) {
     wrong += c.wrong;
-    if (c.model != velodyne::Model::kVLP32C) continue;
-    if (c.distance <= 14) worst14 = std::min(worst14, c.rate());
-    if (c.distance == 16) worst16 = std::min(worst16, c.rate());
-    if (c.distance <= 10) {
-      worst_t = std::max(worst_t, 1000 * median(c.trans_m));
-      worst_r = std::max(worst_r, median(c.rot_deg));
+    const bool v16 = c.model == velodyne::Model::kVLP16, v32 = c.model == velodyne::Model::kVLP32C;
+    // The issue's detection targets on the code sweeps (every code in turn).
+    if (c.sweep) {
+      if (v32 && c.size == 0.6 && c.above == 0.3) small = std::min(small, c.rate());
+      if (v16 && c.distance >= 5 && c.distance <= 8) vlp16_near = std::min(vlp16_near, c.rate());
+      if (v16 && c.distance == 10) vlp16_10 = std::min(vlp16_10, c.rate());
+      if (v32 && c.size == 1.2 && (c.distance == 20 || c.distance == 24))
+        vlp32_far = std::min(vlp32_far, c.rate());
+      continue;
     }
+    if (!c.standard() || !v32) continue;
+    if (c.distance <= 14) det14 = std::min(det14, c.rate());
+    if (c.distance == 16) det16 = std::min(det16, c.rate());
+    if (c.distance <= 10) {
+      (c.angle == 45 ? t45 : t0) =
+          std::max(c.angle == 45 ? t45 : t0, c.trans_m.empty() ? 1e9 : 1000 * median(c.trans_m));
+      r10 = std::max(r10, c.rot_deg.empty() ? 1e9 : median(c.rot_deg));
+    }
+    if (c.distance >= 16) worse_far_t = std::max(worse_far_t, 1000 * median(c.trans_m));
   }
-  det14 = worst14 >= 99.0;
-  det16 = worst16 >= 90.0;
-  wrong0 = wrong == 0;
-  trans10 = worst_t <= 20.0;
-  rot10 = worst_r <= 1.0;
   auto mark = [](bool ok) { return ok ? "met" : "**not met**"; };
   std::ostringstream o;
-  o << "| target (VLP-32C) | measured | |\n|---|---|---|\n";
-  o << "| detection ≥ 99 % up to 14 m | lowest " << fmt_num(worst14, 1) << " % | " << mark(det14)
-    << " |\n";
-  o << "| detection ≥ 90 % at 16 m | lowest " << fmt_num(worst16, 1) << " % | " << mark(det16)
-    << " |\n";
-  o << "| zero wrong IDs (all models) | " << wrong << " | " << mark(wrong0) << " |\n";
-  o << "| median translation ≤ 2 cm up to 10 m | largest " << fmt_num(worst_t, 1) << " mm | "
-    << mark(trans10) << " |\n";
-  o << "| median rotation ≤ 1° up to 10 m | largest " << fmt_num(worst_r, 2) << "° | "
-    << mark(rot10) << " |\n";
+  o << "| target | measured (single rotations; detection rates over every code, the code "
+       "sweeps below) | |\n|---|---|---|\n";
+  o << "| VLP-16, 1.2 m tag: detection ≥ 95 % at 5, 6, 7, 8 m, 0° and 45° | lowest "
+    << fmt_num(vlp16_near, 1) << " % | " << mark(vlp16_near >= 95) << " |\n";
+  o << "| VLP-16, 1.2 m tag: detection ≥ 50 % at 10 m | lowest " << fmt_num(vlp16_10, 1) << " % | "
+    << mark(vlp16_10 >= 50) << " |\n";
+  o << "| VLP-32C, 1.2 m tag: detection ≥ 95 % at 20 and 24 m | lowest " << fmt_num(vlp32_far, 1)
+    << " % | " << mark(vlp32_far >= 95) << " |\n";
+  o << "| VLP-32C, 0.6 m tag 0.3 m above the sensor at 4 m: detection ≥ 95 % | lowest "
+    << fmt_num(small, 1) << " % | " << mark(small >= 95) << " |\n";
+  o << "| VLP-32C: median translation ≤ 5 mm at 45° up to 10 m | largest " << fmt_num(t45, 1)
+    << " mm | " << mark(t45 <= 5) << " |\n";
+  o << "| VLP-32C: median translation ≤ 3 mm face-on up to 10 m | largest " << fmt_num(t0, 1)
+    << " mm | " << mark(t0 <= 3) << " |\n";
+  o << "| VLP-32C: median rotation ≤ 0.5° up to 10 m | largest " << fmt_num(r10, 2) << "° | "
+    << mark(r10 <= 0.5) << " |\n";
+  o << "| VLP-32C: detection ≥ 99 % up to 14 m | lowest " << fmt_num(det14, 1) << " % | "
+    << mark(det14 >= 99) << " |\n";
+  o << "| VLP-32C: detection ≥ 90 % at 16 m | lowest " << fmt_num(det16, 1) << " % | "
+    << mark(det16 >= 90) << " |\n";
+  o << "| zero wrong IDs (every cell) | " << wrong << " | " << mark(wrong == 0) << " |\n";
   return o.str();
 }
 
@@ -232,7 +436,7 @@ void write_plot(const std::vector<Cell>& cells, const fs::path& dir) {
       for (int angle : {0, 45}) {
         d << "# " << velodyne::model_spec(model).name << " " << angle << "\n";
         for (const auto& c : cells)
-          if (c.model == model && c.angle == angle)
+          if (c.model == model && c.angle == angle && c.standard())
             d << velodyne::model_spec(model).name << " " << angle << " " << c.distance << " "
               << c.rate() << " "
               << (c.trans_m.empty() ? std::string("NaN") : fmt_num(1000 * median(c.trans_m), 2))
@@ -251,7 +455,7 @@ void write_plot(const std::vector<Cell>& cells, const fs::path& dir) {
       << "titles = \"" << titles << "\"\n"
       << "set multiplot layout 1,3 title 'LiDARTag detector on simulated scans: 1.2 m tag16h5, "
          "600 rpm, medians over the detected rotations (bench\\_accuracy)'\n"
-      << "set xlabel 'distance (m)'\nset grid\nset xrange [0:21]\n"
+      << "set xlabel 'distance (m)'\nset grid\nset xrange [0:25]\n"
       << "set ylabel 'detected (%)'\nset yrange [0:105]\nset key bottom left\n"
       << "plot for [i=0:5] '" << dat.string()
       << "' index i using 3:4 with linespoints title word(titles, i + 1)\n"
@@ -275,35 +479,50 @@ int run(const Args& args) {
   const int n = args.quick ? 3 : args.rotations;
   const int clutter = args.quick ? 30 : args.clutter;
   std::vector<Cell> cells;
-  const double distances[] = {2, 4, 6, 8, 10, 12, 14, 16, 18, 20};
-  for (auto model : {velodyne::Model::kVLP32C, velodyne::Model::kVLP16, velodyne::Model::kVLS128})
-    for (double d : distances)
-      for (int angle : {0, 45}) {
-        Cell c;
-        c.model = model;
-        c.distance = d;
-        c.angle = angle;
-        c.rotations = n;
-        cells.push_back(c);
+  if (args.cells.empty()) {
+    cells = all_cells(n, args.quick);
+  } else {
+    for (const auto& spec : args.cells) {
+      Cell c;
+      if (!parse_cell(spec, n, c)) {
+        std::fprintf(stderr,
+                     "bench_accuracy: bad --cell '%s' (MODEL,DISTANCE,ANGLE[,SIZE,ABOVE[,ID]])\n",
+                     spec.c_str());
+        return 2;
       }
-  for (size_t i = 0; i < cells.size(); ++i) {
-    // Every cell its own code, so that the whole family is exercised.
-    run_cell(cells[i], static_cast<int>(i % 30));
-    const auto& c = cells[i];
+      cells.push_back(c);
+    }
+  }
+  for (auto& c : cells) {
+    run_cell(c, c.id, args.verbose, !args.board_outline);
     std::printf(
-        "%-8s %4.0f m %2d deg: detected %5.1f %%, wrong %d, fp %d, translation median "
-        "%6.1f mm, rotation median %5.2f deg (lowest score %.2f, margin %.1f)\n",
-        std::string(velodyne::model_spec(c.model).name).c_str(), c.distance, c.angle, c.rate(),
-        c.wrong, c.false_pos, 1000 * median(c.trans_m), median(c.rot_deg), c.min_score,
-        c.min_margin);
+        "%-8s %4.0f m %2d deg %.1f m +%.1f m: detected %5.1f %%, wrong %d, fp %d, translation "
+        "median %6.1f mm, rotation median %5.2f deg (lowest score %.2f, margin %.1f)\n",
+        std::string(velodyne::model_spec(c.model).name).c_str(), c.distance, c.angle, c.size,
+        c.above, c.rate(), c.wrong, c.false_pos, 1000 * median(c.trans_m), median(c.rot_deg),
+        c.min_score, c.min_margin);
+    if (c.sweep) std::printf("    every code in turn: %zu of 30 detected\n", c.codes_found.size());
     for (const auto& [why, count] : c.misses)
       std::printf("    missed %d: %s\n", count, why.c_str());
     std::fflush(stdout);
   }
+  // Only chosen cells: no false-positive part, no files.
+  if (!args.cells.empty()) {
+    int never = 0;
+    for (const auto& c : cells) never += c.wrong + c.false_pos;
+    return never == 0 ? 0 : 1;
+  }
   const FalsePositives fp = run_false_positives(args, clutter);
+  const auto boards = board_false_positives();
+  std::printf("false positives pcaps/boards.pcap: %zu detections in %zu rotations\n", boards.second,
+              boards.first);
   for (const auto& [name, counts] : fp.captures)
     std::printf("false positives %s: %zu detections in %zu rotations\n", name.c_str(),
                 counts.second, counts.first);
+  // Said on every run, so that a smoke test without the real captures does not pass for one that
+  // read them.
+  if (fp.captures.empty())
+    std::printf("false positives real captures: skipped, no .pcap in %s\n", args.captures.c_str());
   std::printf("false positives simulated clutter: %zu detections in %zu rotations (%zu scenes)\n",
               fp.sim_found, fp.sim_rotations, fp.sim_scenes);
   const double seconds =
@@ -313,7 +532,7 @@ int run(const Args& args) {
   const std::string tgt = targets(cells);
   std::printf("%s", tgt.c_str());
   // Wrong IDs and false positives must never happen: they fail the run (and the CI smoke test).
-  int never = static_cast<int>(fp.sim_found);
+  int never = static_cast<int>(fp.sim_found + boards.second);
   for (const auto& c : cells) never += c.wrong + c.false_pos;
   for (const auto& [name, counts] : fp.captures) never += static_cast<int>(counts.second);
   const int status = never == 0 ? 0 : 1;
@@ -336,11 +555,23 @@ int run(const Args& args) {
         "1.2 m, family tag16h5). A detection counts when its centre is within t/2 of the truth "
         "and its ID is right; a wrong ID is a detection at the tag with another ID; errors are "
         "the distance between centres and the geodesic angle between orientations, eq. "
-        "(23), over the detected rotations.\n\n"
+        "(23), over the detected rotations. Rates are per rotation: each rotation is detected on "
+        "its own (a tracker adds evidence over rotations on top of this).\n\n"
      << "![error vs distance](accuracy.png)\n\n## Targets\n\n"
      << tgt;
   for (auto model : {velodyne::Model::kVLP32C, velodyne::Model::kVLP16, velodyne::Model::kVLS128})
     md << "\n## " << velodyne::model_spec(model).display_name << "\n\n" << table(cells, model);
+  md << "\n## Small tags in the VLP-32C's sparse upper beams\n\nThe same setup with a smaller "
+        "tag, its centre raised above the sensor's height: above about 1.7° of elevation the "
+        "VLP-32C's beams are 0.7–3.3° apart, so the upper half of a 0.6 m tag 0.3 m above the "
+        "sensor at 4 m is crossed by a few rings only. The detector is given the tag's size.\n\n"
+     << small_table(cells);
+  md << "\n## Every code in turn (issue 11's rows)\n\nA sparse scan may decode one code and not "
+        "another: two codes of tag16h5 differ in at least 5 cells, and when the rings cross only "
+        "one or two of those cells the margin stays below `decode.min_margin_bits` "
+        "(`decode/ambiguous`, never a wrong ID). These rows show the tag a different code in "
+        "each rotation, all 30 in turn, so the rate is the family's, not one code's.\n\n"
+     << sweep_table(cells);
   md << "\n## False positives\n\nEvery detection here is a false positive. Detector: families "
         "tag16h5, tag25h9 and tag36h11, sizes 1.2, 0.8 and 0.6 m, default thresholds.\n\n"
      << "| data | rotations | detections |\n|---|---:|---:|\n";
@@ -350,7 +581,10 @@ int run(const Args& args) {
   if (fp.captures.empty()) md << "| real captures (`../shared/captures`) | not available | – |\n";
   md << "| simulated clutter, VLP-32C moving at 0.5 m/s turning 5°/s: trees, poles, people, cars, "
         "walls, blank boards of 0.6–1.2 m ("
-     << fp.sim_scenes << " scenes) | " << fp.sim_rotations << " | " << fp.sim_found << " |\n";
+     << fp.sim_scenes << " scenes) | " << fp.sim_rotations << " | " << fp.sim_found << " |\n"
+     << "| `pcaps/boards.pcap`, static VLP-32C: checkerboards (square, diamond, a 1.2 m tag16h5's "
+        "cell size), boards with holes, retro-reflective strips, signs (`docs/simulator.md`) | "
+     << boards.first << " | " << boards.second << " |\n";
   md.close();
   write_plot(cells, dir);
   std::printf("wrote %s and %s\n", (dir / "accuracy.md").string().c_str(),
@@ -378,6 +612,13 @@ int main(int argc, char** argv) {
     } else if (a == "--clutter") {
       args.clutter = std::max(0, std::atoi(value("--clutter").c_str()));
       args.command += " --clutter " + std::to_string(args.clutter);
+    } else if (a == "--cell") {
+      args.cells.push_back(value("--cell"));
+    } else if (a == "--verbose") {
+      args.verbose = true;
+    } else if (a == "--board-outline") {
+      args.board_outline = true;
+      args.command += " --board-outline";
     } else if (a == "--quick") {
       args.quick = true;
       args.command += " --quick";
@@ -389,7 +630,8 @@ int main(int argc, char** argv) {
     } else {
       std::fprintf(stderr,
                    "usage: bench_accuracy [--rotations N] [--clutter N] [--quick] [--out DIR] "
-                   "[--captures DIR]\n");
+                   "[--captures DIR] [--cell MODEL,DISTANCE,ANGLE[,SIZE,ABOVE[,ID]] ...] "
+                   "[--verbose] [--board-outline]\n");
       return 2;
     }
   }

@@ -1,6 +1,7 @@
 // bench_detector: the detector's speed per rotation and per stage (the paper's Table II), on the
-// rotations of pcaps/demo.pcap (lab, VLP-32C, two tags) and pcaps/outdoor.pcap (parking lot,
-// VLP-32C, three tags), single-threaded.
+// rotations of pcaps/demo.pcap (lab, VLP-32C, two tags), pcaps/outdoor.pcap (parking lot,
+// VLP-32C, three tags) and pcaps/boards.pcap (VLP-32C, 13 boards that are no tags: checkerboards,
+// boards with holes, signs; many reach the pose fit and decoding), single-threaded.
 //
 //   bench_detector [--benchmark_min_time=2]
 //
@@ -35,7 +36,7 @@ struct Capture {
 };
 
 std::string pcap(const char* name) {
-  return (std::filesystem::path(__FILE__).parent_path() / "../pcaps" / name).string();
+  return (std::filesystem::path(LIDARTAG_SOURCE_DIR) / "pcaps" / name).string();
 }
 
 const Capture& capture(const std::string& name) {
@@ -49,7 +50,7 @@ const Capture& capture(const std::string& name) {
     // The tags each scene holds (pcaps/NAME.yaml).
     if (name == "demo") {
       slot->options.tag_sizes_m = {0.8, 0.6};
-    } else {
+    } else {  // outdoor and boards: three sizes and three families at once
       slot->options.tag_sizes_m = {1.2, 0.8, 0.6};
       slot->options.families = {"tag16h5", "tag36h11", "tag25h9"};
     }
@@ -136,6 +137,8 @@ void BM_Clustering(benchmark::State& state, const std::string& name) {
 BENCHMARK_CAPTURE(BM_Detect, demo, std::string("demo"), Variant::kDefault)
     ->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Detect, outdoor, std::string("outdoor"), Variant::kDefault)
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Detect, boards, std::string("boards"), Variant::kDefault)
     ->Unit(benchmark::kMillisecond);
 // Without the pose's polish on every point (pose.polish_evaluations = 0): faster, and about twice
 // the rotation error (docs/detector.md).

@@ -128,10 +128,11 @@ inline int false_positives(std::span<const detector::Detection> detections,
   return n;
 }
 
-// The accuracy scene of the paper's Table I: a 1.2 m tag16h5 on an easel stand, centre at the
-// sensor's height (1 m), diamond mount, at `distance` metres straight ahead, turned `angle_deg`
-// about the vertical.
-inline sim::Scene accuracy_scene(velodyne::Model model, double distance, int angle_deg, int id) {
+// The accuracy scene of the paper's Table I: a tag16h5 of `size` metres (1.2 by default) on an
+// easel stand, centre `above` metres above the sensor's height (1 m), diamond mount, at `distance`
+// metres straight ahead, turned `angle_deg` about the vertical.
+inline sim::Scene accuracy_scene(velodyne::Model model, double distance, int angle_deg, int id,
+                                 double size = 1.2, double above = 0.0) {
   sim::Scene s;
   s.sensor.model = model;
   s.sensor.rpm = 600;
@@ -140,8 +141,8 @@ inline sim::Scene accuracy_scene(velodyne::Model model, double distance, int ang
   sim::TagOptions t;
   t.family = "tag16h5";
   t.id = id;
-  t.size = 1.2;
-  t.center = {distance, 0.0, 1.0};
+  t.size = size;
+  t.center = {distance, 0.0, 1.0 + above};
   // The printed face looks at the sensor, turned about the vertical by angle_deg.
   const double a = angle_deg * std::numbers::pi / 180.0;
   t.normal = {-std::cos(a), std::sin(a), 0.0};

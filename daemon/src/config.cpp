@@ -555,6 +555,7 @@ void visit(V& v, DaemonOptions& o) {
   });
   v.field("record_pcap", o.record_pcap);
   v.section("detector", [&](V& s) { detector::visit_options(s, o.detector); });
+  v.section("tracker", [&](V& s) { detector::visit_tracker_options(s, o.tracker); });
 }
 
 // The detector's rules (each field's, also on options built in code, and those between fields),

@@ -29,6 +29,36 @@ void fill_detection(const detector::Detection& d, lidartag::tag_detection_t& out
   out.margin = d.margin;
   out.points = d.points;
   out.fit_cost = d.fit_cost;
+  out.decoded = true;
+  out.track_id = -1;
+  out.track_rotations = 0;
+  out.confirmed = false;
+  out.track_margin = 0.0;
+  out.track_window = 0;
+  for (int i = 0; i < 3; ++i) out.track_position[i] = out.track_position_std[i] = 0.0;
+  for (int i = 0; i < 4; ++i) out.track_orientation[i] = i == 0 ? 1.0 : 0.0;
+  out.track_angle_std_deg = 0.0;
+}
+
+void fill_detection(const detector::TrackedDetection& t, lidartag::tag_detection_t& out) {
+  fill_detection(t.detection, out);
+  const detector::TrackInfo& k = t.track;
+  out.decoded = t.decoded;
+  out.track_id = k.track_id;
+  if (k.track_id < 0) return;
+  out.track_rotations = k.rotations;
+  out.confirmed = k.confirmed;
+  out.track_margin = k.margin_cells;
+  out.track_window = k.window_rotations;
+  for (int i = 0; i < 3; ++i) {
+    out.track_position[i] = k.position[i];
+    out.track_position_std[i] = k.position_std_m[i];
+  }
+  out.track_orientation[0] = k.orientation.w();
+  out.track_orientation[1] = k.orientation.x();
+  out.track_orientation[2] = k.orientation.y();
+  out.track_orientation[3] = k.orientation.z();
+  out.track_angle_std_deg = k.angle_std_deg;
 }
 
 void fill_detections(const RotationResult& r, const std::string& sensor,
@@ -49,10 +79,22 @@ void fill_detections(const RotationResult& r, const std::string& sensor,
   out.rpm = r.rpm;
   out.features = r.detection.features;
   out.clusters = r.detection.clusters;
+  out.tracks = 0;
+  out.confirmed_tracks = 0;
   const auto& detections = r.detection.detections;
   out.ndetections = static_cast<int32_t>(detections.size());
   out.detections.resize(detections.size());
   for (size_t i = 0; i < detections.size(); ++i) fill_detection(detections[i], out.detections[i]);
+}
+
+void fill_tracked_detections(const detector::TrackerResult& tracked,
+                             lidartag::tag_detections_t& out) {
+  out.tracks = tracked.tracks;
+  out.confirmed_tracks = tracked.confirmed_tracks;
+  out.ndetections = static_cast<int32_t>(tracked.tags.size());
+  out.detections.resize(tracked.tags.size());
+  for (size_t i = 0; i < tracked.tags.size(); ++i)
+    fill_detection(tracked.tags[i], out.detections[i]);
 }
 
 void fill_tag_points(const RotationResult& r, const std::string& sensor,

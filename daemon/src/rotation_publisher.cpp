@@ -53,6 +53,7 @@ RotationPublisher::RotationPublisher(const SensorOptions& sensor, const DaemonOp
       detections_channel_(channel_of(sensor, options.lcm.channels.detections)),
       tag_points_channel_(channel_of(sensor, options.lcm.channels.tag_points)),
       cloud_channel_(channel_of(sensor, options.lcm.channels.cloud)) {
+  if (options.tracker.enabled) tracker_.emplace(options.tracker, options.detector);
   stage_names_ = {"queue", "detect", "order", "publish", "total"};
   for (int s = 0; s < detector::kStageCount; ++s) {
     stage_names_.emplace_back(detector::stage_name(static_cast<detector::Stage>(s)));
@@ -64,9 +65,14 @@ RotationPublisher::RotationPublisher(const SensorOptions& sensor, const DaemonOp
 
 bool RotationPublisher::publish(const RotationResult& r, uint64_t dropped) {
   const int64_t before = steady_ns();
-  // (A multi-rotation tracker updates here: every rotation reaches this point in order.)
   fill_detections(r, sensor_.name, sensor_.frame_id, wall_utime(), ms(before - r.assembled_ns),
                   static_cast<int64_t>(dropped), message_);
+  if (tracker_) {
+    // Every rotation reaches this point in order; dropped ones need nothing (tracks age by the
+    // scan's time, and a stamp that steps back, a looping replay, ends every track).
+    tracker_->update(r.detection, r.stamp_ns, tracked_);
+    fill_tracked_detections(tracked_, message_);
+  }
   const bool sent = bus_.publish(detections_channel_, message_);
   if (!sent) failures_.failed(detections_channel_);
   // The visualisation messages follow their rotation's detections, in rotation order too.

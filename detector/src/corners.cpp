@@ -6,6 +6,7 @@
 #include <numbers>
 
 #include "geometry.hpp"
+#include "lidartag/detector/square_fit.hpp"
 
 namespace lidartag::detector {
 namespace {
@@ -72,6 +73,49 @@ Eigen::Vector2d intersect(const Line2& a, const Line2& b) {
   m << a.dir, -b.dir;
   const Eigen::Vector2d sr = m.colPivHouseholderQr().solve(b.point - a.point);
   return a.point + sr(0) * a.dir;
+}
+
+// The outline from a square fitted to the edge points (in the plane basis u, v around c) when no
+// pair of opposite sides has a line.
+Rejection square_outline(std::span<const Eigen::Vector2d> edge, const Eigen::Vector3d& c,
+                         const Eigen::Vector3d& u, const Eigen::Vector3d& v,
+                         std::span<const double> sizes, const CornerOptions& opt, TagOutline& out) {
+  const auto [lo, hi] = std::minmax_element(sizes.begin(), sizes.end());
+  SquareFitOptions so;
+  so.fit_size = true;
+  so.gate_m = 0.05 * *hi;
+  so.huber_m = 0.01 * *hi;
+  so.min_points = 6;
+  SquareFit fit;
+  if (!fit_square_outline(edge, 0.5 * *lo * (1.0 - opt.size_tolerance),
+                          0.5 * *hi * (1.0 + opt.size_tolerance), so, fit))
+    return Rejection::kCorners;
+  const double side = 2.0 * fit.square.half;
+  if (fit.rms_m > opt.square_fit_max_rms * side) return Rejection::kCorners;
+  out.side_m = side;
+  size_t best = 0;
+  for (size_t i = 1; i < sizes.size(); ++i)
+    if (std::abs(sizes[i] - side) < std::abs(sizes[best] - side)) best = i;
+  if (std::abs(sizes[best] - side) > opt.size_tolerance * sizes[best]) return Rejection::kSize;
+  out.size_index = static_cast<int>(best);
+  out.size_m = sizes[best];
+  out.square_fit = true;
+  for (int n : fit.per_side) out.sides_fitted += n > 0 ? 1 : 0;
+  const Eigen::Vector2d eu(std::cos(fit.square.angle), std::sin(fit.square.angle));
+  const Eigen::Vector2d ev(-eu.y(), eu.x());
+  const auto to3 = [&](const Eigen::Vector2d& p) { return c + p.x() * u + p.y() * v; };
+  const double h = fit.square.half;
+  const Eigen::Vector2d m = fit.square.center;
+  out.corners = {to3(m - h * eu - h * ev), to3(m + h * eu - h * ev), to3(m + h * eu + h * ev),
+                 to3(m - h * eu + h * ev)};
+  out.center = to3(m);
+  // The direction the points could not place (a square mount): decoding searches it.
+  if (!fit.along_u) out.unseen_axis = eu.x() * u + eu.y() * v;
+  if (!fit.along_v) out.unseen_axis = ev.x() * u + ev.y() * v;
+  const double quarter = std::numbers::pi / 2;
+  out.angle_deg =
+      std::fmod(std::fmod(fit.square.angle, quarter) + quarter, quarter) * 180.0 / std::numbers::pi;
+  return Rejection::kNone;
 }
 
 }  // namespace
@@ -172,7 +216,8 @@ Rejection find_corners(std::span<const ClusterPoint> points, const Plane& plane,
     sum += spacing(line[2], line[3]);
     ++pairs;
   }
-  if (pairs == 0) return Rejection::kCorners;
+  if (pairs == 0)
+    return opt.square_fit ? square_outline(ws.edge, c, u, v, sizes, opt, out) : Rejection::kCorners;
   out.side_m = sum / pairs;
   size_t best = 0;
   for (size_t i = 1; i < sizes.size(); ++i)

@@ -9,6 +9,7 @@
 #include <numbers>
 
 #include "lidartag/detector/detection.hpp"
+#include "lidartag/detector/square_fit.hpp"
 
 namespace lidartag::detector {
 
@@ -21,6 +22,7 @@ struct Detector::Buffers {
   CornerWorkspace corners;
   TagPoseWorkspace pose;
   std::vector<Eigen::Vector2d> hull_in, hull;
+  BorderWorkspace border;
   ClusterDecodeWorkspace decode;
   PoseSolver solver;
   explicit Buffers(PoseAlgorithm a) : solver(a) {}
@@ -235,7 +237,14 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
   // would all cost, and the fit would slide toward the side with more rings). Gates: the mean
   // cost, and the coverage of the pull-back's convex hull (surveyor's formula).
   const double t = outline.size_m;
-  const PoseFitResult fit = fit_tag_pose(
+  // The coverage gate's upper bound first: a cluster that cannot pass it is not fitted (most of
+  // the boards and walls of a configured size that reach this stage).
+  const double bound = coverage_bound(b.corners.hull, t);
+  if (bound < opt_.pose.min_coverage) {
+    diag.coverage = bound;
+    return finish(Stage::kPose, Rejection::kCoverage);
+  }
+  PoseFitResult fit = fit_tag_pose(
       b.solver, b.points, procrustes_initial_guess(outline.corners, t), std::max(t, outline.side_m),
       std::max(opt_.pose.min_depth_epsilon_m, plane.depth_sigma), opt_.pose, b.pose);
   diag.mean_cost_m = fit.cost / static_cast<double>(b.points.size());
@@ -243,6 +252,12 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
     return finish(Stage::kPose, Rejection::kFitCost);
   diag.coverage = coverage_ratio(b.pose.subset, fit.pose, t, b.hull_in, b.hull);
   if (diag.coverage < opt_.pose.min_coverage) return finish(Stage::kPose, Rejection::kCoverage);
+  if (opt_.pose.border_refine) {
+    const BorderFit border =
+        place_on_border(b.points, fit.pose, t, dicts_, intensity_levels(b.points, b.decode.decode),
+                        BorderFitOptions{}, b.border);
+    if (border.ok) fit.pose = border.pose;
+  }
   clock.lap(Stage::kPose);
 
   // Sec. VI: decoding, eqs. (18)-(22), over the shifts along an axis the outline did not place.
@@ -286,6 +301,7 @@ int Detector::add_candidate(const ClusterDecode& dec, const Eigen::Vector3d& cen
   k.score = dec.best.score;
   k.margin = dec.best.margin_bits;
   k.other_family_score = dec.other_family_score;
+  k.shift_searched = dec.shift_searched;
   k.points = points;
   k.fit_cost = fit_cost;
   k.coverage = coverage;
@@ -305,7 +321,11 @@ int Detector::add_candidate(const ClusterDecode& dec, const Eigen::Vector3d& cen
     if (scored && static_cast<int>(f) == dec.family) {
       k.first_cell = static_cast<int>(out.cell_evidence.size());
       k.grid_width = dicts_[f].width();
+      const auto& ws = buf_->decode;
       out.cell_evidence.insert(out.cell_evidence.end(), fd.cells.begin(), fd.cells.end());
+      out.cell_votes.insert(out.cell_votes.end(), ws.votes.begin(), ws.votes.end());
+      out.cell_vote_counts.insert(out.cell_vote_counts.end(), ws.vote_counts.begin(),
+                                  ws.vote_counts.end());
     }
   }
   return static_cast<int>(out.candidates.size()) - 1;

@@ -334,4 +334,9 @@ double coverage_ratio(std::span<const ClusterPoint> points, const RigidPose& pos
   return geometry::polygon_area(hull) / (t * t);
 }
 
+double coverage_bound(const std::vector<Eigen::Vector2d>& plane_hull, double t) {
+  if (plane_hull.size() < 3) return 0.0;
+  return geometry::polygon_area(plane_hull) / (t * t) / kCoverageBoundSlack;
+}
+
 }  // namespace lidartag::detector

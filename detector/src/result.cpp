@@ -131,6 +131,14 @@ std::span<const float> ScanResult::cells_of(const Candidate& c) const {
   return slice(cell_evidence, c.first_cell, c.grid_width * c.grid_width);
 }
 
+std::span<const float> ScanResult::votes_of(const Candidate& c) const {
+  return slice(cell_votes, c.first_cell, c.grid_width * c.grid_width);
+}
+
+std::span<const float> ScanResult::vote_counts_of(const Candidate& c) const {
+  return slice(cell_vote_counts, c.first_cell, c.grid_width * c.grid_width);
+}
+
 uint32_t ScanResult::rejected_at(Stage s) const {
   uint32_t n = 0;
   for (int r = 1; r < kRejectionCount; ++r)
@@ -149,6 +157,8 @@ void ScanResult::clear() {
   family_evidence.clear();
   evidence_scores.clear();
   cell_evidence.clear();
+  cell_votes.clear();
+  cell_vote_counts.clear();
   tag_points.clear();
   cluster_points.clear();
 }

@@ -189,6 +189,40 @@ double accumulate_evidence(int W, const DecodeOptions& opt, DecodeWorkspace& ws,
   return total;
 }
 
+// The varying cells' part of eq. (18) for every function of `dict` into ws.scores, from their
+// evidence in ws.varying: in groups of 8, one entry per group of a table of the 256 sign patterns.
+void score_functions(const RkhsDictionary& dict, const DecodeOptions& opt, DecodeWorkspace& ws) {
+  const auto& vary = dict.varying_cells();
+  const size_t groups = dict.chunk_count();
+  ws.tables.resize(groups * 256);
+  for (size_t g = 0; g < groups; ++g) {
+    float* table = ws.tables.data() + g * 256;
+    const size_t n = std::min<size_t>(8, vary.size() - 8 * g);
+    table[0] = 0.0f;  // every cell black
+    for (size_t i = 0; i < n; ++i) table[0] -= ws.varying[8 * g + i];
+    for (unsigned m = 1; m < 256; ++m) {  // one more white cell than m without its lowest bit
+      const unsigned low = static_cast<unsigned>(std::countr_zero(m));
+      table[m] = low < n ? table[m & (m - 1)] + 2.0f * ws.varying[8 * g + low] : 0.0f;
+    }
+  }
+  const int nf = dict.functions();
+  ws.scores.resize(static_cast<size_t>(nf));
+  auto score_range = [&](int f0, int f1) {
+    for (int f = f0; f < f1; ++f) {
+      const uint8_t* idx = dict.chunks(f);
+      float sum = 0.0f;
+      for (size_t g = 0; g < groups; ++g) sum += ws.tables[g * 256 + idx[g]];
+      ws.scores[static_cast<size_t>(f)] = sum;
+    }
+  };
+  if (nf >= opt.parallel_min_functions) {
+    tbb::parallel_for(tbb::blocked_range<int>(0, nf, 1024),
+                      [&](const tbb::blocked_range<int>& r) { score_range(r.begin(), r.end()); });
+  } else {
+    score_range(0, nf);
+  }
+}
+
 }  // namespace
 
 DecodeResult decode_prepared(const RkhsDictionary& dict, const DecodeOptions& opt,
@@ -237,34 +271,8 @@ DecodeResult decode_prepared(const RkhsDictionary& dict, const DecodeOptions& op
         common += s0[i] * ws.evidence[i];
     }
   }
-  const size_t groups = dict.chunk_count();
-  ws.tables.resize(groups * 256);
-  for (size_t g = 0; g < groups; ++g) {
-    float* table = ws.tables.data() + g * 256;
-    const size_t n = std::min<size_t>(8, vary.size() - 8 * g);
-    table[0] = 0.0f;  // every cell black
-    for (size_t i = 0; i < n; ++i) table[0] -= ws.varying[8 * g + i];
-    for (unsigned m = 1; m < 256; ++m) {  // one more white cell than m without its lowest bit
-      const unsigned low = static_cast<unsigned>(std::countr_zero(m));
-      table[m] = low < n ? table[m & (m - 1)] + 2.0f * ws.varying[8 * g + low] : 0.0f;
-    }
-  }
+  score_functions(dict, opt, ws);
   const int nf = dict.functions();
-  ws.scores.resize(static_cast<size_t>(nf));
-  auto score_range = [&](int f0, int f1) {
-    for (int f = f0; f < f1; ++f) {
-      const uint8_t* idx = dict.chunks(f);
-      float sum = 0.0f;
-      for (size_t g = 0; g < groups; ++g) sum += ws.tables[g * 256 + idx[g]];
-      ws.scores[static_cast<size_t>(f)] = sum;
-    }
-  };
-  if (nf >= opt.parallel_min_functions) {
-    tbb::parallel_for(tbb::blocked_range<int>(0, nf, 1024),
-                      [&](const tbb::blocked_range<int>& r) { score_range(r.begin(), r.end()); });
-  } else {
-    score_range(0, nf);
-  }
   // Best and runner-up; of equal scores the first function.
   int best = 0, second = -1;
   float s1 = -1e30f, s2 = -1e30f;
@@ -310,6 +318,37 @@ void normalised_scores(const DecodeWorkspace& ws, std::vector<float>& out) {
   // As DecodeResult::score is computed, so that the best function's entry equals it.
   for (size_t f = 0; f < ws.scores.size(); ++f)
     out[f] = static_cast<float>((ws.scores[f] + ws.common) / ws.total);
+}
+
+double seen_cells_lead(const RkhsDictionary& dict, int function, const DecodeOptions& opt,
+                       DecodeWorkspace& ws) {
+  const int W = dict.width();
+  const int nf = dict.functions();
+  if (function < 0 || function >= nf || ws.evidence.size() != static_cast<size_t>(W * W))
+    return 0.0;
+  // The cells that hold a decoded point at least vote_inset_cells inside (a return nearer a border
+  // may have its neighbour's colour).
+  ws.seen.assign(ws.evidence.size(), 0);
+  const double inset = opt.vote_inset_cells;
+  for (const auto& p : ws.prepared) {
+    const double fc = (p.yn + 0.5) * W, fr = (0.5 - p.zn) * W;
+    if (!(fc >= 0.0 && fc < W && fr >= 0.0 && fr < W)) continue;
+    const int c = static_cast<int>(fc), r = static_cast<int>(fr);
+    const double uc = fc - c, ur = fr - r;
+    if (uc < inset || uc > 1.0 - inset || ur < inset || ur > 1.0 - inset) continue;
+    ws.seen[static_cast<size_t>(r * W + c)] = 1;
+  }
+  const auto& vary = dict.varying_cells();
+  ws.varying.resize(vary.size());
+  for (size_t k = 0; k < vary.size(); ++k) {
+    const auto i = static_cast<size_t>(vary[k]);
+    ws.varying[k] = ws.seen[i] ? ws.evidence[i] : 0.0f;
+  }
+  score_functions(dict, opt, ws);
+  float rival = -1e30f;
+  for (int f = 0; f < nf; ++f)
+    if (f != function) rival = std::max(rival, ws.scores[static_cast<size_t>(f)]);
+  return nf > 1 ? static_cast<double>(ws.scores[static_cast<size_t>(function)] - rival) : 0.0;
 }
 
 }  // namespace lidartag::detector

@@ -23,14 +23,12 @@ bool may_hit(const B& b, const Ray& ray, double t_max) {
 
 }  // namespace
 
-bool PrintedPattern::reflectivity_at(double y, double z, double& reflectivity) const {
-  const double h = size / 2.0;
-  if (std::abs(y) > h || std::abs(z) > h) return false;
-  const double cell = size / cells;
-  const int col = std::clamp(static_cast<int>(std::floor((y + h) / cell)), 0, cells - 1);
-  const int row = std::clamp(static_cast<int>(std::floor((h - z) / cell)), 0, cells - 1);
-  const auto i = static_cast<size_t>(row) * static_cast<size_t>(cells) + static_cast<size_t>(col);
-  reflectivity = image[i] ? white : black;
+bool PrintedPattern::reflectivity_at(double y, double z, double& r) const {
+  const double hw = width / 2.0, hh = height / 2.0;
+  if (std::abs(y) > hw || std::abs(z) > hh) return false;
+  const int col = std::clamp(static_cast<int>(std::floor((y + hw) / (width / cols))), 0, cols - 1);
+  const int row = std::clamp(static_cast<int>(std::floor((hh - z) / (height / rows))), 0, rows - 1);
+  r = reflectivity[static_cast<size_t>(row) * static_cast<size_t>(cols) + static_cast<size_t>(col)];
   return true;
 }
 
@@ -156,6 +154,12 @@ Hit World::cast(const Ray& ray, double t_max) const {
     bool face_x = false;
     const OrientedBox& box = boxes_[i];
     if (!intersect_box(box, ray, limit, t, local, face_x)) continue;
+    if (!box.holes.empty() && std::abs(std::abs(local.x()) - box.half.x()) < 1e-6 &&
+        std::any_of(box.holes.begin(), box.holes.end(), [&](const Hole& h) {
+          const double dy = local.y() - h.y, dz = local.z() - h.z;
+          return dy * dy + dz * dz < h.radius * h.radius;
+        }))
+      continue;  // through a hole
     best.t = limit = t;
     best.reflectivity = box.reflectivity;
     best.tag = -1;

@@ -44,6 +44,20 @@ std::string_view clutter_kind_name(ClutterKind kind) {
   return "unknown";
 }
 
+std::string_view board_kind_name(BoardKind kind) {
+  switch (kind) {
+    case BoardKind::kCheckerboard:
+      return "checkerboard";
+    case BoardKind::kHoles:
+      return "holes";
+    case BoardKind::kStrips:
+      return "strips";
+    case BoardKind::kSign:
+      return "sign";
+  }
+  return "unknown";
+}
+
 namespace {
 
 [[noreturn]] void fail(const std::string& path, const std::string& why) {
@@ -304,6 +318,35 @@ void parse_world(const YAML::Node& node, const std::string& path, WorldOptions& 
   }
 }
 
+// "diamond", "square" or degrees, into `out`.
+void read_rotation(const YAML::Node& node, const std::string& path, double& out) {
+  const YAML::Node r = node["rotation"];
+  if (!r) return;
+  const std::string p = join(path, "rotation");
+  if (r.IsScalar() && r.Scalar() == "diamond") {
+    out = 45.0;
+  } else if (r.IsScalar() && r.Scalar() == "square") {
+    out = 0.0;
+  } else {
+    out = as_double(r, p);
+    if (std::abs(out) > 360.0) fail(p, "expected diamond, square or degrees");
+  }
+}
+
+void parse_stand(const YAML::Node& node, const std::string& path, StandOptions& stand) {
+  const YAML::Node s = node["stand"];
+  if (!s) return;
+  const std::string p = join(path, "stand");
+  if (s.IsScalar()) {
+    read(node, path, "stand", stand.enabled);
+  } else {
+    check_map(s, p, {"width", "reflectivity"});
+    stand.enabled = true;
+    read(s, p, "width", stand.width, 0.005, 10.0);
+    read_reflectivity(s, p, "reflectivity", stand.reflectivity);
+  }
+}
+
 void parse_tag(const YAML::Node& node, const std::string& path, TagOptions& t) {
   check_map(node, path,
             {"family", "id", "size", "center", "normal", "rotation", "board", "stand",
@@ -315,17 +358,7 @@ void parse_tag(const YAML::Node& node, const std::string& path, TagOptions& t) {
   if (!node["center"]) fail(path, "needs 'center' ([x, y, z], metres)");
   read(node, path, "center", t.center);
   read(node, path, "normal", t.normal);
-  if (const YAML::Node r = node["rotation"]) {
-    const std::string p = join(path, "rotation");
-    if (r.IsScalar() && r.Scalar() == "diamond")
-      t.rotation_deg = 45.0;
-    else if (r.IsScalar() && r.Scalar() == "square")
-      t.rotation_deg = 0.0;
-    else {
-      t.rotation_deg = as_double(r, p);
-      if (std::abs(t.rotation_deg) > 360.0) fail(p, "expected diamond, square or degrees");
-    }
-  }
+  read_rotation(node, path, t.rotation_deg);
   if (const YAML::Node b = node["board"]) {
     const std::string p = join(path, "board");
     check_map(b, p, {"thickness", "margin", "reflectivity"});
@@ -333,22 +366,85 @@ void parse_tag(const YAML::Node& node, const std::string& path, TagOptions& t) {
     read(b, p, "margin", t.board.margin, 0.0, 10.0);
     read_reflectivity(b, p, "reflectivity", t.board.reflectivity);
   }
-  if (const YAML::Node s = node["stand"]) {
-    const std::string p = join(path, "stand");
-    if (s.IsScalar()) {
-      read(node, path, "stand", t.stand.enabled);
-    } else {
-      check_map(s, p, {"width", "reflectivity"});
-      t.stand.enabled = true;
-      read(s, p, "width", t.stand.width, 0.005, 10.0);
-      read_reflectivity(s, p, "reflectivity", t.stand.reflectivity);
-    }
-  }
+  parse_stand(node, path, t.stand);
   bool retro = false;
   read(node, path, "retro_reflective", retro);
   if (retro) t.white_reflectivity = 200.0;  // retro-reflective sheet: 101..255 on the wire
   read_reflectivity(node, path, "white_reflectivity", t.white_reflectivity);
   read_reflectivity(node, path, "black_reflectivity", t.black_reflectivity);
+}
+
+void parse_board(const YAML::Node& node, const std::string& path, CalibrationBoardOptions& b) {
+  check_map(node, path,
+            {"kind", "center", "normal", "rotation", "size", "thickness", "reflectivity",
+             "dark_reflectivity", "stand", "inner_corners", "square_m", "holes", "strips",
+             "strip_width_m", "vertical_strips", "strip_reflectivity", "border_m", "text_lines",
+             "text_seed"});
+  const std::string kind = read_string(node, path, "kind", "checkerboard");
+  if (kind == "checkerboard")
+    b.kind = BoardKind::kCheckerboard;
+  else if (kind == "holes")
+    b.kind = BoardKind::kHoles;
+  else if (kind == "strips")
+    b.kind = BoardKind::kStrips;
+  else if (kind == "sign")
+    b.kind = BoardKind::kSign;
+  else
+    fail(join(path, "kind"),
+         "unknown board kind '" + kind + "' (checkerboard, holes, strips, sign)");
+  if (!node["center"]) fail(path, "needs 'center' ([x, y, z], metres)");
+  read(node, path, "center", b.center);
+  read(node, path, "normal", b.normal);
+  read_rotation(node, path, b.rotation_deg);
+  read(node, path, "size", b.size);
+  for (double v : b.size)
+    if (!(v >= 0.01 && v <= 100.0)) fail(join(path, "size"), "each side must be in [0.01, 100] m");
+  read(node, path, "thickness", b.thickness, 0.001, 10.0);
+  read_reflectivity(node, path, "reflectivity", b.reflectivity);
+  read_reflectivity(node, path, "dark_reflectivity", b.dark_reflectivity);
+  parse_stand(node, path, b.stand);
+  if (const YAML::Node ic = node["inner_corners"]) {
+    std::array<double, 2> v{};
+    read(node, path, "inner_corners", v);
+    for (size_t i = 0; i < 2; ++i) {
+      if (v[i] != std::floor(v[i]) || v[i] < 1 || v[i] > 100)
+        fail(join(path, "inner_corners"), "expected two whole numbers in [1, 100]");
+      b.inner_corners[i] = static_cast<int>(v[i]);
+    }
+  }
+  read(node, path, "square_m", b.square_m, 0.001, 10.0);
+  if (b.kind == BoardKind::kCheckerboard &&
+      ((b.inner_corners[0] + 1) * b.square_m > b.size[0] + 1e-9 ||
+       (b.inner_corners[1] + 1) * b.square_m > b.size[1] + 1e-9))
+    fail(join(path, "square_m"), "the squares do not fit on the board ('size')");
+  if (const YAML::Node h = node["holes"]) {
+    const std::string p = join(path, "holes");
+    if (!h.IsSequence()) fail(p, "expected a list of [y, z, radius]");
+    for (size_t i = 0; i < h.size(); ++i) {
+      const std::string pi = p + "[" + std::to_string(i) + "]";
+      if (!h[i].IsSequence() || h[i].size() != 3) fail(pi, "expected [y, z, radius]");
+      std::array<double, 3> c{};
+      for (size_t k = 0; k < 3; ++k) c[k] = as_double(h[i][k], pi);
+      if (!(c[2] > 0.0) || std::abs(c[0]) + c[2] > b.size[0] / 2 ||
+          std::abs(c[1]) + c[2] > b.size[1] / 2)
+        fail(pi, "a hole must have a positive radius and lie on the board");
+      b.holes.push_back(c);
+    }
+  }
+  if (b.kind == BoardKind::kHoles && b.holes.empty())
+    fail(path, "kind 'holes' needs 'holes' ([[y, z, radius], ...], metres)");
+  read(node, path, "strips", b.strips, 1, 100);
+  read(node, path, "strip_width_m", b.strip_width_m, 0.001, 10.0);
+  read(node, path, "vertical_strips", b.vertical_strips);
+  read_reflectivity(node, path, "strip_reflectivity", b.strip_reflectivity);
+  if (b.kind == BoardKind::kStrips &&
+      b.strips * b.strip_width_m > (b.vertical_strips ? b.size[0] : b.size[1]))
+    fail(join(path, "strips"), "the strips do not fit on the board ('size')");
+  read(node, path, "border_m", b.border_m, 0.0, 10.0);
+  if (b.kind == BoardKind::kSign && 2 * b.border_m >= std::min(b.size[0], b.size[1]))
+    fail(join(path, "border_m"), "the border leaves no face");
+  read(node, path, "text_lines", b.text_lines, 0, 20);
+  read(node, path, "text_seed", b.text_seed);
 }
 
 }  // namespace
@@ -363,7 +459,7 @@ Scene parse_scene(const std::string& yaml_text, const std::string& source) {
   Scene scene;
   try {
     if (!root || root.IsNull()) fail("scene", "empty");
-    check_map(root, "", {"sensor", "world", "tags", "seed", "rotations"});
+    check_map(root, "", {"sensor", "world", "tags", "boards", "seed", "rotations"});
     scene.sensor.noise = noise_defaults(scene.sensor.model);
     if (root["sensor"]) parse_sensor(root["sensor"], "sensor", scene.sensor);
     if (root["world"]) parse_world(root["world"], "world", scene.world);
@@ -374,6 +470,15 @@ Scene parse_scene(const std::string& yaml_text, const std::string& source) {
         TagOptions t;
         parse_tag(tags[i], "tags[" + std::to_string(i) + "]", t);
         scene.tags.push_back(t);
+      }
+    }
+    if (const YAML::Node boards = root["boards"]) {
+      if (!boards.IsSequence()) fail("boards", "expected a list");
+      if (boards.size() > 100) fail("boards", "at most 100 boards");
+      for (size_t i = 0; i < boards.size(); ++i) {
+        CalibrationBoardOptions b;
+        parse_board(boards[i], "boards[" + std::to_string(i) + "]", b);
+        scene.boards.push_back(b);
       }
     }
     read(root, "", "seed", scene.seed);

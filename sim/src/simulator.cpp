@@ -4,6 +4,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "lidartag/sim/board_target.hpp"
 #include "lidartag/sim/clutter.hpp"
 #include "lidartag/sim/random.hpp"
 #include "lidartag/sim/sensor_sim.hpp"
@@ -48,6 +49,10 @@ Simulator::Simulator(Scene scene) : scene_(std::move(scene)) {
   const Eigen::Vector3d sensor_position(s.position[0], s.position[1], s.height);
   for (size_t i = 0; i < scene_.tags.size(); ++i)
     tags_.push_back(make_tag(scene_.tags[i], sensor_position, "tags[" + std::to_string(i) + "]"));
+  std::vector<Eigen::Matrix3d> board_rotations;
+  for (size_t i = 0; i < scene_.boards.size(); ++i)
+    board_rotations.push_back(
+        board_rotation(scene_.boards[i], sensor_position, "boards[" + std::to_string(i) + "]"));
 
   const WorldOptions& w = scene_.world;
   world_.set_ground(w.ground, w.ground_reflectivity);
@@ -67,6 +72,9 @@ Simulator::Simulator(Scene scene) : scene_(std::move(scene)) {
       const double r = half * std::sqrt(2.0) + t.options.size * std::sqrt(2.0) / 4.0;
       keep_out.push_back({p0, t.center.head<2>(), r});
     }
+    for (const CalibrationBoardOptions& b : scene_.boards)
+      keep_out.push_back(
+          {p0, Eigen::Vector2d(b.center[0], b.center[1]), std::hypot(b.size[0], b.size[1]) / 2.0});
     const Clutter c = generate_clutter(w.clutter, keep_out);
     boxes.insert(boxes.end(), c.boxes.begin(), c.boxes.end());
     cylinders.insert(cylinders.end(), c.cylinders.begin(), c.cylinders.end());
@@ -77,6 +85,8 @@ Simulator::Simulator(Scene scene) : scene_(std::move(scene)) {
   for (const CylinderOptions& c : cylinders)
     world_.add_cylinder({{c.base[0], c.base[1], c.base[2]}, c.radius, c.height, c.reflectivity});
   for (size_t i = 0; i < tags_.size(); ++i) add_tag(world_, tags_[i], static_cast<int>(i));
+  for (size_t i = 0; i < scene_.boards.size(); ++i)
+    add_board(world_, scene_.boards[i], board_rotations[i]);
 }
 
 Truth Simulator::run(int rotations, uint64_t seed, const PacketCallback& emit,

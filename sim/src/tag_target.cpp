@@ -76,11 +76,10 @@ void add_tag(World& world, const TagTarget& tag, int index) {
   const TagOptions& o = tag.options;
   PrintedPattern p;
   p.tag = index;
-  p.size = o.size;
-  p.cells = tag.total_width;
-  p.image = tag.image;
-  p.white = o.white_reflectivity;
-  p.black = o.black_reflectivity;
+  p.width = p.height = o.size;
+  p.cols = p.rows = tag.total_width;
+  for (uint8_t white : tag.image)
+    p.reflectivity.push_back(white ? o.white_reflectivity : o.black_reflectivity);
   OrientedBox board;
   board.rotation = tag.rotation;
   const double half = o.size / 2.0 + o.board.margin;

@@ -65,14 +65,14 @@ TEST(Config, EveryDetectorOptionIsMapped) {
   EXPECT_EQ(field_count<detector::ClusterOptions>(), 2u);
   EXPECT_EQ(field_count<detector::ValidationOptions>(), 10u);
   EXPECT_EQ(field_count<detector::PlaneOptions>(), 4u);
-  EXPECT_EQ(field_count<detector::CornerOptions>(), 6u);
-  EXPECT_EQ(field_count<detector::PoseOptions>(), 11u);
-  EXPECT_EQ(field_count<detector::DecodeOptions>(), 10u);
+  EXPECT_EQ(field_count<detector::CornerOptions>(), 8u);
+  EXPECT_EQ(field_count<detector::PoseOptions>(), 12u);
+  EXPECT_EQ(field_count<detector::DecodeOptions>(), 12u);
   std::set<std::string> keys;
   leaf_keys(YAML::Load(print_config(DaemonOptions{})), "", keys);
   size_t detector_keys = 0;
   for (const auto& k : keys) detector_keys += k.rfind("detector.", 0) == 0 ? 1u : 0u;
-  EXPECT_EQ(detector_keys, 3u + 6u + 2u + 10u + 4u + 6u + 11u + 10u);
+  EXPECT_EQ(detector_keys, 3u + 6u + 2u + 10u + 4u + 8u + 12u + 12u);
 }
 
 TEST(Config, PrintedConfigParsesBackToTheSameOptions) {
@@ -328,6 +328,61 @@ TEST(Config, DetectorSectionAloneForTheCli) {
   } catch (const ConfigError& e) {
     EXPECT_EQ(e.key(), "detector.corners.size_tol");
   }
+}
+
+}  // namespace
+}  // namespace lidartag::daemon
+
+namespace lidartag::daemon {
+namespace {
+
+// The tracker's keys come from its rule table (detector::visit_tracker_options): every field of
+// TrackerOptions is a key of the `tracker:` section.
+TEST(Config, EveryTrackerOptionIsMappedByItsRuleTable) {
+  std::set<std::string> keys;
+  leaf_keys(YAML::Load(print_config(DaemonOptions{})), "", keys);
+  size_t tracker_keys = 0;
+  for (const auto& k : keys) tracker_keys += k.rfind("tracker.", 0) == 0 ? 1u : 0u;
+  EXPECT_EQ(tracker_keys, field_count<detector::TrackerOptions>());
+  const DaemonOptions o = parse_config("tracker: {enabled: false, window: 20, max_angle_deg: 5}");
+  EXPECT_FALSE(o.tracker.enabled);
+  EXPECT_EQ(o.tracker.window, 20);
+  EXPECT_EQ(o.tracker.max_angle_deg, 5.0);
+  EXPECT_EQ(print_config(parse_config(print_config(o))), print_config(o));
+}
+
+TEST(Config, TrackerBadValuesNameKeyValueAndRule) {
+  const std::vector<BadCase> cases = {
+      {"tracker: {max_angle_deg: 50}", "tracker.max_angle_deg", "50", "must be in (0, 45)"},
+      {"tracker: {max_distance_m: 0}", "tracker.max_distance_m", "0", "must be > 0"},
+      {"tracker: {window: 0}", "tracker.window", "0", "must be in [1, 1000]"},
+      {"tracker: {min_rotations: 2.5}", "tracker.min_rotations", "2.5", "integer"},
+      {"tracker: {enabled: maybe}", "tracker.enabled", "maybe", "true or false"},
+      {"tracker: {max_tracks: 0}", "tracker.max_tracks", "0", "must be in [1, 4096]"},
+      {"tracker: {gate: 1}", "tracker.gate", "1", "unknown key"},
+  };
+  for (const auto& c : cases) {
+    SCOPED_TRACE(c.yaml);
+    try {
+      (void)parse_config(c.yaml);
+      ADD_FAILURE() << "accepted";
+    } catch (const ConfigError& e) {
+      EXPECT_EQ(e.key(), c.key);
+      EXPECT_EQ(e.value(), c.value);
+      EXPECT_NE(e.reason().find(c.reason_part), std::string::npos) << e.reason();
+    }
+  }
+  // Options built in code: the same table.
+  DaemonOptions o;
+  o.tracker.full_cell_votes = 0.5;
+  try {
+    validate(o);
+    ADD_FAILURE() << "accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.key(), "tracker.full_cell_votes");
+    EXPECT_EQ(e.reason(), "must be >= 1");
+  }
+  EXPECT_THROW(detector::validate_tracker_options(o.tracker), detector::OptionsError);
 }
 
 }  // namespace

@@ -95,6 +95,73 @@ TEST(Messages, DetectionsCarryEveryFieldThroughMemq) {
   EXPECT_EQ(t.margin, 3.5);
   EXPECT_EQ(t.points, 812);
   EXPECT_EQ(t.fit_cost, 1.25);
+  // Without the tracker: decoded alone, not tracked.
+  EXPECT_TRUE(t.decoded);
+  EXPECT_EQ(t.track_id, -1);
+  EXPECT_FALSE(t.confirmed);
+  EXPECT_EQ(t.track_rotations, 0);
+  EXPECT_EQ(got.tracks, 0);
+  EXPECT_EQ(got.confirmed_tracks, 0);
+}
+
+// The tracker's report of the rotation replaces the detections: each with its track's fields, a
+// tag confirmed by its track only (decoded false) after them; the track counts.
+TEST(Messages, TrackedDetectionsCarryTheTrackFieldsThroughMemq) {
+  LcmBus bus("memq://");
+  Capture capture;
+  bus.lcm().subscribe("LIDARTAG_DETECTIONS", &Capture::handle, &capture);
+  const RotationResult r = sample_result();
+  detector::TrackerResult tracked;
+  tracked.tracks = 3;
+  tracked.confirmed_tracks = 2;
+  detector::TrackedDetection a;
+  a.detection = r.detection.detections[0];
+  a.track.track_id = 12;
+  a.track.rotations = 40;
+  a.track.confirmed = true;
+  a.track.margin_cells = 2.5;
+  a.track.window_rotations = 10;
+  a.track.position = {4.01, 0.91, 0.11};
+  a.track.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(0.25, Eigen::Vector3d::UnitZ()));
+  a.track.position_std_m = {0.001, 0.002, 0.003};
+  a.track.angle_std_deg = 0.4;
+  detector::TrackedDetection b = a;
+  b.decoded = false;
+  b.detection.id = 9;
+  b.track.track_id = 13;
+  b.track.rotations = 4;
+  detector::TrackedDetection c = a;
+  c.track = detector::TrackInfo{};  // more tags than tracks: untracked
+  tracked.tags = {a, b, c};
+  lidartag::tag_detections_t msg;
+  fill_detections(r, "", "velodyne", 0, 0, 0, msg);
+  fill_tracked_detections(tracked, msg);
+  ASSERT_TRUE(bus.publish("LIDARTAG_DETECTIONS", msg));
+  ASSERT_EQ(bus.lcm().handleTimeout(100), 1);
+  const auto got = decode<lidartag::tag_detections_t>(capture.messages.at(0));
+  EXPECT_EQ(got.tracks, 3);
+  EXPECT_EQ(got.confirmed_tracks, 2);
+  ASSERT_EQ(got.ndetections, 3);
+  const auto& t = got.detections[0];
+  EXPECT_EQ(t.id, 7);
+  EXPECT_EQ(t.points, 812);
+  EXPECT_TRUE(t.decoded);
+  EXPECT_EQ(t.track_id, 12);
+  EXPECT_EQ(t.track_rotations, 40);
+  EXPECT_TRUE(t.confirmed);
+  EXPECT_EQ(t.track_margin, 2.5);
+  EXPECT_EQ(t.track_window, 10);
+  EXPECT_EQ(t.track_position[1], 0.91);
+  EXPECT_EQ(t.track_orientation[0], a.track.orientation.w());
+  EXPECT_EQ(t.track_orientation[3], a.track.orientation.z());
+  EXPECT_EQ(t.track_position_std[2], 0.003);
+  EXPECT_EQ(t.track_angle_std_deg, 0.4);
+  EXPECT_FALSE(got.detections[1].decoded);
+  EXPECT_EQ(got.detections[1].id, 9);
+  EXPECT_EQ(got.detections[1].track_id, 13);
+  EXPECT_EQ(got.detections[2].track_id, -1);
+  EXPECT_FALSE(got.detections[2].confirmed);
+  EXPECT_EQ(got.detections[2].track_rotations, 0);
 }
 
 TEST(Messages, EmptyRotationIsStillAMessage) {

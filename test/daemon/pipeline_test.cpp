@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <set>
 #include <thread>
 
@@ -229,6 +230,41 @@ TEST(Pipeline, VisualisationMessagesAreOffByDefault) {
     tags += static_cast<size_t>(decode<lidartag::tag_detections_t>(bytes).ndetections);
   }
   EXPECT_GT(tags, 0u);  // there were points to publish, and none were
+}
+
+TEST(Pipeline, TheTrackerFollowsEachTagAcrossRotationsUnlessTurnedOff) {
+  REQUIRE_DEMO();
+  // On by default: the demo's two static tags keep one track each, confirmed after a few
+  // rotations, with the rotation count growing.
+  const Recorder on = run_pipeline(demo_options({}));
+  ASSERT_GE(on.messages.size(), 10u);
+  std::map<int32_t, int32_t> rotations_of;  // track id -> highest track_rotations seen
+  int confirmed = 0, last_tracks = 0;
+  for (const auto& bytes : on.messages) {
+    const auto m = decode<lidartag::tag_detections_t>(bytes);
+    last_tracks = m.tracks;
+    for (const auto& d : m.detections) {
+      EXPECT_GE(d.track_id, 0);
+      EXPECT_GT(d.track_rotations, rotations_of[d.track_id] - 1) << "track " << d.track_id;
+      rotations_of[d.track_id] = std::max(rotations_of[d.track_id], d.track_rotations);
+      confirmed += d.confirmed ? 1 : 0;
+    }
+  }
+  EXPECT_EQ(rotations_of.size(), 2u);  // two tags, one track each
+  EXPECT_EQ(last_tracks, 2);
+  for (const auto& [id, n] : rotations_of) EXPECT_GE(n, 8) << "track " << id;
+  EXPECT_GT(confirmed, 0);
+  // Off: the same detections, every one untracked.
+  const Recorder off = run_pipeline(demo_options({"tracker.enabled=false"}));
+  ASSERT_EQ(off.messages.size(), on.messages.size());
+  for (const auto& bytes : off.messages) {
+    const auto m = decode<lidartag::tag_detections_t>(bytes);
+    EXPECT_EQ(m.tracks, 0);
+    for (const auto& d : m.detections) {
+      EXPECT_EQ(d.track_id, -1);
+      EXPECT_TRUE(d.decoded);
+    }
+  }
 }
 
 TEST(Pipeline, LoopSeamPartialsAreCountedNotPublishedAndTheRateStaysTheSensors) {

@@ -5,6 +5,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <cmath>
 #include <vector>
 
 namespace lidartag::detector {
@@ -69,8 +70,10 @@ TEST(DecodeCluster, FindsTheCodeAndKeepsEachFamilysEvidence) {
                                              RkhsDictionary(tags::builtin_family("tag25h9"))};
   const Placed tag = place(marker_points(f16, 7, 1, 1.2, 3), facing(), {6, 1, 0});
   ClusterDecodeWorkspace ws;
+  DecodeOptions every_point;  // all 576 points decoded (the default takes every other one)
+  every_point.max_points = 1000;
   const ClusterDecode d = decode_cluster(tag.points, tag.pull_back, Eigen::Vector3d::Zero(), 1.2,
-                                         dicts, {}, DecodeOptions{}, ws);
+                                         dicts, {}, every_point, ws);
   EXPECT_EQ(d.best.rejection, Rejection::kNone);
   EXPECT_EQ(d.family, 0);
   EXPECT_EQ(d.best.code_index, 7);
@@ -95,6 +98,14 @@ TEST(DecodeCluster, FindsTheCodeAndKeepsEachFamilysEvidence) {
   int agree = 0;
   for (size_t i = 0; i < 64; ++i) agree += (e.cells[i] > 0) == (signs[i] > 0) ? 1 : 0;
   EXPECT_EQ(agree, 64);
+  // Cell votes: every cell holds 3 x 3 points well inside it, voting for its colour.
+  ASSERT_EQ(ws.votes.size(), 64u);
+  ASSERT_EQ(ws.vote_counts.size(), 64u);
+  for (size_t i = 0; i < 64; ++i) {
+    EXPECT_EQ(ws.vote_counts[i], 9.0f) << i;
+    EXPECT_NEAR(ws.votes[i], signs[i] > 0 ? 9.0f : -9.0f, 1e-3) << i;
+  }
+  EXPECT_FALSE(d.shift_searched);
   // The other family was scored too, lower.
   ASSERT_TRUE(ws.families[1].scored);
   EXPECT_LT(ws.families[1].result.score, d.best.score);
@@ -119,6 +130,16 @@ TEST(DecodeCluster, ShiftSearchPlacesATagAlongTheAxisTheOutlineMissed) {
   EXPECT_NEAR(d.shift, 0.1, 0.02);
   EXPECT_GT(ws.shifts.size(), 3u);
   EXPECT_NEAR(ws.families[0].shift, d.shift, 1e-12);
+  EXPECT_TRUE(d.shift_searched);
+  // Votes at the best shift: the rows the rings crossed vote, the top and bottom ones do not.
+  ASSERT_EQ(ws.vote_counts.size(), 64u);
+  float top = 0, middle = 0;
+  for (size_t col = 0; col < 8; ++col) {
+    top += ws.vote_counts[col];
+    middle += ws.vote_counts[4 * 8 + col];
+  }
+  EXPECT_EQ(top, 0.0f);
+  EXPECT_GT(middle, 0.0f);
   // Without the search (every side seen) the same points decode worse.
   ClusterDecodeWorkspace ws0;
   const ClusterDecode d0 = decode_cluster(tag.points, tag.pull_back, Eigen::Vector3d::Zero(), 1.2,
@@ -162,6 +183,26 @@ TEST(DecodeCluster, ATagOfAFamilyNotConfiguredIsRejected) {
   EXPECT_EQ(with.best.rejection, Rejection::kOtherFamily);
   EXPECT_GT(with.other_family_score, with.best.score);
   EXPECT_EQ(with.best.code_index, without.best.code_index);
+  // Rejected by the decision itself, the decoys are still decoded (evidence over rotations needs
+  // them): ambiguous, and below min_score at the best shift.
+  DecodeOptions strict;
+  strict.min_margin_bits = 1e6;
+  const ClusterDecode ambiguous = decode_cluster(tag.points, tag.pull_back, Eigen::Vector3d::Zero(),
+                                                 1.2, configured, decoys, strict, ws);
+  EXPECT_EQ(ambiguous.best.rejection, Rejection::kAmbiguous);
+  EXPECT_GT(ambiguous.other_family_score, ambiguous.best.score);
+  strict.min_score = 1.0;
+  const ClusterDecode low = decode_cluster(tag.points, tag.pull_back, Eigen::Vector3d::Zero(), 1.2,
+                                           configured, decoys, strict, ws);
+  EXPECT_EQ(low.best.rejection, Rejection::kLowScore);
+  EXPECT_GT(low.other_family_score, low.best.score);
+  // ... but not below other_family_min_score: no tag of any family, the check is skipped.
+  strict.other_family_min_score = std::nextafter(low.best.score, 2.0);
+  const ClusterDecode hopeless = decode_cluster(tag.points, tag.pull_back, Eigen::Vector3d::Zero(),
+                                                1.2, configured, decoys, strict, ws);
+  EXPECT_EQ(hopeless.best.rejection, Rejection::kLowScore);
+  EXPECT_EQ(hopeless.best.function, low.best.function);
+  EXPECT_EQ(hopeless.other_family_score, -1.0);
 }
 
 TEST(DecodeCluster, OneIntensityGivesNothingToDecode) {

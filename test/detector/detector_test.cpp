@@ -9,6 +9,7 @@
 #include <functional>
 #include <limits>
 #include <numbers>
+#include <numeric>
 #include <random>
 #include <string>
 
@@ -278,6 +279,12 @@ TEST(Detector, CandidatesCarryThePoseAndTheEvidenceOfEveryCode) {
     // The decoded grid of the detection's family.
     EXPECT_EQ(k.grid_width, det.dictionaries()[static_cast<size_t>(k.family_index)].width());
     EXPECT_EQ(res.cells_of(k).size(), static_cast<size_t>(k.grid_width * k.grid_width));
+    EXPECT_EQ(res.votes_of(k).size(), res.cells_of(k).size());
+    const auto counts = res.vote_counts_of(k);
+    ASSERT_EQ(counts.size(), res.cells_of(k).size());
+    EXPECT_GT(std::accumulate(counts.begin(), counts.end(), 0.0f), 50.0f);
+    EXPECT_GE(k.other_family_score, 0.0);  // decoys are on by default
+    EXPECT_LT(k.other_family_score, k.score);
     // Linked to its cluster's diagnostic.
     ASSERT_GE(k.cluster, 0);
     EXPECT_EQ(res.diagnostics[static_cast<size_t>(k.cluster)].candidate,
@@ -299,6 +306,7 @@ TEST(Detector, CandidatesCarryThePoseAndTheEvidenceOfEveryCode) {
     if (a.rejection != Rejection::kNone) continue;
     EXPECT_EQ(b.rejection, Rejection::kAmbiguous);
     EXPECT_EQ(b.detection, -1);
+    EXPECT_EQ(b.other_family_score, a.other_family_score);
     EXPECT_EQ(b.position, a.position);
     EXPECT_EQ(b.id, a.id);
     const auto ea = res.evidence_of(a), eb = rej.evidence_of(b);

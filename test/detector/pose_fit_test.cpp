@@ -156,6 +156,70 @@ TEST(PoseFit, CoverageOfAWholeAndAHalfTag) {
   EXPECT_NEAR(coverage_ratio(half, RigidPose{}, 1.2, buf, hull), 0.45, 0.05);
 }
 
+TEST(PoseFit, CoverageBoundIsNeverBelowTheCoverageOfAnyPullBack) {
+  // A tag seen by rings (one row of points per ring, 0.2 m apart) turned and tilted; the bound
+  // from the ring ends' hull in the plane against coverage_ratio of every point after pull-backs
+  // tilted up to 10 degrees and moved in and out of the plane.
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-1, 1);
+  std::vector<double> margins;
+  for (int trial = 0; trial < 20; ++trial) {
+    const double t = 1.2, spin = u(rng);
+    const Eigen::Matrix3d R = (Eigen::AngleAxisd(u(rng), Eigen::Vector3d::UnitZ()) *
+                               Eigen::AngleAxisd(0.3 * u(rng), Eigen::Vector3d::UnitY()))
+                                  .toRotationMatrix();
+    const Eigen::Vector3d c(6 + u(rng), u(rng), 0.5 * u(rng));
+    std::normal_distribution<double> depth(0.0, 0.005);
+    std::vector<ClusterPoint> pts;
+    std::vector<Eigen::Vector2d> ends;
+    for (double z = -t / 2 + 0.05; z < t / 2; z += 0.2) {
+      // The ring's chord through the tag turned by `spin` (a diamond when 45 degrees).
+      std::vector<Eigen::Vector2d> row;
+      for (double y = -t; y <= t; y += 0.01) {
+        const Eigen::Vector2d in_tag = Eigen::Rotation2Dd(spin) * Eigen::Vector2d(y, z);
+        if (std::abs(in_tag.x()) <= t / 2 && std::abs(in_tag.y()) <= t / 2) row.emplace_back(y, z);
+      }
+      if (row.empty()) continue;
+      ends.push_back(row.front());
+      ends.push_back(row.back());
+      for (const auto& q : row) {
+        const Eigen::Vector3d s = R * Eigen::Vector3d(depth(rng), q.x(), q.y()) + c;
+        ClusterPoint p;
+        p.x = static_cast<float>(s.x());
+        p.y = static_cast<float>(s.y());
+        p.z = static_cast<float>(s.z());
+        pts.push_back(p);
+      }
+    }
+    // The ring ends in the plane's own coordinates, as find_corners' hull holds them (the hull by
+    // coverage_ratio itself: the ends placed in a tag frame, identity pull-back).
+    std::vector<ClusterPoint> flat;
+    for (const auto& e : ends) {
+      ClusterPoint p;
+      p.y = static_cast<float>(e.x());
+      p.z = static_cast<float>(e.y());
+      flat.push_back(p);
+    }
+    std::vector<Eigen::Vector2d> hull, buf, plane_hull;
+    const double area = coverage_ratio(flat, RigidPose{}, 1.0, buf, plane_hull);
+    const double bound = coverage_bound(plane_hull, t);
+    EXPECT_NEAR(bound, area / (t * t) / kCoverageBoundSlack, 1e-12);
+    for (int k = 0; k < 10; ++k) {
+      RigidPose pull;
+      const Eigen::Matrix3d tilt =
+          Eigen::AngleAxisd(0.17 * u(rng), Eigen::Vector3d(0, u(rng), u(rng)).normalized())
+              .toRotationMatrix();
+      pull.R = tilt * R.transpose();
+      pull.p = -pull.R * c + Eigen::Vector3d(0.1 * u(rng), 0.2 * u(rng), 0.2 * u(rng));
+      const double cov = coverage_ratio(pts, pull, t, buf, hull);
+      EXPECT_LE(cov, bound) << "trial " << trial << " pull-back " << k;
+      margins.push_back(bound - cov);
+    }
+  }
+  // Not vacuous: some pull-back comes within 5 % of t^2 of the bound.
+  EXPECT_LT(*std::min_element(margins.begin(), margins.end()), 0.05);
+}
+
 TEST(PoseFit, AlgorithmNamesRoundTrip) {
   for (auto a : {PoseAlgorithm::kMMA, PoseAlgorithm::kSBPLX, PoseAlgorithm::kCCSAQ})
     EXPECT_EQ(pose_algorithm_from_name(pose_algorithm_name(a)), a);

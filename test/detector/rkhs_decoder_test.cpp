@@ -286,6 +286,53 @@ TEST(RkhsDecoder, BestAndRunnerUpAreThoseOfTheInnerProductWithEveryFunction) {
 
 // The cells that tell functions apart are the payload; the white ring and the black border are
 // common to every function.
+// The margin also counts the kernel tails that a cell without returns gets from its neighbours;
+// seen_cells_lead asks the cells that hold returns alone.
+TEST(RkhsDecoder, SeenCellsLeadAsksOnlyTheCellsWithReturns) {
+  const auto& fam = tags::builtin_family("tag16h5");
+  const RkhsDictionary dict(fam);
+  DecodeWorkspace ws;
+  const DecodeOptions opt;
+  // Code a fully seen: it leads every other function on the seen cells.
+  std::vector<ClusterPoint> pts;
+  synth(fam, 0, 0, {}, 3, pts);
+  DecodeResult r = decode_tag(pts, 1.0, dict, opt, ws);
+  ASSERT_EQ(r.function, 0);
+  EXPECT_GT(seen_cells_lead(dict, 0, opt, ws), 0.0);
+  // The nearest other code (rotation 0): no returns in the cells where the two differ but one,
+  // and that one shows b's colour.
+  int b = -1, best_distance = 1 << 30;
+  const int W = dict.width();
+  for (int k = 1; k < fam.ncodes(); ++k) {
+    int d = 0;
+    for (int i = 0; i < W * W; ++i) d += dict.signs(0)[i] != dict.signs(4 * k)[i] ? 1 : 0;
+    if (d < best_distance) {
+      best_distance = d;
+      b = k;
+    }
+  }
+  ASSERT_GE(b, 1);
+  std::vector<int> differ;
+  for (int i = 0; i < W * W; ++i)
+    if (dict.signs(0)[i] != dict.signs(4 * b)[i]) differ.push_back(i);
+  ASSERT_GE(differ.size(), 2u);
+  std::vector<ClusterPoint> seen;
+  for (auto p : pts) {
+    const int c = static_cast<int>((p.y + 0.5) * W), row = static_cast<int>((0.5 - p.z) * W);
+    const int cell = row * W + c;
+    if (cell == differ[0]) {
+      p.intensity = dict.signs(4 * b)[cell] > 0 ? 200.0f : 30.0f;  // b's colour
+    } else if (std::find(differ.begin(), differ.end(), cell) != differ.end()) {
+      continue;  // not seen
+    }
+    seen.push_back(p);
+  }
+  r = decode_tag(seen, 1.0, dict, opt, ws);
+  ASSERT_GE(r.function, 0);
+  EXPECT_LT(seen_cells_lead(dict, 0, opt, ws), 0.0) << "a fits the seen cells worse than b";
+  EXPECT_GE(seen_cells_lead(dict, 4 * b, opt, ws), 0.0) << "nothing fits them better than b";
+}
+
 TEST(RkhsDecoder, VaryingCellsAreThePayload) {
   for (const char* name : {"tag16h5", "tag25h9", "tag36h11"}) {
     const auto& fam = tags::builtin_family(name);

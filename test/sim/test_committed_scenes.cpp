@@ -39,7 +39,8 @@ TEST_P(CommittedScene, SceneLoadsAndTruthMatchesIt) {
   EXPECT_LT(size, 5u * 1024 * 1024);
 }
 
-INSTANTIATE_TEST_SUITE_P(Pcaps, CommittedScene, ::testing::Values("demo", "outdoor", "clutter"));
+INSTANTIATE_TEST_SUITE_P(Pcaps, CommittedScene,
+                         ::testing::Values("demo", "outdoor", "clutter", "boards"));
 
 }  // namespace
 }  // namespace lidartag::sim

@@ -141,6 +141,73 @@ TEST(CliDetect, ConfigFileSetsTheDetector) {
   EXPECT_NE(bad.out.find("detector.features.zeta"), std::string::npos) << bad.out;
 }
 
+// The tracker is on by default: every detection gets its track (one per tag, rotations counted,
+// confirmed from the 3rd rotation, tracker.min_rotations), its mean pose near the truth;
+// --no-tracker and `tracker: {enabled: false}` give the detections alone.
+TEST(CliDetect, TracksByDefaultAndNotWithNoTracker) {
+  const Result r = run_tool("detect " + kDemo + " --tag-size 0.8 --tag-size 0.6 --json", false);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto truth = demo_truth();
+  std::istringstream lines(r.out);
+  std::string line;
+  size_t n = 0;
+  while (std::getline(lines, line)) {
+    const auto j = nlohmann::json::parse(line);
+    EXPECT_EQ(j["tracks"].get<int>(), 2);
+    EXPECT_EQ(j["confirmed_tracks"].get<int>(), n >= 2 ? 2 : 0);
+    EXPECT_GE(j["timing_ms"]["tracker"].get<double>(), 0.0);
+    for (const auto& d : j["detections"]) {
+      EXPECT_TRUE(d["decoded"].get<bool>());
+      const auto& t = d["track"];
+      EXPECT_EQ(t["id"].get<int>(), d["id"].get<int>());  // tags 0 and 1 start tracks 0 and 1
+      EXPECT_EQ(t["rotations"].get<size_t>(), n + 1);
+      EXPECT_EQ(t["confirmed"].get<bool>(), n >= 2);
+      EXPECT_EQ(t["window"].get<size_t>(), n + 1);
+      for (const auto& tag : truth["rotations"][n]["tags"])
+        if (tag["id"] == d["id"]) {
+          EXPECT_LT(dist(t["position"], tag["position"]), 0.02);
+          EXPECT_LT(angle_deg(t["orientation"], tag["orientation"]), 2.0);
+        }
+      EXPECT_LT(t["position_std"][0].get<double>(), 0.01);
+      EXPECT_LT(t["angle_std_deg"].get<double>(), 1.0);
+    }
+    ++n;
+  }
+  EXPECT_EQ(n, 10u);
+  const Result table = run_tool("detect " + kDemo + " --tag-size 0.8 --tag-size 0.6", false);
+  EXPECT_NE(table.out.find("2 tracks (2 confirmed)"), std::string::npos) << table.out;
+  EXPECT_NE(table.out.find("track 1: confirmed, 10 rotations"), std::string::npos) << table.out;
+  EXPECT_NE(table.out.find("tracker"), std::string::npos);
+
+  const Result off =
+      run_tool("detect " + kDemo + " --tag-size 0.8 --tag-size 0.6 --json --no-tracker", false);
+  ASSERT_EQ(off.exit_code, 0) << off.out;
+  EXPECT_EQ(off.out.find("\"track\""), std::string::npos);
+  EXPECT_EQ(off.out.find("\"tracks\""), std::string::npos);
+  EXPECT_EQ(off.out.find("\"decoded\""), std::string::npos);
+
+  TempDir dir;
+  {
+    std::ofstream c(dir / "off.yaml");
+    c << "detector:\n  tag_sizes_m: [0.8, 0.6]\ntracker:\n  enabled: false\n";
+    std::ofstream five(dir / "five.yaml");
+    five << "detector:\n  tag_sizes_m: [0.8, 0.6]\ntracker:\n  min_rotations: 5\n";
+    std::ofstream bad(dir / "bad.yaml");
+    bad << "tracker:\n  max_angle_deg: 90\n";
+  }
+  const Result cfg_off =
+      run_tool("detect " + kDemo + " --json --config " + (dir / "off.yaml").string(), false);
+  ASSERT_EQ(cfg_off.exit_code, 0) << cfg_off.out;
+  EXPECT_EQ(cfg_off.out.find("\"track\""), std::string::npos);
+  const Result cfg_five =
+      run_tool("detect " + kDemo + " --config " + (dir / "five.yaml").string(), false);
+  EXPECT_NE(cfg_five.out.find("track 0: unconfirmed, 4 rotations"), std::string::npos);
+  EXPECT_NE(cfg_five.out.find("track 0: confirmed, 5 rotations"), std::string::npos);
+  const Result cfg_bad = run_tool("detect " + kDemo + " --config " + (dir / "bad.yaml").string());
+  EXPECT_EQ(cfg_bad.exit_code, 2);  // a bad configuration (docs/tools.md)
+  EXPECT_NE(cfg_bad.out.find("tracker.max_angle_deg"), std::string::npos) << cfg_bad.out;
+}
+
 TEST(CliDetect, PcdWithRingsAndWithout) {
   TempDir dir;
   const Result dump = run_tool("dump " + kDemo + " --out " + (dir / "scans").string());

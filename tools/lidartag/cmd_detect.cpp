@@ -21,6 +21,7 @@
 #include "lidartag/common.hpp"
 #include "lidartag/detector/cloud_scan.hpp"
 #include "lidartag/detector/detector.hpp"
+#include "lidartag/detector/tracker.hpp"
 #include "lidartag/driver/io/capture_reader.hpp"
 #include "lidartag/driver/io/errors.hpp"
 #include "lidartag/driver/io/pcd.hpp"
@@ -39,7 +40,8 @@ struct DetectArgs {
   std::string config;
   bool json = false;
   bool partial = false;
-  bool clusters = false;  // explain every cluster with enough features to be a tag
+  bool clusters = false;    // explain every cluster with enough features to be a tag
+  bool no_tracker = false;  // every rotation alone
   std::vector<double> tag_sizes;
   std::vector<std::string> families;
   int rings = 0;                // PCD without a ring field and no --model: beams to estimate
@@ -58,6 +60,18 @@ det::DetectorOptions detector_options(const DetectArgs& args) {
   options.cluster_diagnostics = args.clusters;
   if (!args.tag_sizes.empty()) options.tag_sizes_m = args.tag_sizes;
   if (!args.families.empty()) options.families = args.families;
+  return options;
+}
+
+// The `tracker:` section of --config (defaults without one); --no-tracker turns it off.
+det::TrackerOptions tracker_options(const DetectArgs& args) {
+  det::TrackerOptions options;
+  if (!args.config.empty()) {
+#ifdef LIDARTAG_HAVE_CONFIG
+    options = daemon::load_config(args.config).tracker;
+#endif
+  }
+  if (args.no_tracker) options.enabled = false;
   return options;
 }
 
@@ -88,7 +102,33 @@ nlohmann::json cluster_json(size_t index, const det::ClusterDiagnostic& c) {
   return o;
 }
 
-nlohmann::json rotation_json(size_t n, const Scan& scan, const det::ScanResult& r) {
+nlohmann::json quaternion(const Eigen::Quaterniond& q) {
+  return nlohmann::json::array({q.w(), q.x(), q.y(), q.z()});
+}
+
+nlohmann::json track_json(const det::TrackInfo& t) {
+  nlohmann::json o;
+  o["id"] = t.track_id;
+  o["rotations"] = t.rotations;
+  o["confirmed"] = t.confirmed;
+  o["margin"] = t.margin_cells;
+  o["mean_score"] = t.mean_score;
+  o["window"] = t.window_rotations;
+  o["position"] = vec(t.position);
+  o["orientation"] = quaternion(t.orientation);
+  o["position_std"] = vec(t.position_std_m);
+  o["angle_std_deg"] = t.angle_std_deg;
+  return o;
+}
+
+// What a rotation reports: its detections, with their tracks when the tracker runs.
+struct Reported {
+  const det::ScanResult* result = nullptr;
+  const det::TrackerResult* tracked = nullptr;  // null: tracker off
+};
+
+nlohmann::json rotation_json(size_t n, const Scan& scan, const Reported& rep) {
+  const det::ScanResult& r = *rep.result;
   nlohmann::json j;
   j["scan"] = n;
   j["stamp"] = static_cast<double>(scan.stamp_ns) * 1e-9;
@@ -96,21 +136,33 @@ nlohmann::json rotation_json(size_t n, const Scan& scan, const det::ScanResult& 
   j["features"] = r.features;
   j["clusters"] = r.clusters;
   nlohmann::json dets = nlohmann::json::array();
-  for (const auto& d : r.detections) {
+  auto add = [&](const det::Detection& d, const det::TrackedDetection* t) {
     nlohmann::json o;
     o["family"] = std::string(d.family);
     o["id"] = d.id;
     o["size"] = d.size_m;
     o["position"] = vec(d.position);
     const auto& q = d.orientation;
-    o["orientation"] = nlohmann::json::array({q.w(), q.x(), q.y(), q.z()});
+    o["orientation"] = quaternion(q);
     nlohmann::json corners = nlohmann::json::array();
     for (const auto& c : d.corners) corners.push_back(vec(c));
     o["corners"] = corners;
     o["score"] = d.score;
     o["margin"] = d.margin;
     o["points"] = d.points;
+    if (t != nullptr) {
+      o["decoded"] = t->decoded;
+      if (t->track.track_id >= 0) o["track"] = track_json(t->track);
+    }
     dets.push_back(o);
+  };
+  if (rep.tracked != nullptr) {
+    for (const auto& t : rep.tracked->tags) add(t.detection, &t);
+    j["tracks"] = rep.tracked->tracks;
+    j["confirmed_tracks"] = rep.tracked->confirmed_tracks;
+    if (rep.tracked->truncated) j["tracker_truncated"] = true;  // out of memory: incomplete
+  } else {
+    for (const auto& d : r.detections) add(d, nullptr);
   }
   j["detections"] = dets;
   nlohmann::json timing, rejected;
@@ -120,6 +172,7 @@ nlohmann::json rotation_json(size_t n, const Scan& scan, const det::ScanResult& 
     if (stage != det::Stage::kFeatures)
       rejected[std::string(det::stage_name(stage))] = r.rejected_at(stage);
   }
+  if (rep.tracked != nullptr) timing["tracker"] = rep.tracked->time_ms;
   j["timing_ms"] = timing;
   j["rejected"] = rejected;
   if (!r.diagnostics.empty()) {
@@ -131,20 +184,43 @@ nlohmann::json rotation_json(size_t n, const Scan& scan, const det::ScanResult& 
   return j;
 }
 
-void print_rotation(size_t n, const Scan& scan, const det::ScanResult& r) {
+void print_detection(const det::Detection& d, const det::TrackedDetection* t) {
+  const auto& q = d.orientation;
+  fmt::print(
+      "  {:<9} id {:3d}  size {:.3f} m  position [{:8.3f} {:8.3f} {:8.3f}] m  "
+      "orientation [{:.4f} {:.4f} {:.4f} {:.4f}]  score {:.2f}  margin {:.1f}  "
+      "{} points{}\n",
+      d.family, d.id, d.size_m, d.position.x(), d.position.y(), d.position.z(), q.w(), q.x(), q.y(),
+      q.z(), d.score, d.margin, d.points,
+      t != nullptr && !t->decoded ? "  (by its track: not decoded alone)" : "");
+  if (t == nullptr || t->track.track_id < 0) return;
+  const det::TrackInfo& k = t->track;
+  fmt::print(
+      "    track {}: {}, {} rotation{}, margin {:.2f} cells; mean of {}: [{:8.3f} {:8.3f} {:8.3f}] "
+      "m, spread {:.1f} {:.1f} {:.1f} mm {:.2f} deg\n",
+      k.track_id, k.confirmed ? "confirmed" : "unconfirmed", k.rotations,
+      k.rotations == 1 ? "" : "s", k.margin_cells, k.window_rotations, k.position.x(),
+      k.position.y(), k.position.z(), 1e3 * k.position_std_m.x(), 1e3 * k.position_std_m.y(),
+      1e3 * k.position_std_m.z(), k.angle_std_deg);
+}
+
+void print_rotation(size_t n, const Scan& scan, const Reported& rep) {
+  const det::ScanResult& r = *rep.result;
+  const size_t count = rep.tracked ? rep.tracked->tags.size() : r.detections.size();
   fmt::print(
       "scan {:4d}  stamp {:.6f}  {:6d} points  {:5d} features  {:4d} clusters  {:7.2f} ms"
-      "  {} detection{}\n",
+      "  {} detection{}",
       n, static_cast<double>(scan.stamp_ns) * 1e-9, scan.point_count(), r.features, r.clusters,
-      r.total_ms(), r.detections.size(), r.detections.size() == 1 ? "" : "s");
-  for (const auto& d : r.detections) {
-    const auto& q = d.orientation;
-    fmt::print(
-        "  {:<9} id {:3d}  size {:.3f} m  position [{:8.3f} {:8.3f} {:8.3f}] m  "
-        "orientation [{:.4f} {:.4f} {:.4f} {:.4f}]  score {:.2f}  margin {:.1f}  "
-        "{} points\n",
-        d.family, d.id, d.size_m, d.position.x(), d.position.y(), d.position.z(), q.w(), q.x(),
-        q.y(), q.z(), d.score, d.margin, d.points);
+      r.total_ms() + (rep.tracked ? rep.tracked->time_ms : 0.0), count, count == 1 ? "" : "s");
+  if (rep.tracked != nullptr)
+    fmt::print("  {} track{} ({} confirmed){}", rep.tracked->tracks,
+               rep.tracked->tracks == 1 ? "" : "s", rep.tracked->confirmed_tracks,
+               rep.tracked->truncated ? "  TRACKER INCOMPLETE (out of memory)" : "");
+  fmt::print("\n");
+  if (rep.tracked != nullptr) {
+    for (const auto& t : rep.tracked->tags) print_detection(t.detection, &t);
+  } else {
+    for (const auto& d : r.detections) print_detection(d, nullptr);
   }
   for (size_t i = 0; i < r.diagnostics.size(); ++i) {
     const auto& c = r.diagnostics[i];
@@ -166,14 +242,26 @@ void print_rotation(size_t n, const Scan& scan, const det::ScanResult& r) {
 struct Totals {
   size_t rotations = 0;
   size_t skipped = 0;  // incomplete rotations left out (no --partial)
-  std::map<std::pair<std::string, int>, size_t> found;
+  std::map<std::pair<std::string, int>, size_t> found, tracked_only;
   std::array<double, det::kStageCount> ms{};
   std::array<uint64_t, det::kRejectionCount> rejected{};
   double worst_ms = 0.0;
+  double tracker_ms = 0.0;
+  bool tracker = false;
 
-  void add(const det::ScanResult& r) {
+  void add(const Reported& rep) {
+    const det::ScanResult& r = *rep.result;
     ++rotations;
-    for (const auto& d : r.detections) ++found[{std::string(d.family), d.id}];
+    if (rep.tracked != nullptr) {
+      tracker = true;
+      tracker_ms += rep.tracked->time_ms;
+      for (const auto& t : rep.tracked->tags) {
+        ++found[{std::string(t.detection.family), t.detection.id}];
+        if (!t.decoded) ++tracked_only[{std::string(t.detection.family), t.detection.id}];
+      }
+    } else {
+      for (const auto& d : r.detections) ++found[{std::string(d.family), d.id}];
+    }
     for (size_t s = 0; s < ms.size(); ++s) ms[s] += r.timing_ms[s];
     for (size_t k = 0; k < rejected.size(); ++k) rejected[k] += r.rejected[k];
     worst_ms = std::max(worst_ms, r.total_ms());
@@ -182,9 +270,12 @@ struct Totals {
   void print() const {
     fmt::print("\n{} rotation{}", rotations, rotations == 1 ? "" : "s");
     if (found.empty()) fmt::print(", no tags found\n");
-    for (auto it = found.begin(); it != found.end(); ++it)
+    for (auto it = found.begin(); it != found.end(); ++it) {
       fmt::print("{} {} id {} in {}", it == found.begin() ? ":" : ",", it->first.first,
                  it->first.second, it->second);
+      if (const auto t = tracked_only.find(it->first); t != tracked_only.end())
+        fmt::print(" ({} confirmed by its track only)", t->second);
+    }
     if (!found.empty()) fmt::print(" rotations\n");
     if (skipped > 0)
       fmt::print("skipped {} incomplete rotation{} (--partial detects in them)\n", skipped,
@@ -198,7 +289,12 @@ struct Totals {
                  ms[static_cast<size_t>(s)] / n);
       total += ms[static_cast<size_t>(s)] / n;
     }
-    fmt::print("{:<12}{:>10.3f}   (worst rotation {:.3f} ms)\n", "total", total, worst_ms);
+    if (tracker) {
+      fmt::print("{:<12}{:>10.3f}\n", "tracker", tracker_ms / n);
+      total += tracker_ms / n;
+    }
+    fmt::print("{:<12}{:>10.3f}   (worst rotation's detector {:.3f} ms)\n", "total", total,
+               worst_ms);
     fmt::print("clusters rejected (mean per rotation):");
     for (int k = 1; k < det::kRejectionCount; ++k) {
       const auto reason = static_cast<det::Rejection>(k);
@@ -212,16 +308,25 @@ struct Totals {
 
 int run_detect(const DetectArgs& args) {
   det::Detector detector(detector_options(args));
+  const det::TrackerOptions topt = tracker_options(args);
+  std::optional<det::Tracker> tracker;
+  if (topt.enabled) tracker.emplace(topt, detector.options());
   det::ScanResult result;
+  det::TrackerResult tracked;
   Totals totals;
   auto report = [&](size_t n, const Scan& scan) {
     detector.detect(scan, result);
-    totals.add(result);
+    Reported rep{&result, nullptr};
+    if (tracker) {
+      tracker->update(result, scan.stamp_ns, tracked);
+      rep.tracked = &tracked;
+    }
+    totals.add(rep);
     if (args.json) {
-      fmt::print("{}\n", rotation_json(n, scan, result).dump());
+      fmt::print("{}\n", rotation_json(n, scan, rep).dump());
       std::fflush(stdout);
     } else {
-      print_rotation(n, scan, result);
+      print_rotation(n, scan, rep);
     }
   };
 
@@ -259,8 +364,8 @@ const Registrar kDetect(
       add_capture_options(app, args->capture);
       app.get_option("capture")->description("pcap or pcapng file, or a PCD point cloud");
       app.add_option("--config", args->config,
-                     "YAML file whose `detector:` section sets the detector's options "
-                     "(config/lidartagd.yaml)")
+                     "YAML file whose `detector:` and `tracker:` sections set the detector's and "
+                     "the tracker's options (config/lidartagd.yaml)")
           ->check(CLI::ExistingFile);
       app.add_flag("--json", args->json, "One JSON object per rotation on stdout");
       app.add_option("--tag-size", args->tag_sizes,
@@ -274,6 +379,9 @@ const Registrar kDetect(
       app.add_flag("--clusters", args->clusters,
                    "Explain every cluster with enough features to be a tag: what each stage "
                    "measured and why it was dropped");
+      app.add_flag("--no-tracker", args->no_tracker,
+                   "Every rotation alone: no evidence summed over rotations, no track fields "
+                   "(the tracker is on by default)");
       app.add_flag("--partial", args->partial,
                    "Also detect in incomplete rotations (first, last, lossy)");
       app.add_option("--rings", args->rings,

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "lidartag/detector/detector.hpp"
+#include "lidartag/detector/tracker.hpp"
 #include "lidartag/driver/decoder.hpp"
 #include "lidartag/driver/packet.hpp"
 #include "lidartag/driver/scan_batcher.hpp"
@@ -184,6 +185,8 @@ inline detector::DetectorOptions daemon_detector_defaults() {
 struct DaemonOptions {
   std::vector<SensorOptions> sensors = {SensorOptions{}};
   detector::DetectorOptions detector = daemon_detector_defaults();
+  // Evidence over rotations (one tracker per sensor, fed in rotation order).
+  detector::TrackerOptions tracker;
   LcmOptions lcm;
   PipelineOptions pipeline;
   StatusOptions status;

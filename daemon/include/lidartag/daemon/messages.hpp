@@ -8,6 +8,7 @@
 #include "lidartag/daemon/rotation.hpp"
 #include "lidartag/daemon/sensor_status.hpp"
 #include "lidartag/detector/detector.hpp"
+#include "lidartag/detector/tracker.hpp"
 #include "lidartag/driver/packet_source.hpp"
 #include "lidartag/point_cloud_t.hpp"
 #include "lidartag/raw_packet_t.hpp"
@@ -18,13 +19,21 @@
 
 namespace lidartag::daemon {
 
+// A detection without tracking: the track fields say "not tracked" (track_id -1, decoded).
 void fill_detection(const detector::Detection& d, lidartag::tag_detection_t& out);
+// A detection as the tracker reports it, with its track's fields.
+void fill_detection(const detector::TrackedDetection& t, lidartag::tag_detection_t& out);
 
 // Every field of tag_detections_t: `publish_utime` host time (µs since the epoch), `latency_ms`
 // assembled -> published, `dropped` rotations dropped so far.
 void fill_detections(const RotationResult& r, const std::string& sensor,
                      const std::string& frame_id, int64_t publish_utime, double latency_ms,
                      int64_t dropped, lidartag::tag_detections_t& out);
+
+// With the tracker on: after fill_detections, the detections and track counts of the tracker's
+// result for the same rotation (Tracker::update on r.detection, rotations in order).
+void fill_tracked_detections(const detector::TrackerResult& tracked,
+                             lidartag::tag_detections_t& out);
 
 // The detections' points (detector::ScanResult::tag_points), detection after detection.
 void fill_tag_points(const RotationResult& r, const std::string& sensor,

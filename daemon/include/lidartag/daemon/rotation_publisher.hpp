@@ -1,8 +1,8 @@
 // The in-order stage of a sensor's pipeline: called serially, in rotation order, once per detected
 // rotation. It publishes the rotation's detections (then its visualisation messages) on LCM,
 // prints the --print-detections line, records the stage latencies and counts what could not be
-// sent (logged at most once every few seconds, with the count). A stage that must see every
-// published rotation in order (a multi-rotation tracker) belongs in publish(), before the messages.
+// sent (logged at most once every few seconds, with the count). The sensor's tracker (evidence over
+// rotations) sees every rotation here, in order, before its messages are filled.
 #pragma once
 
 #include <atomic>
@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -17,6 +18,7 @@
 #include "lidartag/daemon/latency_window.hpp"
 #include "lidartag/daemon/lcm_bus.hpp"
 #include "lidartag/daemon/rotation.hpp"
+#include "lidartag/detector/tracker.hpp"
 #include "lidartag/point_cloud_t.hpp"
 #include "lidartag/tag_detections_t.hpp"
 #include "lidartag/tag_points_t.hpp"
@@ -50,7 +52,8 @@ class FailureLog {
 
 class RotationPublisher {
  public:
-  // `printer` may be null.
+  // `printer` may be null. Throws detector::OptionsError for tracker options that break its rules
+  // (at setup: the configuration was checked already).
   RotationPublisher(const SensorOptions& sensor, const DaemonOptions& options, LcmBus& bus,
                     LinePrinter* printer, FailureLog& failures);
 
@@ -74,6 +77,8 @@ class RotationPublisher {
   lidartag::tag_detections_t message_;  // reused: no allocation once grown
   lidartag::tag_points_t tag_points_message_;
   lidartag::point_cloud_t cloud_message_;
+  std::optional<detector::Tracker> tracker_;  // tracker.enabled
+  detector::TrackerResult tracked_;           // reused: no allocation once grown
   std::vector<std::string> stage_names_;
   std::vector<std::unique_ptr<LatencyWindow>> windows_;
 };

@@ -28,6 +28,13 @@ struct CornerOptions {
   float size_tolerance = 0.2f;
   // A fitted side must be within this angle (degrees) of the rectangle's side. Default 20.
   float max_side_angle_deg = 20.0f;
+  // When no pair of opposite sides has a line (3-5 rings across a tag, or rings on two adjacent
+  // sides only, as in a VLP-32C's sparse upper beams): fit a square to the outline points
+  // directly, its size free within size_tolerance of the configured sizes. Default true.
+  bool square_fit = true;
+  // ... and accept it when the outline points' rms distance to it is at most this fraction of
+  // its side. Default 0.05 (a ring's ends sit up to one point spacing inside the true edge).
+  float square_fit_max_rms = 0.05f;
 };
 
 struct TagOutline {
@@ -35,11 +42,12 @@ struct TagOutline {
   // (which corner comes first is only known modulo 90 degrees until decoding).
   std::array<Eigen::Vector3d, 4> corners;
   Eigen::Vector3d center = Eigen::Vector3d::Zero();
-  double side_m = 0.0;   // measured side length
-  int size_index = -1;   // index of the selected tag size
-  double size_m = 0.0;   // the selected tag size t
-  double angle_deg = 0;  // in-plane rotation of the outline modulo 90 degrees, [0, 90)
-  int sides_fitted = 0;  // sides with a RANSAC line (4 for a diamond, 2 for a square)
+  double side_m = 0.0;      // measured side length
+  int size_index = -1;      // index of the selected tag size
+  double size_m = 0.0;      // the selected tag size t
+  double angle_deg = 0;     // in-plane rotation of the outline modulo 90 degrees, [0, 90)
+  int sides_fitted = 0;     // sides with a RANSAC line (4 for a diamond, 2 for a square)
+  bool square_fit = false;  // placed by the square fit (CornerOptions::square_fit), not by lines
   // When neither side of a pair was seen (a square mount: top and bottom), the outline is placed
   // mid-way along this unit axis (sensor frame) and its position along it is uncertain; decoding
   // resolves it. Zero when every side was seen.

@@ -37,6 +37,10 @@ struct ClusterDecodeWorkspace {
   std::vector<DecodeHypothesis> hypotheses;
   std::vector<double> shifts;  // tried along the unseen axis, in order
   std::vector<FamilyDecode> families;
+  // The best hypothesis' cell votes (W x W of its family, row-major as the cell evidence): per
+  // cell the sum of clamp(2 label - 1, -1, 1) of the decoded points at least
+  // DecodeOptions::vote_inset_cells inside it, and their number.
+  std::vector<float> votes, vote_counts;
   DecodeWorkspace decode;
 };
 
@@ -47,15 +51,19 @@ struct ClusterDecode {
   DecodeResult best;
   int family = 0;      // index of its configured family
   double shift = 0.0;  // metres along the unseen axis (0 when every side was seen)
-  // The best score of a built-in family that is not configured, over every shift; -1 when not
-  // decoded (no decoys, or the best failed min_score).
+  // The best score of a built-in family that is not configured, over every shift (for a best
+  // hypothesis below min_score, at its shift only); -1 when not decoded (no decoys, or nothing
+  // could be scored).
   double other_family_score = -1.0;
+  // The shift was searched (an unseen axis): decoding chose where the tag sits.
+  bool shift_searched = false;
 };
 
 // `points`: the cluster (sensor frame); `pose` pulls them back into the fitted tag frame; t the
 // tag size; `unseen_axis` (sensor frame, unit, or zero) the axis along which the outline could not
 // place the tag (TagOutline::unseen_axis). At most opt.max_points points (evenly spaced) are
-// decoded. The evidence of each configured family's best hypothesis is left in ws.families.
+// decoded. The evidence of each configured family's best hypothesis is left in ws.families, the
+// best hypothesis' cell votes in ws.votes and ws.vote_counts.
 ClusterDecode decode_cluster(std::span<const ClusterPoint> points, const RigidPose& pose,
                              const Eigen::Vector3d& unseen_axis, double t,
                              std::span<const RkhsDictionary> dictionaries,

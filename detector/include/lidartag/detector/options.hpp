@@ -210,6 +210,8 @@ void visit_options(V& v, DetectorOptions& o) {
     s.field("corner_exclusion", o.corners.corner_exclusion, half_open(0.0f, 0.5f), "sides");
     s.field("size_tolerance", o.corners.size_tolerance, above(0.0f), "");
     s.field("max_side_angle_deg", o.corners.max_side_angle_deg, open_closed(0.0f, 90.0f), "deg");
+    s.field("square_fit", o.corners.square_fit, Any{}, "");
+    s.field("square_fit_max_rms", o.corners.square_fit_max_rms, open(0.0f, 1.0f), "sides");
   });
   v.section("pose", [&](V& s) {
     s.choice("algorithm", o.pose.algorithm, pose_algorithm_names());
@@ -223,6 +225,7 @@ void visit_options(V& v, DetectorOptions& o) {
     s.field("min_coverage", o.pose.min_coverage, closed(0.0, 1.0), "t^2");
     s.field("max_points", o.pose.max_points, at_least(8), "points");
     s.field("polish_evaluations", o.pose.polish_evaluations, at_least(0), "evaluations");
+    s.field("border_refine", o.pose.border_refine, Any{}, "");
   });
   v.section("decode", [&](V& s) {
     s.field("samples_per_cell", o.decode.samples_per_cell, closed(1, 8), "samples");
@@ -235,6 +238,8 @@ void visit_options(V& v, DetectorOptions& o) {
     s.field("parallel_min_functions", o.decode.parallel_min_functions, at_least(1), "functions");
     s.field("max_points", o.decode.max_points, at_least(16), "points");
     s.field("reject_other_families", o.decode.reject_other_families, Any{}, "");
+    s.field("other_family_min_score", o.decode.other_family_min_score, closed(0.0, 1.0), "");
+    s.field("vote_inset_cells", o.decode.vote_inset_cells, half_open(0.0, 0.5), "cells");
   });
 }
 

@@ -58,6 +58,9 @@ struct PoseOptions {
   // Then this many evaluations on every point, from the subsample's optimum within 2 cm and
   // 0.02 rad (the subsample's depth term is noisier). Default 20; 0 skips it.
   int polish_evaluations = 20;
+  // Place the tag in its plane on the black square's outline (square_fit.hpp) rather than on the
+  // board's. Default true.
+  bool border_refine = true;
 };
 
 // H_T^L: x_tag = R x_sensor + p (the paper's pull-back to the template at the origin).
@@ -138,5 +141,16 @@ PoseFitResult fit_tag_pose(PoseSolver& solver, std::span<const ClusterPoint> poi
 // (surveyor's formula).
 double coverage_ratio(std::span<const ClusterPoint> points, const RigidPose& pose, double t,
                       std::vector<Eigen::Vector2d>& buffer, std::vector<Eigen::Vector2d>& hull);
+
+// An upper bound of coverage_ratio before the pose fit, from the hull of the ring ends in the
+// cluster's own plane (CornerWorkspace::hull): its area over t^2, divided by kCoverageBoundSlack.
+// A rigid pull-back projects the points onto the tag's y-z plane, which cannot enlarge the hull
+// of a planar set, and the fit uses a subset of the cluster's points. The slack covers what is not
+// quite planar: a ring curves a little between its ends (a cone cut by the plane) and the plane
+// fit's normal may be tilted against the pose fit's by a degree or two. A cluster whose bound is
+// below pose.min_coverage is rejected without the fit (boards of a configured size but not square,
+// half-seen walls).
+inline constexpr double kCoverageBoundSlack = 0.98;
+double coverage_bound(const std::vector<Eigen::Vector2d>& plane_hull, double t);
 
 }  // namespace lidartag::detector

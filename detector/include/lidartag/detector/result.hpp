@@ -61,7 +61,7 @@ struct ClusterDiagnostic {
   double outlier_ratio = -1;  // plane fit
   double side_m = -1;         // corners: measured side length
   double mean_cost_m = -1;    // pose: eq. (8) per point after the fit
-  double coverage = -1;       // pose: convex hull / t^2
+  double coverage = -1;       // pose: convex hull / t^2 (its upper bound when that rejected)
   double score = -1;          // decode: best normalised score
   double margin = -1;         // decode: best minus second best, payload cells
   int candidate = -1;         // index into ScanResult::candidates when it reached decoding
@@ -105,8 +105,12 @@ struct Candidate {
   double score = -1.0;   // best normalised score of the configured families
   double margin = -1.0;  // its margin, payload cells (over every shift, as the decision uses it)
   // Best score of a built-in family that is not configured (decode.reject_other_families), over
-  // every shift; -1 when not decoded (check off, or the cluster failed min_score).
+  // every shift (below min_score: at the best shift only); -1 when not decoded (check off, score
+  // below decode.other_family_min_score, or nothing could be scored).
   double other_family_score = -1.0;
+  // The outline placed the tag along one axis only (a square mount): decoding chose the shift
+  // along the other, so votes and scores agree with the decoder by construction there.
+  bool shift_searched = false;
   int points = 0;         // points of the pose fit
   double fit_cost = 0.0;  // eq. (8) at the optimum
   double coverage = 0.0;  // convex hull / t^2
@@ -114,10 +118,13 @@ struct Candidate {
   // configured family.
   int first_evidence = 0;
   int evidence_count = 0;
-  // The decoded grid: the W x W cell evidence of the best hypothesis (per cell, white minus black
-  // kernel sums: > 0 reads white), in ScanResult::cell_evidence. Row-major in the undecoded frame
+  // The decoded grid, W x W cells of the best hypothesis' family, row-major in the undecoded frame
   // at the best shift, row 0 at its top (+z), column 0 at its -y: the marker as the points show
-  // it, which the best code's image turned quarter_turns times clockwise matches.
+  // it, which the best code's image turned quarter_turns times clockwise matches. At first_cell
+  // in three parallel vectors of ScanResult: cell_evidence (white minus black kernel sums: > 0
+  // reads white), cell_votes (sum over the points at least decode.vote_inset_cells inside the
+  // cell of clamp(2 label - 1, -1, 1), label 0 black, 1 white) and cell_vote_counts (their
+  // number).
   int first_cell = 0;
   int grid_width = 0;
   // With keep_cluster_points: its points in ScanResult::cluster_points (-1 / 0 otherwise).
@@ -141,7 +148,7 @@ struct ScanResult {
   std::vector<Candidate> candidates;
   std::vector<FamilyEvidence> family_evidence;
   std::vector<float> evidence_scores;
-  std::vector<float> cell_evidence;
+  std::vector<float> cell_evidence, cell_votes, cell_vote_counts;
   // When DetectorOptions::keep_tag_points: the points each detection's pose was fitted to (sensor
   // frame), one detection after the other; one vector for all, so that it is reused.
   std::vector<ClusterPoint> tag_points;
@@ -157,8 +164,10 @@ struct ScanResult {
   // A candidate's evidence, one entry per configured family, and one family's scores.
   std::span<const FamilyEvidence> evidence_of(const Candidate& c) const;
   std::span<const float> scores_of(const FamilyEvidence& e) const;
-  // A candidate's decoded grid (grid_width^2 cells).
+  // A candidate's decoded grid, votes and vote counts (grid_width^2 cells each).
   std::span<const float> cells_of(const Candidate& c) const;
+  std::span<const float> votes_of(const Candidate& c) const;
+  std::span<const float> vote_counts_of(const Candidate& c) const;
   // Clusters rejected at a stage (sum over that stage's reasons).
   uint32_t rejected_at(Stage s) const;
   // Empties every list and counter (keeps the capacity).

@@ -49,6 +49,17 @@ struct DecodeOptions {
   // otherwise reads as some code of the configured one (a tag16h5 as tag25h9 in 29 of 36 rotations
   // at 2-12 m, scores up to 0.94), since the margin compares codes of one family only.
   bool reject_other_families = true;
+  // A cluster below min_score is decoded against those families too (at its best shift only), for
+  // a tracker's evidence over rotations, but only from this score on: below it the cluster is no
+  // tag of any family (a checkerboard or a sign scores 0.01-0.6) and the check, most of its decode
+  // cost (tag36h10's 9,280 functions), is skipped (Candidate::other_family_score stays -1).
+  // Default 0.5.
+  double other_family_min_score = 0.5;
+  // A decoded point counts as seeing its cell only when it lies at least this many cells inside
+  // the cell's borders (a beam's footprint near a border sees both colours): for the cell votes
+  // (Candidate, ScanResult::cell_votes, evidence over rotations) and for seen_cells_lead (a
+  // decision the seen cells contradict is rejected as ambiguous). Default 0.1.
+  double vote_inset_cells = 0.1;
 };
 
 // The function dictionary of one family: for code k and quarter turn q (clockwise, seen from the
@@ -114,6 +125,7 @@ struct DecodeWorkspace {
   std::vector<float> varying;   // the evidence on the dictionary's varying cells
   std::vector<float> tables;    // per group of 8 varying cells: the sum for each sign pattern
   std::vector<float> scores;    // per function, without the cells common to all functions
+  std::vector<uint8_t> seen;    // seen_cells_lead: the cells that hold a decoded point
   // Of the last decode_prepared that scored: what the cells common to every function add, and
   // the sum of the evidence's magnitudes (a function's normalised score is (scores + common) /
   // total).
@@ -157,6 +169,14 @@ DecodeResult decode_prepared(const RkhsDictionary& dict, const DecodeOptions& op
 // After a decode_prepared that scored (DecodeResult::function >= 0): the normalised score of every
 // function of its dictionary into `out` (one per function, <= 1), from ws.scores.
 void normalised_scores(const DecodeWorkspace& ws, std::vector<float>& out);
+
+// After a decode_prepared against `dict`: how far `function` leads every other function on the
+// cells that hold a decoded point (its evidence minus the best other's there, summed over the
+// varying cells, evidence units). A cell no ring crosses only carries its neighbours' kernel tails;
+// a negative lead means that another code (or rotation) fits the cells actually seen better, and
+// the decision rests on guesses about the others. Overwrites ws.scores.
+double seen_cells_lead(const RkhsDictionary& dict, int function, const DecodeOptions& opt,
+                       DecodeWorkspace& ws);
 
 // `points` are pulled back into the estimated tag frame (x normal, y right, z up, metres) with
 // their intensities; t is the tag size.

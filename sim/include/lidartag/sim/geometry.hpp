@@ -22,16 +22,22 @@ struct Hit {
   bool hit() const { return t < std::numeric_limits<double>::infinity(); }
 };
 
-// The printed image on a box's +x face, centred on that face: cells x cells, row 0 at the top
-// (+z), column 0 at the left (-y) seen from the front (from +x).
+// The printed image on a box's +x face, centred on that face: rows x cols cells of `width` x
+// `height` metres, row 0 at the top (+z), column 0 at the left (-y) seen from the front (+x).
 struct PrintedPattern {
-  int tag = -1;     // tag index reported in Hit::tag
-  double size = 0;  // metres across the printed marker
-  int cells = 0;
-  std::vector<uint8_t> image;  // 1 = white, row-major
-  double white = 80.0, black = 8.0;
-  // Reflectivity at (y, z) of the face; false when outside the marker.
+  int tag = -1;  // tag index reported in Hit::tag (-1: not a tag, e.g. a checkerboard)
+  double width = 0, height = 0;  // metres across (y) and up (z)
+  int cols = 0, rows = 0;
+  std::vector<double> reflectivity;  // per cell, row-major
+  // Reflectivity at (y, z) of the face; false when outside the printed area.
   bool reflectivity_at(double y, double z, double& reflectivity) const;
+};
+
+// A circular hole through a box, along its x axis: rays entering through the +x or -x face
+// inside it pass through (the hole's wall is not modelled).
+struct Hole {
+  double y = 0, z = 0;  // centre in the box frame, metres
+  double radius = 0;    // metres
 };
 
 struct OrientedBox {
@@ -39,7 +45,8 @@ struct OrientedBox {
   Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();  // world <- box axes
   Eigen::Vector3d half = Eigen::Vector3d::Constant(0.5);   // half sizes along the box axes
   double reflectivity = 30.0;
-  int pattern = -1;  // index of a PrintedPattern on the box's +x face, or -1
+  int pattern = -1;         // index of a PrintedPattern on the box's +x face, or -1
+  std::vector<Hole> holes;  // through the box along x
 };
 
 struct VerticalCylinder {

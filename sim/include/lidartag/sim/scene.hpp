@@ -149,10 +149,52 @@ struct TagOptions {
   double black_reflectivity = 8.0;   // printed toner
 };
 
+// Boards that are not tags, the ones people put in front of LiDARs (false-positive torture).
+enum class BoardKind : uint8_t {
+  kCheckerboard,  // camera calibration checkerboard: dark and light squares
+  kHoles,         // LiDAR-camera calibration target: a plain board with circular holes
+  kStrips,        // a board with retro-reflective strips (tape)
+  kSign,          // a sign: light face, dark border, lines of dark letter-like patches
+};
+
+struct CalibrationBoardOptions {
+  BoardKind kind = BoardKind::kCheckerboard;
+  std::array<double, 3> center{3.0, 0.0, 1.0};  // metres, world: centre of the front face
+  // Out of the front face. Unset (all zero): faces the sensor horizontally.
+  std::array<double, 3> normal{0.0, 0.0, 0.0};
+  // About the normal, degrees counter-clockwise seen from the front; 0 ("square"): the width
+  // horizontal; 45 ("diamond").
+  double rotation_deg = 0.0;
+  std::array<double, 2> size{0.85, 0.61};  // metres: width and height before the rotation
+  double thickness = 0.01;                 // metres
+  double reflectivity = 80.0;      // the board: light squares, sign face (retro-reflective > 100)
+  double dark_reflectivity = 8.0;  // dark squares, sign border and letters
+  StandOptions stand{};
+  // checkerboard: inner corners across and up, side of a square (metres); the pattern is centred
+  // on the board, its top-left square dark.
+  std::array<int, 2> inner_corners{7, 5};
+  double square_m = 0.095;
+  // holes: circles through the board, each [y, z, radius] in metres in the board's frame (y to
+  // the right, z up, origin at the centre, before the rotation).
+  std::vector<std::array<double, 3>> holes;
+  // strips: `strips` strips of retro-reflective tape strip_width_m wide, evenly spaced across
+  // (horizontal) or up (vertical) the board.
+  int strips = 3;
+  double strip_width_m = 0.05;
+  bool vertical_strips = false;
+  double strip_reflectivity = 220.0;
+  // sign: a dark border border_m wide and text_lines lines of letter-like dark patches (5 x 3
+  // pixel glyphs drawn from text_seed).
+  double border_m = 0.04;
+  int text_lines = 2;
+  uint64_t text_seed = 1;
+};
+
 struct Scene {
   SensorOptions sensor{};
   WorldOptions world{};
   std::vector<TagOptions> tags;
+  std::vector<CalibrationBoardOptions> boards;
   uint64_t seed = 1;   // noise seed (the --seed option overrides it)
   int rotations = 10;  // rotations written (the --rotations option overrides it)
 };
@@ -163,5 +205,6 @@ Scene parse_scene(const std::string& yaml_text, const std::string& source = "sce
 Scene load_scene(const std::string& path);
 
 std::string_view clutter_kind_name(ClutterKind kind);
+std::string_view board_kind_name(BoardKind kind);
 
 }  // namespace lidartag::sim

@@ -1,0 +1,436 @@
+// bench_tracker: what the tracker (evidence over rotations) adds to the detector, and what it
+// costs.
+//
+//   bench_tracker [--runs N] [--rotations R] [--quick] [--out DIR]
+//
+// Static scenes, the target grid: a 1.2 m tag16h5 on an easel, diamond mount, centre at
+// the sensor's height, face-on and turned 45 degrees, at 5, 6, 7, 8 and 10 m of a VLP-16 (and the
+// VLP-32C at 20 and 24 m); N runs per cell (default 10, each its own code and noise seed) of R
+// consecutive rotations of a static sensor (default 20). Per cell, over the rotations from the 4th
+// on: the share with the right ID from the detector alone and with the tracker, wrong IDs of both.
+// Moving sensors: the same tag with the sensor driving or turning; wrong IDs and tracks. Boards
+// (pcaps/boards.pcap) and clutter (pcaps/clutter.pcap): detections and confirmed tracks (all false
+// positives). Cost: Tracker::update per rotation (median, and its share of a VLP-32C's 100 ms
+// period at 600 rpm) on the bundled captures. --out DIR writes DIR/tracking.md. Exit status 1
+// when the tracker reported a wrong ID (a tag of its own, not a detection of the rotation), or
+// anything at all on the boards or the clutter; the detector's own wrong IDs are counted and
+// shown (bench_accuracy fails on them).
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <numbers>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "lidartag/detector/detector.hpp"
+#include "lidartag/detector/tracker.hpp"
+#include "lidartag/driver/io/capture_reader.hpp"
+#include "sim_scans.hpp"
+
+namespace {
+
+using namespace lidartag;
+namespace fs = std::filesystem;
+
+const std::string kPcaps = LIDARTAG_SOURCE_DIR "/pcaps/";
+
+struct Args {
+  int runs = 10;
+  int rotations = 20;
+  bool quick = false;
+  std::string out;
+  std::string command = "build/bin/bench_tracker";
+};
+
+struct Cell {
+  velodyne::Model model{};
+  double distance = 0;
+  int angle = 0;
+  int counted = 0;              // rotations from the 4th on
+  int single = 0, tracked = 0;  // of them with the right ID: detector alone, with the tracker
+  int wrong_single = 0, wrong_tracked = 0;
+  int wrong_by_track = 0;  // wrong IDs the tracker added (reported by a track, not decoded)
+  int confirmed_only = 0;  // right IDs that came from a track alone (decoded false)
+  double target = 0;       // the target, percent (0: none)
+
+  double pct(int n) const { return counted ? 100.0 * n / counted : 0.0; }
+};
+
+// R rotations of a static tag; counts from rotation index 3 (the 4th) on.
+void run_cell(Cell& c, int run, int rotations) {
+  const int code = (7 * run + 3 * static_cast<int>(c.distance) + c.angle) % 30;
+  const sim::Simulator simulator(eval::accuracy_scene(c.model, c.distance, c.angle, code));
+  eval::SimScans scans(simulator);
+  const detector::DetectorOptions options;
+  detector::Detector det(options);
+  detector::Tracker tracker({}, options);
+  detector::ScanResult result;
+  detector::TrackerResult tr;
+  std::vector<std::pair<std::vector<detector::Detection>, detector::TrackerResult>> rotations_out;
+  const sim::Truth truth = scans.run(rotations, static_cast<uint64_t>(5000 + 100 * run + c.angle),
+                                     [&](const Scan& scan, size_t) {
+                                       det.detect(scan, result);
+                                       tracker.update(result, scan.stamp_ns, tr);
+                                       rotations_out.emplace_back(result.detections, tr);
+                                     });
+  for (size_t k = 0; k < rotations_out.size() && k < truth.rotations.size(); ++k) {
+    const sim::TagTruth& tag = truth.rotations[k].tags.front();
+    bool single = false, tracked = false, from_track = false;
+    for (const auto& d : rotations_out[k].first) {
+      if (!eval::at_tag(d, tag)) continue;
+      if (d.id == tag.id)
+        single = true;
+      else
+        ++c.wrong_single;
+    }
+    for (const auto& t : rotations_out[k].second.tags) {
+      if (!eval::at_tag(t.detection, tag)) continue;
+      if (t.detection.id != tag.id) {
+        ++c.wrong_tracked;
+        c.wrong_by_track += t.decoded ? 0 : 1;
+        continue;
+      }
+      tracked = true;
+      from_track = from_track || !t.decoded;
+    }
+    if (k < 3) continue;
+    ++c.counted;
+    c.single += single ? 1 : 0;
+    c.tracked += tracked ? 1 : 0;
+    c.confirmed_only += tracked && from_track ? 1 : 0;
+  }
+}
+
+struct Motion {
+  const char* what;
+  velodyne::Model model;
+  double distance;
+  int angle;
+  std::array<double, 3> velocity;
+  double turn_deg_s;
+  int rotations = 0, right = 0, wrong = 0, wrong_by_track = 0, tracks = 0;
+};
+
+void run_motion(Motion& m, int rotations) {
+  sim::Scene scene = eval::accuracy_scene(m.model, m.distance, m.angle, 13);
+  scene.sensor.velocity = m.velocity;
+  scene.sensor.angular_velocity = {0.0, 0.0, m.turn_deg_s};
+  const sim::Simulator simulator(scene);
+  eval::SimScans scans(simulator);
+  const detector::DetectorOptions options;
+  detector::Detector det(options);
+  detector::Tracker tracker({}, options);
+  detector::ScanResult result;
+  detector::TrackerResult tr;
+  std::vector<detector::TrackerResult> all;
+  const sim::Truth truth = scans.run(rotations, 11, [&](const Scan& scan, size_t) {
+    det.detect(scan, result);
+    tracker.update(result, scan.stamp_ns, tr);
+    all.push_back(tr);
+  });
+  int last_track = -1;
+  for (size_t k = 0; k < all.size() && k < truth.rotations.size(); ++k) {
+    const sim::TagTruth& tag = truth.rotations[k].tags.front();
+    ++m.rotations;
+    bool right = false;
+    for (const auto& t : all[k].tags) {
+      if (!eval::at_tag(t.detection, tag)) continue;
+      if (t.detection.id != tag.id) {
+        ++m.wrong;
+        m.wrong_by_track += t.decoded ? 0 : 1;
+        continue;
+      }
+      right = true;
+      if (t.track.track_id >= 0 && t.track.track_id != last_track) {
+        ++m.tracks;
+        last_track = t.track.track_id;
+      }
+    }
+    m.right += right ? 1 : 0;
+  }
+}
+
+struct Capture {
+  std::string name;
+  int rotations = 0, detections = 0, confirmed = 0;
+  std::vector<double> update_us;  // Tracker::update per rotation, repeated
+  std::vector<double> detect_ms;  // Detector::detect per rotation (its own stage timers)
+};
+
+// Detections and confirmed tracks of a bundled capture (every rotation), with the detector of
+// three families and sizes; then Tracker::update timed on its rotations, replayed `repeat` times
+// with increasing stamps.
+Capture run_capture(const std::string& name, const detector::DetectorOptions& options, int repeat) {
+  Capture c;
+  c.name = name;
+  velodyne::CaptureReader reader(kPcaps + name, {});
+  detector::Detector det(options);
+  detector::Tracker tracker({}, options);
+  detector::TrackerResult tr;
+  std::vector<detector::ScanResult> results;
+  std::vector<int64_t> stamps;
+  while (const Scan* scan = reader.next()) {
+    results.emplace_back();
+    det.detect(*scan, results.back());
+    stamps.push_back(scan->stamp_ns);
+    tracker.update(results.back(), scan->stamp_ns, tr);
+    c.detect_ms.push_back(results.back().total_ms());
+    ++c.rotations;
+    c.detections += static_cast<int>(results.back().detections.size());
+    c.confirmed += tr.confirmed_tracks;
+  }
+  if (results.empty()) return c;
+  detector::Tracker timed({}, options);
+  const int64_t span = stamps.back() - stamps.front() + 100'000'000;
+  for (int r = 0; r < repeat; ++r)
+    for (size_t k = 0; k < results.size(); ++k) {
+      const auto t0 = std::chrono::steady_clock::now();
+      timed.update(results[k], stamps[k] + r * span, tr);
+      c.update_us.push_back(
+          std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count());
+    }
+  return c;
+}
+
+std::string fmt(double v, int digits) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.*f", digits, v);
+  return b;
+}
+
+// The CPU's model and the load averages, for the figures' context.
+std::string machine() {
+  std::string cpu = "unknown CPU", load = "?";
+  std::ifstream info("/proc/cpuinfo");
+  for (std::string line; std::getline(info, line);)
+    if (line.rfind("model name", 0) == 0) {
+      cpu = line.substr(line.find(':') + 2);
+      break;
+    }
+  std::ifstream avg("/proc/loadavg");
+  double l1 = 0, l5 = 0, l15 = 0;
+  if (avg >> l1 >> l5 >> l15) load = fmt(l1, 2) + ", " + fmt(l5, 2) + ", " + fmt(l15, 2);
+  return cpu + " (" + std::to_string(std::thread::hardware_concurrency()) +
+         " cores), load average at the end " + load;
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return NAN;
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+int run(const Args& args) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const int runs = args.quick ? 2 : args.runs;
+  const int rotations = args.quick ? 8 : args.rotations;
+  std::vector<Cell> cells;
+  auto cell = [](velodyne::Model model, double distance, int angle, double target) {
+    Cell c;
+    c.model = model;
+    c.distance = distance;
+    c.angle = angle;
+    c.target = target;
+    return c;
+  };
+  for (double d : {5.0, 6.0, 7.0, 8.0, 10.0})
+    for (int angle : {0, 45})
+      cells.push_back(cell(velodyne::Model::kVLP16, d, angle, d < 9 ? 95.0 : 50.0));
+  for (double d : {20.0, 24.0})
+    for (int angle : {0, 45}) cells.push_back(cell(velodyne::Model::kVLP32C, d, angle, 95.0));
+  std::ostringstream grid;
+  grid << "| sensor | distance | angle | rotations (4th on) | detector alone | with the tracker | "
+          "of which by a track only | wrong IDs alone | wrong IDs with the tracker (added by a "
+          "track) | target |\n"
+       << "|---|---:|---:|---:|---:|---:|---:|---:|---:|---|\n";
+  int never = 0;
+  for (Cell& c : cells) {
+    for (int r = 0; r < runs; ++r) run_cell(c, r, rotations);
+    // The tracker must add no wrong ID; the detector's own are bench_accuracy's to fail on, and
+    // are shown here.
+    never += c.wrong_by_track;
+    const bool met = c.pct(c.tracked) >= c.target;
+    const std::string sensor(velodyne::model_spec(c.model).display_name);
+    std::printf(
+        "%-8s %4.0f m %2d deg: alone %5.1f %%  tracked %5.1f %% (%d by a track only)  "
+        "wrong %d / %d  target %.0f %% %s\n",
+        std::string(velodyne::model_spec(c.model).name).c_str(), c.distance, c.angle,
+        c.pct(c.single), c.pct(c.tracked), c.confirmed_only, c.wrong_single, c.wrong_tracked,
+        c.target, met ? "met" : "NOT MET");
+    std::fflush(stdout);
+    grid << "| " << sensor << " | " << fmt(c.distance, 0) << " m | " << c.angle << "° | "
+         << c.counted << " | " << fmt(c.pct(c.single), 1) << " % | " << fmt(c.pct(c.tracked), 1)
+         << " % | " << c.confirmed_only << " | " << c.wrong_single << " | " << c.wrong_tracked
+         << " (" << c.wrong_by_track << ") | ≥ " << fmt(c.target, 0)
+         << " %: " << (met ? "met" : "**not met**") << " |\n";
+  }
+
+  std::vector<Motion> motions = {
+      {"VLP-16 driving toward the tag at 0.1 m/s from 7 m",
+       velodyne::Model::kVLP16,
+       7.0,
+       0,
+       {0.1, 0.0, 0.0},
+       0.0},
+      {"VLP-16 driving sideways at 0.5 m/s, 6 m, tag at 45°",
+       velodyne::Model::kVLP16,
+       6.0,
+       45,
+       {0.0, 0.5, 0.0},
+       0.0},
+      {"VLP-32C driving at 1.1 m/s, 10 m",
+       velodyne::Model::kVLP32C,
+       10.0,
+       0,
+       {-1.0, 0.5, 0.0},
+       0.0},
+      {"VLP-32C turning at 10°/s, 6 m, tag at 45°",
+       velodyne::Model::kVLP32C,
+       6.0,
+       45,
+       {0.0, 0.0, 0.0},
+       10.0},
+      {"VLP-32C turning at 2°/s, 5 m", velodyne::Model::kVLP32C, 5.0, 0, {0.0, 0.0, 0.0}, 2.0},
+  };
+  std::ostringstream moving;
+  moving << "| scene | rotations | right ID | wrong ID (added by a track) | tracks |\n"
+            "|---|---:|---:|---:|---:|\n";
+  for (Motion& m : motions) {
+    run_motion(m, args.quick ? 10 : 50);
+    never += m.wrong_by_track;
+    std::printf("%s: %d rotations, right %d, wrong %d, %d tracks\n", m.what, m.rotations, m.right,
+                m.wrong, m.tracks);
+    moving << "| " << m.what << " | " << m.rotations << " | " << m.right << " | " << m.wrong << " ("
+           << m.wrong_by_track << ") | " << m.tracks << " |\n";
+  }
+
+  detector::DetectorOptions all;
+  all.tag_sizes_m = {1.2, 0.8, 0.6};
+  all.families = {"tag16h5", "tag25h9", "tag36h11"};
+  all.cluster_diagnostics = false;
+  detector::DetectorOptions demo;
+  demo.tag_sizes_m = {0.8, 0.6};
+  demo.cluster_diagnostics = false;
+  const int repeat = args.quick ? 5 : 200;
+  std::vector<Capture> captures = {run_capture("boards.pcap", all, repeat),
+                                   run_capture("boards.pcap", detector::DetectorOptions{}, repeat),
+                                   run_capture("clutter.pcap", all, repeat),
+                                   run_capture("demo.pcap", demo, repeat),
+                                   run_capture("outdoor.pcap", all, repeat)};
+  std::ostringstream fp, cost;
+  fp << "| capture | detector | rotations | detections | confirmed tracks "
+        "|\n|---|---|---:|---:|---:|\n";
+  cost << "| capture | rotations timed | tracker: median µs per rotation | share of 100 ms | "
+          "detector: median ms per rotation | detector + tracker, share of 100 ms |\n"
+          "|---|---:|---:|---:|---:|---:|\n";
+  for (size_t i = 0; i < captures.size(); ++i) {
+    const Capture& c = captures[i];
+    const bool false_positives = c.name != "demo.pcap" && c.name != "outdoor.pcap";
+    const std::string who =
+        i == 1 ? "default (tag16h5, 1.2 m)"
+               : (c.name == "demo.pcap" ? "tag16h5, 0.8 and 0.6 m" : "3 families, 1.2/0.8/0.6 m");
+    if (false_positives) {
+      never += c.detections + c.confirmed;
+      std::printf("false positives %s (%s): %d detections, %d confirmed tracks in %d rotations\n",
+                  c.name.c_str(), who.c_str(), c.detections, c.confirmed, c.rotations);
+      fp << "| `pcaps/" << c.name << "` | " << who << " | " << c.rotations << " | " << c.detections
+         << " | " << c.confirmed << " |\n";
+    }
+    if (c.update_us.size() > 1) {
+      // Shares of the 100 ms period of a VLP-32C at 600 rpm: ms / 100 ms * 100 %.
+      const double us = median(c.update_us), ms = median(c.detect_ms);
+      std::printf(
+          "tracker cost %s: median %.2f us per rotation (%.4f %% of 100 ms); detector "
+          "%.2f ms; together %.2f %%\n",
+          c.name.c_str(), us, us / 1e3, ms, ms + us / 1e3);
+      cost << "| `pcaps/" << c.name << "` (" << who << ") | " << c.update_us.size() << " | "
+           << fmt(us, 2) << " | " << fmt(us / 1e3, 4) << " % | " << fmt(ms, 2) << " | "
+           << fmt(ms + us / 1e3, 2) << " % |\n";
+    }
+  }
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::printf("%.0f s\n", seconds);
+  const int status = never == 0 ? 0 : 1;
+  if (status != 0)
+    std::printf("FAILED: %d wrong IDs added by the tracker, or false positives\n", never);
+  if (args.out.empty()) return status;
+  fs::create_directories(args.out);
+  std::ofstream md(fs::path(args.out) / "tracking.md");
+  md << "# Evidence over rotations: what the tracker adds (simulated)\n\n"
+     << "Produced by `" << args.command << "` (" << fmt(seconds, 0) << " s on " << machine()
+     << "; source: `bench/bench_tracker.cpp`; how the tracker works: `docs/detector.md`, "
+        "\"Evidence over rotations\").\n\n"
+     << "## The issue's targets: static sensor\n\n"
+     << "A 1.2 m `tag16h5` on an easel stand, diamond mount, centre at the sensor's height, "
+        "face-on (0°) or turned 45°; "
+     << runs << " runs per cell, each with its own code and noise seed, of " << rotations
+     << " consecutive rotations of a static sensor at 600 rpm (the simulator's default noise). "
+        "Counted: the rotations from the 4th on, with the right ID at the tag (centre within t/2) "
+        "from the detector alone (`Detector::detect`, default options) and with the tracker "
+        "(`Tracker::update`, default options: a detection of the rotation, or a confirmed track "
+        "of it); a wrong ID is any other ID at the tag.\n\n"
+     << grid.str()
+     << "\n## Moving sensors\n\nThe same tag (code 13), 50 rotations; \"tracks\": how many "
+        "different tracks reported the tag (a new one starts when the tag has moved more than "
+        "`tracker.max_distance_m` from the mean of its track's window).\n\n"
+     << moving.str()
+     << "\n## False positives\n\nEvery detection and every confirmed track here "
+        "is a false positive.\n\n"
+     << fp.str()
+     << "\n## Cost\n\n`Tracker::update` per rotation, on the rotations of the bundled "
+        "captures replayed "
+     << repeat
+     << " times, one thread, on the machine above; beside it the detector's own time per "
+        "rotation (`ScanResult::total_ms`, once per rotation, not pinned to a core: "
+        "`bench_detector` is the detector's benchmark), and the two together as a share of a "
+        "VLP-32C's 100 ms period at 600 rpm (the issue's budget: 2 %):\n\n"
+     << cost.str();
+  std::printf("wrote %s\n", (fs::path(args.out) / "tracking.md").string().c_str());
+  return status;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Args args;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto value = [&](const char* name) -> std::string {
+      if (i + 1 >= argc) {
+        std::fprintf(stderr, "bench_tracker: %s needs a value\n", name);
+        std::exit(2);
+      }
+      return argv[++i];
+    };
+    if (a == "--runs") {
+      args.runs = std::max(1, std::atoi(value("--runs").c_str()));
+      args.command += " --runs " + std::to_string(args.runs);
+    } else if (a == "--rotations") {
+      args.rotations = std::max(4, std::atoi(value("--rotations").c_str()));
+      args.command += " --rotations " + std::to_string(args.rotations);
+    } else if (a == "--quick") {
+      args.quick = true;
+      args.command += " --quick";
+    } else if (a == "--out") {
+      args.out = value("--out");
+      args.command += " --out " + args.out;
+    } else {
+      std::fprintf(stderr,
+                   "usage: bench_tracker [--runs N] [--rotations R] [--quick] [--out DIR]\n");
+      return 2;
+    }
+  }
+  try {
+    return run(args);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bench_tracker: error: %s\n", e.what());
+    return 1;
+  }
+}

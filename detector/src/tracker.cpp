@@ -1,0 +1,463 @@
+// The tracker: association by pose, cell votes summed in each track's own frame, confirmation by
+// the margin of the leading function over the votes, and the mean pose and spread over a window.
+#include "lidartag/detector/tracker.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <numbers>
+#include <string_view>
+#include <type_traits>
+
+#include "lidartag/detector/tag_family.hpp"
+
+namespace lidartag::detector {
+
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+// Every function's inner product with per-cell values on the dictionary's varying cells (the
+// other cells add the same to every function), by tables of the 256 sign patterns of each group
+// of 8 cells, as decode_prepared scores the kernel evidence.
+void score_functions(const RkhsDictionary& dict, const std::vector<float>& values,
+                     std::vector<float>& tables, std::vector<float>& scores) {
+  const size_t groups = dict.chunk_count();
+  tables.resize(groups * 256);
+  for (size_t g = 0; g < groups; ++g) {
+    float* table = tables.data() + g * 256;
+    const size_t n = std::min<size_t>(8, values.size() - 8 * g);
+    table[0] = 0.0f;
+    for (size_t i = 0; i < n; ++i) table[0] -= values[8 * g + i];
+    for (unsigned m = 1; m < 256; ++m) {
+      const unsigned low = static_cast<unsigned>(std::countr_zero(m));
+      table[m] = low < n ? table[m & (m - 1)] + 2.0f * values[8 * g + low] : 0.0f;
+    }
+  }
+  const int nf = dict.functions();
+  scores.resize(static_cast<size_t>(nf));
+  for (int f = 0; f < nf; ++f) {
+    const uint8_t* idx = dict.chunks(f);
+    float sum = 0.0f;
+    for (size_t g = 0; g < groups; ++g) sum += tables[g * 256 + idx[g]];
+    scores[static_cast<size_t>(f)] = sum;
+  }
+}
+
+// Rx(q pi / 2): a quarter turn about the tag's normal (x).
+Eigen::Matrix3d quarter_turn(int q) {
+  return Eigen::AngleAxisd(q * std::numbers::pi / 2, Eigen::Vector3d::UnitX()).toRotationMatrix();
+}
+
+}  // namespace
+
+namespace {
+
+template <class T>
+std::string value_text(const T& v) {
+  if constexpr (std::is_same_v<T, bool>)
+    return v ? "true" : "false";
+  else
+    return rules::number_text(static_cast<double>(v));
+}
+
+// Applies the rules of visit_tracker_options to options built in code.
+struct Checker {
+  template <class T, class Rule>
+  void field(const char* key, T& value, Rule rule, std::string_view /*unit*/) {
+    if (std::string reason = rule(value); !reason.empty())
+      throw OptionsError(std::string("tracker.") + key, value_text(value), reason);
+  }
+};
+
+}  // namespace
+
+void validate_tracker_options(const TrackerOptions& options) {
+  TrackerOptions copy = options;  // the visitor takes fields by reference
+  Checker checker;
+  visit_tracker_options(checker, copy);
+}
+
+struct Tracker::Track {
+  bool live = false;
+  bool seen_now = false;  // took a candidate in the current update
+  int id = -1;
+  int family = 0;
+  double size_m = 0.0;
+  int rotations = 0;
+  int64_t last_seen_ns = 0;
+  // Per function of the family in the track's frame (4 code + quarter turns): summed normalised
+  // scores. Per cell of the marker in the track's frame: summed votes (+1 white, -1 black) of the
+  // points well inside it, and their number.
+  std::vector<double> score_sum;
+  std::vector<float> votes, counts;
+  double other_sum = 0.0;  // summed best score of the families not configured
+  int other_count = 0;     // rotations in which they were decoded
+  // The window: centres and frames turned into the track's frame (quarter turns taken out).
+  std::vector<Eigen::Vector3d> positions;
+  std::vector<Eigen::Quaterniond> frames;
+  int window_count = 0, window_next = 0;
+  Eigen::Vector3d ref_position = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond ref_frame = Eigen::Quaterniond::Identity();
+  Eigen::Vector3d position_std = Eigen::Vector3d::Zero();
+  double angle_std_deg = 0.0;
+  int leader = -1;
+  double margin = 0.0, mean_score = 0.0;
+  bool confirmed = false;
+  // This rotation's candidate: its index and the quarter turns from its frame to the track's.
+  int candidate = -1;
+  int delta = 0;
+};
+
+Tracker::Tracker(TrackerOptions options, const DetectorOptions& detector)
+    : opt_(std::move(options)), min_score_(detector.decode.min_score) {
+  validate_tracker_options(opt_);
+  int most = 0, cells = 0;
+  try {
+    for (const auto& name : detector.families) {
+      const tags::TagFamily fam = tags::resolve_family(name);
+      families_.push_back({RkhsDictionary(fam), 4 * fam.ncodes(),
+                           static_cast<double>(fam.width_at_border) / fam.total_width / 2.0});
+      most = std::max(most, 4 * fam.ncodes());
+      cells = std::max(cells, fam.total_width * fam.total_width);
+    }
+  } catch (const tags::FamilyError& e) {
+    throw OptionsError("families", "", e.what());
+  }
+  tracks_.resize(static_cast<size_t>(opt_.max_tracks));
+  scores_.reserve(static_cast<size_t>(most));
+  values_.reserve(static_cast<size_t>(cells));
+  tables_.reserve(static_cast<size_t>(cells / 8 + 1) * 256);
+  for (Track& t : tracks_) {
+    t.score_sum.assign(static_cast<size_t>(most), 0.0);
+    t.votes.assign(static_cast<size_t>(cells), 0.0f);
+    t.counts.assign(static_cast<size_t>(cells), 0.0f);
+    t.positions.resize(static_cast<size_t>(opt_.window));
+    t.frames.resize(static_cast<size_t>(opt_.window));
+  }
+  pairs_.reserve(64);
+  assigned_.reserve(64);
+}
+
+Tracker::~Tracker() = default;
+
+void Tracker::reset() {
+  for (Track& t : tracks_) t.live = false;
+  have_stamp_ = false;
+}
+
+namespace {
+
+// The quarter turns delta (0..3) that bring `frame` closest to `ref` (frame * Rx(delta pi/2) ~
+// ref), and the angle left, radians. The trace of ref^T frame Rx(phi) is
+// M00 + cos(phi) (M11 + M22) + sin(phi) (M12 - M21).
+double aligned_angle(const Eigen::Matrix3d& ref, const Eigen::Matrix3d& frame, int& delta) {
+  const Eigen::Matrix3d m = ref.transpose() * frame;
+  const double a = m(1, 1) + m(2, 2), b = m(1, 2) - m(2, 1);
+  const double traces[4] = {m(0, 0) + a, m(0, 0) + b, m(0, 0) - a, m(0, 0) - b};
+  delta = static_cast<int>(std::max_element(traces, traces + 4) - traces);
+  return std::acos(std::clamp((traces[delta] - 1.0) / 2.0, -1.0, 1.0));
+}
+
+}  // namespace
+
+void Tracker::update(const ScanResult& result, int64_t stamp_ns, TrackerResult& out) noexcept {
+  const auto t0 = std::chrono::steady_clock::now();
+  out.tags.clear();
+  out.seen.clear();
+  out.tracks = out.confirmed_tracks = 0;
+  out.truncated = false;
+  try {
+    track(result, stamp_ns, out);
+  } catch (...) {
+    // Only allocation failure can get here (the buffers grow to the scene): the report of this
+    // rotation is incomplete and says so.
+    out.truncated = true;
+  }
+  out.time_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+void Tracker::track(const ScanResult& result, int64_t stamp_ns, TrackerResult& out) {
+  if (have_stamp_ && stamp_ns < last_stamp_ns_) reset();
+  have_stamp_ = true;
+  last_stamp_ns_ = stamp_ns;
+  // Stamps never decrease from here, so last_seen_ns <= stamp_ns: the unsigned difference is
+  // exact whatever the stamps (max_age_s <= 1e6 s).
+  const auto max_age_ns = static_cast<uint64_t>(opt_.max_age_s * 1e9);
+  for (Track& t : tracks_) {
+    t.seen_now = false;
+    t.candidate = -1;
+    if (t.live &&
+        static_cast<uint64_t>(stamp_ns) - static_cast<uint64_t>(t.last_seen_ns) > max_age_ns)
+      t.live = false;
+  }
+
+  // Every (candidate, track) pair inside both gates, cheapest first; each takes at most one.
+  const auto& cands = result.candidates;
+  pairs_.clear();
+  assigned_.assign(cands.size(), -1);
+  const double max_angle = opt_.max_angle_deg * kDeg;
+  for (size_t c = 0; c < cands.size(); ++c) {
+    const Candidate& cand = cands[c];
+    if (evidence(cand, result) == nullptr) continue;
+    const Eigen::Matrix3d frame = cand.undecoded_orientation.normalized().toRotationMatrix();
+    for (size_t k = 0; k < tracks_.size(); ++k) {
+      const Track& t = tracks_[k];
+      if (!t.live || t.family != cand.family_index || std::abs(t.size_m - cand.size_m) > 1e-9)
+        continue;
+      const double d = (cand.position - t.ref_position).norm();
+      if (d > opt_.max_distance_m) continue;
+      int delta = 0;
+      const double angle = aligned_angle(t.ref_frame.toRotationMatrix(), frame, delta);
+      if (angle > max_angle) continue;
+      pairs_.push_back({d / opt_.max_distance_m + angle / max_angle, static_cast<int>(c),
+                        static_cast<int>(k), delta});
+    }
+  }
+  std::sort(pairs_.begin(), pairs_.end(),
+            [](const Pair& a, const Pair& b) { return a.cost < b.cost; });
+  for (const Pair& p : pairs_) {
+    Track& t = tracks_[static_cast<size_t>(p.track)];
+    if (t.seen_now || assigned_[static_cast<size_t>(p.candidate)] >= 0) continue;
+    t.seen_now = true;
+    t.candidate = p.candidate;
+    t.delta = p.delta;
+    assigned_[static_cast<size_t>(p.candidate)] = p.track;
+  }
+  // The others start tracks: a free slot, else the one seen longest ago (not in this rotation).
+  for (size_t c = 0; c < cands.size(); ++c) {
+    if (assigned_[c] >= 0 || evidence(cands[c], result) == nullptr) continue;
+    int slot = -1;
+    for (size_t k = 0; k < tracks_.size() && slot < 0; ++k)
+      if (!tracks_[k].live) slot = static_cast<int>(k);
+    for (size_t k = 0; k < tracks_.size() && slot < 0; ++k)
+      if (!tracks_[k].seen_now)
+        if (slot < 0 || tracks_[k].last_seen_ns < tracks_[static_cast<size_t>(slot)].last_seen_ns)
+          slot = static_cast<int>(k);
+    if (slot < 0) continue;  // more candidates than tracks: this one stays untracked
+    Track& t = tracks_[static_cast<size_t>(slot)];
+    start(t, cands[c]);
+    t.seen_now = true;
+    t.candidate = static_cast<int>(c);
+    t.delta = 0;
+    assigned_[c] = slot;
+  }
+  for (Track& t : tracks_) {
+    if (!t.seen_now) continue;
+    add(t, cands[static_cast<size_t>(t.candidate)], result, stamp_ns);
+  }
+  report(result, out);
+}
+
+const FamilyEvidence* Tracker::evidence(const Candidate& c, const ScanResult& result) const {
+  if (c.family_index < 0 || static_cast<size_t>(c.family_index) >= families_.size()) return nullptr;
+  const Family& fam = families_[static_cast<size_t>(c.family_index)];
+  const auto all = result.evidence_of(c);
+  if (static_cast<size_t>(c.family_index) >= all.size()) return nullptr;
+  const FamilyEvidence& e = all[static_cast<size_t>(c.family_index)];
+  const int w = fam.dict.width();
+  const bool ok =
+      e.family_index == c.family_index && e.functions == fam.functions &&
+      result.scores_of(e).size() == static_cast<size_t>(fam.functions) &&
+      std::isfinite(e.cells_per_score) && e.cells_per_score > 0.0f && c.grid_width == w &&
+      result.votes_of(c).size() == static_cast<size_t>(w) * static_cast<size_t>(w) &&
+      result.vote_counts_of(c).size() == result.votes_of(c).size() && c.position.allFinite() &&
+      c.undecoded_orientation.coeffs().allFinite() && c.undecoded_orientation.norm() > 0.5;
+  return ok ? &e : nullptr;
+}
+
+void Tracker::start(Track& t, const Candidate& c) {
+  t.live = true;
+  t.id = next_id_++;
+  t.family = c.family_index;
+  t.size_m = c.size_m;
+  t.rotations = 0;
+  const size_t n = static_cast<size_t>(families_[static_cast<size_t>(c.family_index)].functions);
+  std::fill(t.score_sum.begin(), t.score_sum.begin() + static_cast<std::ptrdiff_t>(n), 0.0);
+  std::fill(t.votes.begin(), t.votes.end(), 0.0f);
+  std::fill(t.counts.begin(), t.counts.end(), 0.0f);
+  t.other_sum = 0.0;
+  t.other_count = 0;
+  t.window_count = t.window_next = 0;
+  t.ref_position = c.position;
+  t.ref_frame = c.undecoded_orientation.normalized();
+  t.leader = -1;
+  t.confirmed = false;
+}
+
+void Tracker::add(Track& t, const Candidate& c, const ScanResult& result, int64_t stamp_ns) {
+  ++t.rotations;
+  t.last_seen_ns = stamp_ns;
+  // Normalised scores, for the mean score of the leading function: function (code k, quarter
+  // turns q) of the candidate's frame is (k, q + delta) of the track's frame (its tag frame is
+  // frame Rx(-q pi/2) = aligned Rx(-(q + delta) pi/2)).
+  const Family& fam = families_[static_cast<size_t>(t.family)];
+  const auto s = result.scores_of(*evidence(c, result));
+  const int n = fam.functions;
+  for (int f = 0; f < n; ++f)
+    t.score_sum[static_cast<size_t>((f & ~3) | (((f & 3) + t.delta) & 3))] +=
+        s[static_cast<size_t>(f)];
+  if (c.other_family_score >= 0.0) {
+    t.other_sum += c.other_family_score;
+    ++t.other_count;
+  }
+  // Cell votes: the candidate's grid turned delta times clockwise ((r, c) -> (c, W-1-r) per turn).
+  // None from a cluster whose position along an unseen axis was searched by decoding: its votes
+  // would agree with the decoder by construction.
+  const int W = fam.dict.width();
+  const auto votes = result.votes_of(c), counts = result.vote_counts_of(c);
+  for (int r = 0; r < W && !c.shift_searched; ++r)
+    for (int col = 0; col < W; ++col) {
+      int rr = r, cc = col;
+      for (int k = 0; k < t.delta; ++k) {
+        const int tmp = rr;
+        rr = cc;
+        cc = W - 1 - tmp;
+      }
+      const auto src = static_cast<size_t>(r * W + col), dst = static_cast<size_t>(rr * W + cc);
+      t.votes[dst] += votes[src];
+      t.counts[dst] += counts[src];
+    }
+  // The decision: every function scored on the cells that tell functions apart, each cell's votes
+  // averaged (a cell with fewer than full_cell_votes votes counts proportionally less); the
+  // margin is in cells: the leading function beats the best other one on that many cells.
+  const auto& vary = fam.dict.varying_cells();
+  values_.resize(vary.size());
+  const auto full = static_cast<float>(opt_.full_cell_votes);
+  for (size_t k = 0; k < vary.size(); ++k) {
+    const auto i = static_cast<size_t>(vary[k]);
+    values_[k] = t.votes[i] / std::max(t.counts[i], full);
+  }
+  score_functions(fam.dict, values_, tables_, scores_);
+  int lead = 0;
+  for (int f = 1; f < n; ++f)
+    if (scores_[static_cast<size_t>(f)] > scores_[static_cast<size_t>(lead)]) lead = f;
+  float rival = -1e30f;
+  for (int f = 0; f < n; ++f)
+    if (f != lead) rival = std::max(rival, scores_[static_cast<size_t>(f)]);
+  t.leader = lead;
+  t.margin = n > 1 ? (scores_[static_cast<size_t>(lead)] - rival) / 2.0 : 1e9;
+  t.mean_score = t.score_sum[static_cast<size_t>(lead)] / t.rotations;
+  // Another family fitting better on average makes it that family's tag (as the detector's
+  // decode/other_family for one rotation).
+  const bool other_better = t.other_count > 0 && t.other_sum / t.other_count > t.mean_score + 1e-6;
+  t.confirmed = t.rotations >= opt_.min_rotations && t.margin >= opt_.min_margin_cells &&
+                t.mean_score >= min_score_ && !other_better;
+
+  // The window: the frame turned into the track's frame, its sign next to the reference's.
+  const Eigen::Quaterniond aligned(c.undecoded_orientation.normalized().toRotationMatrix() *
+                                   quarter_turn(t.delta));
+  Eigen::Quaterniond q = aligned;
+  if (q.dot(t.ref_frame) < 0.0) q.coeffs() *= -1.0;
+  const auto w = static_cast<size_t>(t.window_next);
+  t.positions[w] = c.position;
+  t.frames[w] = q;
+  t.window_next = (t.window_next + 1) % opt_.window;
+  t.window_count = std::min(t.window_count + 1, opt_.window);
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  Eigen::Vector4d qsum = Eigen::Vector4d::Zero();
+  for (int i = 0; i < t.window_count; ++i) {
+    mean += t.positions[static_cast<size_t>(i)];
+    qsum += t.frames[static_cast<size_t>(i)].coeffs();
+  }
+  mean /= t.window_count;
+  Eigen::Vector3d var = Eigen::Vector3d::Zero();
+  double angle2 = 0.0;
+  const Eigen::Quaterniond qmean =
+      Eigen::Quaterniond(Eigen::Vector4d(qsum.normalized())).normalized();
+  for (int i = 0; i < t.window_count; ++i) {
+    var += (t.positions[static_cast<size_t>(i)] - mean).cwiseAbs2();
+    const double a = t.frames[static_cast<size_t>(i)].angularDistance(qmean);
+    angle2 += a * a;
+  }
+  t.ref_position = mean;
+  t.ref_frame = qmean;
+  t.position_std = (var / t.window_count).cwiseSqrt();
+  t.angle_std_deg = std::sqrt(angle2 / t.window_count) / kDeg;
+}
+
+void Tracker::fill_info(const Track& t, TrackInfo& info) const {
+  info.track_id = t.id;
+  info.rotations = t.rotations;
+  info.confirmed = t.confirmed;
+  info.family_index = t.family;
+  info.id = t.leader / 4;
+  info.margin_cells = t.margin;
+  info.mean_score = t.mean_score;
+  info.position = t.ref_position;
+  Eigen::Quaterniond o(t.ref_frame.toRotationMatrix() * quarter_turn(-(t.leader & 3)));
+  if (o.w() < 0) o.coeffs() *= -1.0;
+  info.orientation = o;
+  info.position_std_m = t.position_std;
+  info.angle_std_deg = t.angle_std_deg;
+  info.window_rotations = t.window_count;
+}
+
+void Tracker::report(const ScanResult& result, TrackerResult& out) const {
+  const auto& cands = result.candidates;
+  // Every detection of the rotation, as the detector gave it, with its track.
+  for (size_t i = 0; i < result.detections.size(); ++i) {
+    TrackedDetection td;
+    td.detection = result.detections[i];
+    td.decoded = true;
+    for (size_t c = 0; c < cands.size(); ++c) {
+      if (cands[c].detection != static_cast<int>(i) || assigned_[c] < 0) continue;
+      const Track& t = tracks_[static_cast<size_t>(assigned_[c])];
+      fill_info(t, td.track);
+      // Confirmed means: the track's evidence confirms this detection's ID.
+      td.track.confirmed =
+          t.confirmed && t.family == td.detection.family_index && t.leader / 4 == td.detection.id;
+    }
+    out.tags.push_back(td);
+  }
+  // Confirmed tracks whose candidate of this rotation did not decode alone.
+  for (const Track& t : tracks_) {
+    if (!t.live) continue;
+    ++out.tracks;
+    out.confirmed_tracks += t.confirmed ? 1 : 0;
+    if (!t.seen_now) continue;
+    out.seen.emplace_back();
+    fill_info(t, out.seen.back());
+    if (!t.confirmed) continue;
+    const Candidate& c = cands[static_cast<size_t>(t.candidate)];
+    if (c.detection >= 0) continue;
+    const Family& fam = families_[static_cast<size_t>(t.family)];
+    TrackedDetection td;
+    td.decoded = false;
+    fill_info(t, td.track);
+    Detection& d = td.detection;
+    d.family_index = t.family;
+    d.family = fam.dict.family().name;
+    d.id = t.leader / 4;
+    d.size_m = c.size_m;
+    d.position = c.position;
+    // The track's function in the candidate's frame: quarter turns q - delta.
+    const int q = ((t.leader & 3) - t.delta) & 3;
+    const Eigen::Matrix3d r =
+        c.undecoded_orientation.normalized().toRotationMatrix() * quarter_turn(-q);
+    d.orientation = Eigen::Quaterniond(r);
+    if (d.orientation.w() < 0) d.orientation.coeffs() *= -1.0;
+    const double h = fam.black_half_ratio * c.size_m;
+    const double yz[4][2] = {{-h, -h}, {h, -h}, {h, h}, {-h, h}};
+    for (size_t k = 0; k < 4; ++k)
+      d.corners[k] = c.position + r * Eigen::Vector3d(0.0, yz[k][0], yz[k][1]);
+    const FamilyEvidence& e = *evidence(c, result);
+    const auto s = result.scores_of(e);
+    const auto f = static_cast<size_t>((t.leader & ~3) | q);
+    float rival = -1e30f;
+    for (size_t g = 0; g < s.size(); ++g)
+      if (g != f) rival = std::max(rival, s[g]);
+    d.score = s[f];
+    d.margin = (static_cast<double>(s[f]) - rival) * e.cells_per_score;
+    d.points = c.points;
+    d.fit_cost = c.fit_cost;
+    d.first_point = -1;
+    out.tags.push_back(td);
+  }
+}
+
+}  // namespace lidartag::detector

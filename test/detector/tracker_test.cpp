@@ -1,0 +1,423 @@
+// The tracker on hand-made decoding candidates: association by pose, votes summed in each track's
+// frame, confirmation, motion starting new tracks, the window's mean pose and spread, ageing,
+// capacity, the options' rule table, and no allocation in steady state.
+#include "lidartag/detector/tracker.hpp"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <numbers>
+#include <vector>
+
+#include "count_allocations.hpp"
+
+namespace lidartag::detector {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+constexpr int64_t kPeriod = 100'000'000;  // ns: 600 rpm
+
+Eigen::Matrix3d quarter(int q) {
+  return Eigen::AngleAxisd(q * kPi / 2, Eigen::Vector3d::UnitX()).toRotationMatrix();
+}
+
+// A tag facing the sensor (its x, the normal, along -x of the sensor; its z up).
+Eigen::Matrix3d facing() {
+  Eigen::Matrix3d m;
+  m.col(0) = -Eigen::Vector3d::UnitX();
+  m.col(2) = Eigen::Vector3d::UnitZ();
+  m.col(1) = m.col(2).cross(m.col(0));
+  return m;
+}
+
+struct Cand {
+  int code = 3;
+  int q = 0;  // quarter turns of the function that fits, in `frame`
+  Eigen::Vector3d position{6.0, 0.0, 0.0};
+  Eigen::Matrix3d frame = facing();  // before the quarter turns
+  std::vector<bool> observed;        // cells with votes (empty: all)
+  float votes = 5.0f;                // per observed cell
+  Rejection rejection = Rejection::kAmbiguous;
+  double other_family_score = -1.0;
+  bool shift_searched = false;
+  double size = 1.2;
+};
+
+// Appends a candidate as the detector reports one: the normalised score of every function (the
+// fitting one 0.95, the others 0.6) and the cell votes of the fitting function's image.
+void add(ScanResult& r, const RkhsDictionary& dict, const Cand& c) {
+  Candidate& d = r.candidates.emplace_back();
+  const int f = 4 * c.code + c.q;
+  d.rejection = c.rejection;
+  d.family_index = 0;
+  d.id = c.code;
+  d.quarter_turns = c.q;
+  d.size_m = c.size;
+  d.position = c.position;
+  d.undecoded_orientation = Eigen::Quaterniond(c.frame);
+  d.orientation = Eigen::Quaterniond(c.frame * quarter(-c.q));
+  d.score = 0.95;
+  d.margin = c.rejection == Rejection::kNone ? 3.0 : 0.5;
+  d.other_family_score = c.other_family_score;
+  d.points = 500;
+  d.fit_cost = 1.0;
+  d.shift_searched = c.shift_searched;
+  d.first_evidence = static_cast<int>(r.family_evidence.size());
+  d.evidence_count = 1;
+  FamilyEvidence& e = r.family_evidence.emplace_back();
+  e.family_index = 0;
+  e.first = static_cast<int>(r.evidence_scores.size());
+  e.functions = dict.functions();
+  e.cells_per_score = 10.0f;
+  for (int g = 0; g < dict.functions(); ++g) r.evidence_scores.push_back(g == f ? 0.95f : 0.6f);
+  const int W = dict.width();
+  d.grid_width = W;
+  d.first_cell = static_cast<int>(r.cell_votes.size());
+  for (int i = 0; i < W * W; ++i) {
+    const bool seen = c.observed.empty() || c.observed[static_cast<size_t>(i)];
+    r.cell_evidence.push_back(dict.signs(f)[i]);
+    r.cell_votes.push_back(seen ? c.votes * dict.signs(f)[i] : 0.0f);
+    r.cell_vote_counts.push_back(seen ? c.votes : 0.0f);
+  }
+  if (c.rejection == Rejection::kNone) {
+    Detection det;
+    det.id = c.code;
+    det.position = c.position;
+    det.orientation = d.orientation;
+    det.size_m = c.size;
+    det.points = d.points;
+    d.detection = static_cast<int>(r.detections.size());
+    r.detections.push_back(det);
+  }
+}
+
+class TrackerTest : public ::testing::Test {
+ protected:
+  DetectorOptions det_opt;  // tag16h5, decode.min_score 0.8
+  RkhsDictionary dict{tags::builtin_family("tag16h5")};
+  ScanResult result;
+  TrackerResult out;
+  int64_t stamp = 1'700'000'000'000'000'000;
+
+  // One rotation with these candidates.
+  void step(Tracker& t, const std::vector<Cand>& cands) {
+    result.clear();
+    for (const Cand& c : cands) add(result, dict, c);
+    t.update(result, stamp, out);
+    stamp += kPeriod;
+  }
+  const TrackInfo* seen_at(const Eigen::Vector3d& p) const {
+    for (const TrackInfo& i : out.seen)
+      if ((i.position - p).norm() < 0.2) return &i;
+    return nullptr;
+  }
+};
+
+TEST_F(TrackerTest, CandidatesAtTwoPlacesKeepTheirOwnTracksOverRotations) {
+  Tracker tracker({}, det_opt);
+  Cand a, b;
+  b.code = 7;
+  b.position = {4.0, 2.0, 0.0};
+  for (int k = 0; k < 5; ++k) {
+    a.position.x() = 6.0 + 0.005 * (k % 2);  // a few mm of scatter
+    step(tracker, {a, b});
+    ASSERT_EQ(out.seen.size(), 2u);
+    const TrackInfo* ta = seen_at(a.position);
+    const TrackInfo* tb = seen_at(b.position);
+    ASSERT_TRUE(ta && tb);
+    EXPECT_EQ(ta->track_id, 0);
+    EXPECT_EQ(tb->track_id, 1);
+    EXPECT_EQ(ta->rotations, k + 1);
+    EXPECT_EQ(tb->id, 7);
+    EXPECT_EQ(out.tracks, 2);
+  }
+}
+
+TEST_F(TrackerTest, VotesAccumulateAndConfirmAfterMinRotations) {
+  TrackerOptions o;
+  o.min_rotations = 3;
+  Tracker tracker(o, det_opt);
+  Cand c;          // ambiguous alone every rotation
+  c.votes = 2.0f;  // half of full_cell_votes (4) per rotation
+  for (int k = 0; k < 4; ++k) {
+    step(tracker, {c});
+    ASSERT_EQ(out.seen.size(), 1u);
+    const TrackInfo& t = out.seen[0];
+    EXPECT_EQ(t.id, 3);
+    EXPECT_EQ(t.confirmed, k >= 2) << "rotation " << k;
+    // Confirmed tracks of ambiguous rotations are reported with the track's ID.
+    EXPECT_EQ(out.tags.size(), k >= 2 ? 1u : 0u);
+  }
+  // Every cell observed with full votes: the margin is the number of cells in which the closest
+  // other function differs. A single rotation of half-weight votes gives half of it.
+  const double whole = out.seen[0].margin_cells;
+  EXPECT_GE(whole, 1.0);
+  EXPECT_EQ(whole, std::round(whole));
+  Tracker fresh(o, det_opt);
+  step(fresh, {c});
+  EXPECT_NEAR(out.seen[0].margin_cells, whole / 2, 1e-5);
+}
+
+TEST_F(TrackerTest, CodesThatDifferOnlyOnUnobservedCellsAreNeverConfirmed) {
+  // The closest other function of code 3 (quarter turn 0): observe every cell but those where the
+  // two differ, as a sparse sensor's rings miss them.
+  const int f = 12;
+  int rival = -1, fewest = 1 << 30;
+  for (int g = 0; g < dict.functions(); ++g) {
+    if (g == f) continue;
+    int differ = 0;
+    for (int i = 0; i < 64; ++i) differ += dict.signs(f)[i] != dict.signs(g)[i] ? 1 : 0;
+    if (differ < fewest) fewest = differ, rival = g;
+  }
+  ASSERT_GE(rival, 0);
+  Cand c;
+  c.observed.assign(64, true);
+  for (int i = 0; i < 64; ++i)
+    c.observed[static_cast<size_t>(i)] = dict.signs(f)[i] == dict.signs(rival)[i];
+  c.votes = 20.0f;
+  Tracker tracker({}, det_opt);
+  for (int k = 0; k < 50; ++k) step(tracker, {c});
+  ASSERT_EQ(out.seen.size(), 1u);
+  EXPECT_EQ(out.seen[0].rotations, 50);
+  EXPECT_NEAR(out.seen[0].margin_cells, 0.0, 1e-6);
+  EXPECT_FALSE(out.seen[0].confirmed);
+  EXPECT_TRUE(out.tags.empty());
+}
+
+TEST_F(TrackerTest, MovingBeyondTheGatesStartsANewTrackWithoutTheOldEvidence) {
+  TrackerOptions o;  // 0.1 m, 10 degrees
+  Tracker tracker(o, det_opt);
+  Cand c;
+  for (int k = 0; k < 3; ++k) step(tracker, {c});
+  ASSERT_TRUE(out.seen[0].confirmed);
+  const int first = out.seen[0].track_id;
+  // 5 cm from the track's mean: the same track.
+  c.position.y() += 0.05;
+  step(tracker, {c});
+  EXPECT_EQ(out.seen[0].track_id, first);
+  EXPECT_EQ(out.seen[0].rotations, 4);
+  // 0.2 m away from the mean: a new track, unconfirmed, with one rotation of evidence, and another
+  // code: the evidence of the old place is not mixed in.
+  c.position.y() += 0.2;
+  c.code = 9;
+  step(tracker, {c});
+  ASSERT_EQ(out.seen.size(), 1u);
+  EXPECT_NE(out.seen[0].track_id, first);
+  EXPECT_EQ(out.seen[0].rotations, 1);
+  EXPECT_EQ(out.seen[0].id, 9);
+  EXPECT_FALSE(out.seen[0].confirmed);
+  // Turned 15 degrees about the vertical at the same place: new track too.
+  c.frame =
+      Eigen::AngleAxisd(15 * kPi / 180, Eigen::Vector3d::UnitZ()).toRotationMatrix() * c.frame;
+  const int second = out.seen[0].track_id;
+  step(tracker, {c});
+  EXPECT_NE(out.seen[0].track_id, second);
+  EXPECT_EQ(out.tracks, 3);  // the old ones live until max_age_s
+}
+
+TEST_F(TrackerTest, QuarterTurnsOfTheEstimatedFrameAreAlignedToTheTrack) {
+  Tracker tracker({}, det_opt);
+  Cand c;
+  c.q = 1;
+  // The tag itself is fixed; the detector's frame before the quarter turns differs by one turn
+  // every other rotation (its corners came out in another order), so the fitting function does
+  // too: frame * Rx(-q pi / 2) is the same tag frame.
+  const Eigen::Matrix3d tag = c.frame * quarter(-1);
+  for (int k = 0; k < 6; ++k) {
+    const int turn = k % 2;
+    c.frame = tag * quarter(1 + turn);
+    c.q = 1 + turn;
+    step(tracker, {c});
+    ASSERT_EQ(out.seen.size(), 1u);
+    EXPECT_EQ(out.seen[0].track_id, 0);
+    EXPECT_EQ(out.seen[0].id, 3);
+    EXPECT_LT(out.seen[0].angle_std_deg, 1e-6);
+    EXPECT_LT(Eigen::Quaterniond(tag).angularDistance(out.seen[0].orientation), 1e-9);
+  }
+  EXPECT_TRUE(out.seen[0].confirmed);
+  // The tag reported for an ambiguous rotation has the tag's frame and corners of its black
+  // square (bottom-left first) in it.
+  ASSERT_EQ(out.tags.size(), 1u);
+  const TrackedDetection& t = out.tags[0];
+  EXPECT_FALSE(t.decoded);
+  EXPECT_EQ(t.detection.id, 3);
+  EXPECT_EQ(t.detection.family, "tag16h5");
+  EXPECT_LT(Eigen::Quaterniond(tag).angularDistance(t.detection.orientation), 1e-9);
+  const double h = 0.375 * 1.2;
+  EXPECT_LT((t.detection.corners[0] - (c.position + tag * Eigen::Vector3d(0, -h, -h))).norm(),
+            1e-9);
+  EXPECT_NEAR(t.detection.score, 0.95, 1e-6);
+  EXPECT_NEAR(t.detection.margin, (0.95 - 0.6) * 10.0, 1e-5);
+}
+
+TEST_F(TrackerTest, MeanPoseAndSpreadOverTheWindow) {
+  TrackerOptions o;
+  o.window = 4;
+  Tracker tracker(o, det_opt);
+  Cand c;
+  // Over the last 4: x alternates 6.00 / 6.02 (std 1 cm), y fixed, z 0, 0, 0.04, 0.
+  const double xs[] = {5.5, 6.0, 6.02, 6.0, 6.02};
+  const double zs[] = {0.0, 0.0, 0.0, 0.04, 0.0};
+  // The first is 0.5 m from the others: they start another track. Its frames alternate +-1 degree
+  // about the normal.
+  for (int k = 0; k < 5; ++k) {
+    c.position = {xs[k], 0.0, zs[k]};
+    c.frame = facing() * Eigen::AngleAxisd((k % 2 ? 1 : -1) * kPi / 180, Eigen::Vector3d::UnitX())
+                             .toRotationMatrix();
+    step(tracker, {c});
+  }
+  ASSERT_EQ(out.seen.size(), 1u);
+  const TrackInfo& t = out.seen[0];
+  EXPECT_EQ(t.rotations, 4);
+  EXPECT_EQ(t.window_rotations, 4);
+  EXPECT_NEAR(t.position.x(), 6.01, 1e-9);
+  EXPECT_NEAR(t.position.z(), 0.01, 1e-9);
+  EXPECT_NEAR(t.position_std_m.x(), 0.01, 1e-9);
+  EXPECT_NEAR(t.position_std_m.y(), 0.0, 1e-12);
+  EXPECT_NEAR(t.position_std_m.z(), std::sqrt(3 * 0.0001 + 0.0009) / 2, 1e-9);
+  EXPECT_NEAR(t.angle_std_deg, 1.0, 1e-6);
+}
+
+TEST_F(TrackerTest, TracksAgeOutAndAReplayStartingAgainResetsThem) {
+  TrackerOptions o;
+  o.max_age_s = 0.25;
+  Tracker tracker(o, det_opt);
+  Cand c;
+  step(tracker, {c});
+  step(tracker, {});
+  step(tracker, {});
+  EXPECT_EQ(out.tracks, 1);  // 0.2 s unseen
+  step(tracker, {});
+  EXPECT_EQ(out.tracks, 0);  // 0.3 s
+  step(tracker, {c});
+  EXPECT_EQ(out.seen[0].track_id, 1);
+  EXPECT_EQ(out.seen[0].rotations, 1);
+  step(tracker, {c});
+  EXPECT_EQ(out.seen[0].rotations, 2);
+  stamp -= 100 * kPeriod;  // the capture starts again
+  step(tracker, {c});
+  EXPECT_EQ(out.seen[0].track_id, 2);
+  EXPECT_EQ(out.seen[0].rotations, 1);
+}
+
+TEST_F(TrackerTest, MoreCandidatesThanTracksStayUntrackedAndTheOldestMakesRoom) {
+  TrackerOptions o;
+  o.max_tracks = 2;
+  Tracker tracker(o, det_opt);
+  Cand a, b, c;
+  b.position.y() = 2.0;
+  c.position.y() = -2.0;
+  a.rejection = b.rejection = c.rejection = Rejection::kNone;
+  step(tracker, {a, b, c});
+  EXPECT_EQ(out.tracks, 2);
+  ASSERT_EQ(out.tags.size(), 3u);  // every detection is reported, tracked or not
+  int untracked = 0;
+  for (const auto& t : out.tags) untracked += t.track.track_id < 0 ? 1 : 0;
+  EXPECT_EQ(untracked, 1);
+  step(tracker, {b});
+  step(tracker, {c});  // a (seen longest ago) makes room
+  EXPECT_EQ(out.tracks, 2);
+  EXPECT_EQ(out.seen[0].rotations, 1);
+}
+
+TEST_F(TrackerTest, AnotherFamilyFittingBetterOnAverageBlocksConfirmation) {
+  Tracker tracker({}, det_opt);
+  Cand c;
+  c.other_family_score = 0.97;  // the decoys beat the leading function's 0.95
+  for (int k = 0; k < 5; ++k) step(tracker, {c});
+  EXPECT_FALSE(out.seen[0].confirmed);
+  Tracker tie({}, det_opt);
+  c.other_family_score = 0.95;  // identical patterns (tag16h6 shares tag16h5's codes) tie
+  for (int k = 0; k < 5; ++k) step(tie, {c});
+  EXPECT_TRUE(out.seen[0].confirmed);
+}
+
+TEST_F(TrackerTest, ClustersWhosePositionWasSearchedByDecodingGiveNoVotes) {
+  Tracker tracker({}, det_opt);
+  Cand c;
+  c.shift_searched = true;
+  for (int k = 0; k < 5; ++k) step(tracker, {c});
+  EXPECT_EQ(out.seen[0].rotations, 5);
+  EXPECT_FALSE(out.seen[0].confirmed);
+  EXPECT_NEAR(out.seen[0].margin_cells, 0.0, 1e-9);
+}
+
+TEST_F(TrackerTest, DetectionsKeepTheirOwnFieldsAndGetTheirTrack) {
+  Tracker tracker({}, det_opt);
+  Cand c;
+  c.rejection = Rejection::kNone;
+  for (int k = 0; k < 3; ++k) step(tracker, {c});
+  ASSERT_EQ(out.tags.size(), 1u);
+  EXPECT_TRUE(out.tags[0].decoded);
+  EXPECT_EQ(out.tags[0].detection.points, result.detections[0].points);
+  EXPECT_EQ(out.tags[0].detection.position, result.detections[0].position);
+  EXPECT_EQ(out.tags[0].track.track_id, 0);
+  EXPECT_TRUE(out.tags[0].track.confirmed);
+  // A detection whose ID is not the track's is reported as decoded, not confirmed.
+  c.code = 4;
+  step(tracker, {c});
+  ASSERT_EQ(out.tags.size(), 1u);
+  EXPECT_EQ(out.tags[0].detection.id, 4);
+  EXPECT_EQ(out.tags[0].track.track_id, 0);
+  EXPECT_FALSE(out.tags[0].track.confirmed);
+}
+
+TEST_F(TrackerTest, SteadyStateDoesNotAllocate) {
+  Tracker tracker({}, det_opt);
+  Cand a, b;
+  b.position.y() = 2.0;
+  b.rejection = Rejection::kNone;
+  const ScanResult first = [&] {
+    ScanResult r;
+    add(r, dict, a);
+    add(r, dict, b);
+    return r;
+  }();
+  for (int k = 0; k < 5; ++k) {
+    tracker.update(first, stamp, out);
+    stamp += kPeriod;
+  }
+  const long before = testing::heap_allocations();
+  for (int k = 0; k < 50; ++k) {
+    tracker.update(first, stamp, out);
+    stamp += kPeriod;
+  }
+  EXPECT_EQ(testing::heap_allocations() - before, 0);
+  EXPECT_EQ(out.tags.size(), 2u);
+}
+
+TEST(TrackerOptionsTest, EveryRuleOfTheTableIsChecked) {
+  const DetectorOptions det;
+  EXPECT_NO_THROW(Tracker({}, det));
+  auto broken = [&](auto change) {
+    TrackerOptions o;
+    change(o);
+    EXPECT_THROW(validate_tracker_options(o), OptionsError);
+    EXPECT_THROW(Tracker(o, det), OptionsError);
+  };
+  broken([](TrackerOptions& o) { o.max_distance_m = 0.0; });
+  broken([](TrackerOptions& o) { o.max_angle_deg = 45.0; });
+  broken([](TrackerOptions& o) { o.max_angle_deg = std::nan(""); });
+  broken([](TrackerOptions& o) { o.min_margin_cells = -1.0; });
+  broken([](TrackerOptions& o) { o.full_cell_votes = 0.5; });
+  broken([](TrackerOptions& o) { o.min_rotations = 0; });
+  broken([](TrackerOptions& o) { o.window = 0; });
+  broken([](TrackerOptions& o) { o.window = 1001; });
+  broken([](TrackerOptions& o) { o.max_age_s = 0.0; });
+  broken([](TrackerOptions& o) { o.max_age_s = 1e300; });
+  broken([](TrackerOptions& o) { o.max_tracks = 0; });
+  try {
+    TrackerOptions o;
+    o.window = 0;
+    validate_tracker_options(o);
+    ADD_FAILURE() << "accepted";
+  } catch (const OptionsError& e) {
+    EXPECT_EQ(e.key(), "tracker.window");
+    EXPECT_EQ(e.value(), "0");
+    EXPECT_EQ(e.reason(), "must be in [1, 1000]");
+  }
+}
+
+}  // namespace
+}  // namespace lidartag::detector
