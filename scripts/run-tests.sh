@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # Quick start, tests: installs the Debian packages, configures, builds everything and runs every
-# test (load runs and unprivileged runs of lidartagd among them); builds Release; runs the Debian
-# package under a real systemd in a container; then the ThreadSanitizer build of the lock-free
-# scan buffer, the AddressSanitizer + UndefinedBehaviorSanitizer build of the driver, detector and daemon-setup tests, and
-# the libFuzzer targets (clang, ASan + UBSan) over their corpora and for a few seconds each.
+# test (load runs and unprivileged runs of lidartagd among them); builds Release; with
+# LIDARTAG_CONTAINER_TEST=1 runs the Debian package under a real systemd in a container; then the
+# ThreadSanitizer build of the lock-free
+# scan buffer, the AddressSanitizer + UndefinedBehaviorSanitizer build of the driver, detector and
+# daemon-setup tests, and with LIDARTAG_FUZZ_TEST=1 the libFuzzer targets (clang, ASan + UBSan)
+# over their corpora and for a few seconds each.
 # Usage: scripts/run-tests.sh [--no-sanitizers]   (the flag skips the sanitizer and fuzz builds)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -26,10 +28,15 @@ cmake --build build-release -j "$jobs"
 
 # The package in a booted Debian 12 container, systemd as PID 1 (skipped, exit status 77, where
 # containers cannot run: not root, no mmdebstrap or systemd-nspawn).
-echo "== lidartagd.service under systemd (container) =="
-status=0
-scripts/systemd-container-test.sh build-release || status=$?
-[ "$status" -eq 0 ] || [ "$status" -eq 77 ] || exit "$status"
+# Only when asked (LIDARTAG_CONTAINER_TEST=1) until a run is recorded in docs/robustness.md.
+if [ "${LIDARTAG_CONTAINER_TEST:-0}" = 1 ]; then
+  echo "== lidartagd.service under systemd (container) =="
+  status=0
+  scripts/systemd-container-test.sh build-release || status=$?
+  [ "$status" -eq 0 ] || [ "$status" -eq 77 ] || exit "$status"
+else
+  echo "== lidartagd.service under systemd: skipped (LIDARTAG_CONTAINER_TEST=1 runs it) =="
+fi
 
 if [ "${1:-}" != "--no-sanitizers" ]; then
   # Only some targets are built here, so their binaries run directly (ctest would list the rest
@@ -59,6 +66,12 @@ if [ "${1:-}" != "--no-sanitizers" ]; then
       LSAN_OPTIONS="suppressions=$PWD/test/tools/lsan.supp" timeout 900 "build-asan/bin/$t"
   done
 
+  # Only when asked (LIDARTAG_FUZZ_TEST=1) until the clang build of the merged tree is verified
+  # and timed within the test command's budget (docs/robustness.md).
+  if [ "${LIDARTAG_FUZZ_TEST:-0}" != 1 ]; then
+    echo "== libFuzzer targets: skipped (LIDARTAG_FUZZ_TEST=1 runs them) =="
+    exit 0
+  fi
   echo "== libFuzzer targets (clang-14, ASan + UBSan): every corpus once, every target 5 s =="
   cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
     -DCMAKE_CXX_COMPILER=clang++-14 -DLIDARTAG_FUZZ=ON
