@@ -133,10 +133,47 @@ void HealthMonitor::judge_window(const HealthSample& from, const HealthSample& t
   }
 }
 
+// The final status: "the source ended", then what went wrong over the whole run (a replay of
+// another model's packets must not end looking like a clean one).
+std::string HealthMonitor::ended_reason(const HealthSample& s) const {
+  std::string reason = "the source ended";
+  const auto add = [&](const std::string& problem) { reason += "; " + problem; };
+  if (s.data_packets > 0 && s.decoded == 0) {
+    add(
+        fmt::format("none of its {} data packets could be decoded (another sensor model, or not "
+                    "Velodyne data?)",
+                    s.data_packets));
+  }
+  if (!s.model_problem.empty()) add(s.model_problem);
+  if (s.model_mismatch > 0) {
+    add(fmt::format("{} data packets did not fit the model decoded{}{}", s.model_mismatch,
+                    s.model_note.empty() ? "" : ": ", s.model_note));
+  }
+  if (s.publish_failures > 0) add(fmt::format("{} LCM messages not published", s.publish_failures));
+  if (s.dropped_behind > 0) {
+    add(fmt::format("{} rotations dropped: detection was slower than the source",
+                    s.dropped_behind));
+  }
+  const uint64_t expected = s.decoded + s.missing;
+  if (expected >= 100 &&
+      static_cast<double>(s.missing) > options_.max_loss * static_cast<double>(expected)) {
+    add(fmt::format("{:.1f} % of the data packets missing ({} of {})",
+                    100.0 * static_cast<double>(s.missing) / static_cast<double>(expected),
+                    s.missing, expected));
+  }
+  if (s.inconsistent > 0 &&
+      static_cast<double>(s.inconsistent) >
+          options_.max_loss * static_cast<double>(s.decoded + s.inconsistent)) {
+    add(fmt::format("{} data packets with azimuths that contradict the stream, dropped",
+                    s.inconsistent));
+  }
+  return reason;
+}
+
 Health HealthMonitor::update(const HealthSample& s) {
   if (s.ended) {
     if (!s.error.empty()) return {HealthState::kError, s.error};
-    return {HealthState::kEnded, "the source ended"};
+    return {HealthState::kEnded, ended_reason(s)};
   }
   if (!have_window_) {
     window_start_ = s;

@@ -241,6 +241,25 @@ TEST(Health, TheMostSevereProblemIsTheStateAndEveryOneIsInTheReason) {
   EXPECT_EQ(m.update(sensor.s).state, HealthState::kError);
 }
 
+TEST(Health, TheFinalStatusNamesWhatWentWrongOverTheWholeRun) {
+  HealthMonitor m({});
+  Sensor sensor;
+  sensor.s.ended = true;
+  sensor.s.data_packets = 24117;  // e.g. VLS-128 packets decoded as a VLP-32C: none decodes
+  sensor.s.decoded = 0;
+  Health h = m.update(sensor.s);
+  EXPECT_EQ(h.state, HealthState::kEnded);
+  EXPECT_NE(h.reason.find("none of its 24117 data packets could be decoded"), std::string::npos)
+      << h.reason;
+  sensor.s.decoded = 24117;
+  sensor.s.publish_failures = 3;
+  h = m.update(sensor.s);
+  EXPECT_EQ(h.reason, "the source ended; 3 LCM messages not published");
+  sensor.s.publish_failures = 0;
+  h = m.update(sensor.s);
+  EXPECT_EQ(h.reason, "the source ended");
+}
+
 TEST(Health, AnEndedSourceIsEndedOrItsError) {
   HealthMonitor m({});
   Sensor sensor;

@@ -26,7 +26,8 @@ enum class HealthState : uint8_t {
   kPublishFailing = 8,   // LCM messages could not be published
   kStalled = 9,          // the receiver or the detection pipeline made no progress
   kError = 10,           // the pipeline stopped on an error
-  kEnded = 11,           // the source ended (replay done, or stopped) and everything was published
+  kEnded = 11,  // the source ended (replay done, or stopped) and everything was published; the
+                // reason adds what went wrong over the whole run
 };
 std::string_view health_state_name(HealthState state);
 
@@ -75,6 +76,7 @@ class HealthMonitor {
     std::string reason;
   };
   void judge_window(const HealthSample& from, const HealthSample& to);
+  std::string ended_reason(const HealthSample& s) const;
 
   HealthOptions options_;
   HealthSample window_start_;
