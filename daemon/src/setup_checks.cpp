@@ -40,8 +40,9 @@ void check_writable(const std::string& key, const std::string& path, const std::
   if (errno != ENOENT) {
     throw SetupError(key, fmt::format("{} '{}': {}", what, path, errno_text(errno)));
   }
-  std::string dir = std::filesystem::path(path).parent_path().string();
-  if (dir.empty()) dir = ".";
+  // (Built in one go: assigning "." afterwards trips GCC 12's -Wrestrict false positive at -O3.)
+  const std::filesystem::path parent = std::filesystem::path(path).parent_path();
+  const std::string dir = parent.empty() ? std::string(".") : parent.string();
   if (::stat(dir.c_str(), &st) != 0) {
     throw SetupError(key,
                      fmt::format("{} '{}': its directory '{}' does not exist", what, path, dir));

@@ -172,7 +172,7 @@ TEST_F(TrackerTest, CodesThatDifferOnlyOnUnobservedCellsAreNeverConfirmed) {
   }
   ASSERT_GE(rival, 0);
   Cand c;
-  c.observed.assign(64, true);
+  c.observed = std::vector<bool>(64);  // each set below (assign() trips GCC 12 at -O3)
   for (int i = 0; i < 64; ++i)
     c.observed[static_cast<size_t>(i)] = dict.signs(f)[i] == dict.signs(rival)[i];
   c.votes = 20.0f;

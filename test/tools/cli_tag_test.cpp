@@ -107,8 +107,10 @@ double black_width_px(const Image& img, double x, double y, double size) {
 
 std::string cells_text(const std::vector<uint8_t>& cells, int n) {
   std::string s;
-  for (size_t i = 0; i < cells.size(); ++i)
-    s += (i % size_t(n) == 0 ? "\n" : "") + std::to_string(cells[i]);
+  for (size_t i = 0; i < cells.size(); ++i) {
+    if (i % size_t(n) == 0) s += '\n';  // appended piecewise: GCC 12's -Wrestrict at -O3
+    s += std::to_string(cells[i]);
+  }
   return s;
 }
 
@@ -267,7 +269,10 @@ TEST(CliTag, FamiliesFromJsonFiles) {
   const TagFamily& base = lidartag::tags::builtin_family("tag16h5");
   auto list = [](const std::vector<int>& v) {
     std::string s;
-    for (int x : v) s += (s.empty() ? "" : ",") + std::to_string(x);
+    for (int x : v) {
+      if (!s.empty()) s += ',';
+      s += std::to_string(x);
+    }
     return "[" + s + "]";
   };
   const std::string layout =
