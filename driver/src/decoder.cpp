@@ -19,8 +19,9 @@ constexpr double kDefaultRateDegPerUs = 600.0 * 360.0 / 60e6;
 constexpr int kRingKernelMinColumns = 6;
 // The per-ring loops of write_batch() run 8 floats wide where the CPU has AVX2 (a clone chosen
 // when the library is loaded; the build itself targets baseline x86-64). AVX2 brings no fused
-// multiply-add: the points stay bit-identical to the baseline clone's.
-#if defined(__x86_64__) && defined(__has_attribute)
+// multiply-add: the points stay bit-identical to the baseline clone's. GCC only: clang 14 (the fuzz
+// build) refuses to clone a member function used before its definition.
+#if defined(__x86_64__) && defined(__has_attribute) && !defined(__clang__)
 #if __has_attribute(target_clones)
 #define LIDARTAG_AVX2_CLONE __attribute__((target_clones("avx2", "default")))
 #endif
