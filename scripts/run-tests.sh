@@ -1,9 +1,8 @@
 #!/usr/bin/env bash
 # Quick start, tests: installs the Debian packages, configures, builds everything and runs every
-# test (load runs and unprivileged runs of lidartagd among them); builds Release; with
-# LIDARTAG_CONTAINER_TEST=1 runs the Debian package under a real systemd in a container; then the
-# ThreadSanitizer build of the lock-free
-# scan buffer, the AddressSanitizer + UndefinedBehaviorSanitizer build of the driver, detector and
+# test (load runs and unprivileged runs of lidartagd among them); builds Release; runs the Debian
+# package under a real systemd in a container (skipped where containers cannot run); then the
+# ThreadSanitizer build of the lock-free scan buffer, the AddressSanitizer + UndefinedBehaviorSanitizer build of the driver, detector and
 # daemon-setup tests, and the libFuzzer targets (clang, ASan + UBSan) over their corpora and for a
 # few seconds each.
 # Usage: scripts/run-tests.sh [--no-sanitizers]   (the flag skips the sanitizer and fuzz builds)
@@ -28,15 +27,10 @@ cmake --build build-release -j "$jobs"
 
 # The package in a booted Debian 12 container, systemd as PID 1 (skipped, exit status 77, where
 # containers cannot run: not root, no mmdebstrap or systemd-nspawn).
-# Only when asked (LIDARTAG_CONTAINER_TEST=1) until a run is recorded in docs/robustness.md.
-if [ "${LIDARTAG_CONTAINER_TEST:-0}" = 1 ]; then
-  echo "== lidartagd.service under systemd (container) =="
-  status=0
-  scripts/systemd-container-test.sh build-release || status=$?
-  [ "$status" -eq 0 ] || [ "$status" -eq 77 ] || exit "$status"
-else
-  echo "== lidartagd.service under systemd: skipped (LIDARTAG_CONTAINER_TEST=1 runs it) =="
-fi
+echo "== lidartagd.service under systemd (container) =="
+status=0
+scripts/systemd-container-test.sh build-release || status=$?
+[ "$status" -eq 0 ] || [ "$status" -eq 77 ] || exit "$status"
 
 if [ "${1:-}" != "--no-sanitizers" ]; then
   # Only some targets are built here, so their binaries run directly (ctest would list the rest
