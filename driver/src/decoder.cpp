@@ -727,18 +727,33 @@ void ModelCheck::add(std::span<const uint8_t> payload) {
   last_usec_ = h.usec_since_hour;
 }
 
-double ModelCheck::median_packet_period_us() const {
+double ModelCheck::packet_period_us() const {
   const size_t n = std::min(step_count_, steps_.size());
   if (n == 0) return 0.0;
+  // Lost packets make steps of whole multiples of the period: at 50 % loss the median step is
+  // twice the period (a VLP-32C's 664 us would read as a VLP-16's 1327 us). The eighth of the
+  // steps from the shortest is the period itself while at least that share arrives in order
+  // (reordered and duplicated packets give no positive short step).
   std::array<uint32_t, 64> s = steps_;
-  std::nth_element(s.begin(), s.begin() + static_cast<long>(n / 2),
-                   s.begin() + static_cast<long>(n));
-  return s[n / 2];
+  const size_t k = n / 8;
+  std::nth_element(s.begin(), s.begin() + static_cast<long>(k), s.begin() + static_cast<long>(n));
+  // The clock counts whole microseconds: the mean of the steps near that one (663 and 664 for a
+  // VLP-32C's 663.55 us) is the period.
+  const double near = s[k];
+  double sum = 0.0;
+  int count = 0;
+  for (size_t i = 0; i < n; ++i) {
+    if (std::abs(static_cast<double>(steps_[i]) - near) <= 0.03 * near) {
+      sum += steps_[i];
+      ++count;
+    }
+  }
+  return sum / count;
 }
 
 std::optional<Model> ModelCheck::timing_model() const {
   if (std::min(step_count_, steps_.size()) < 8) return std::nullopt;
-  const double period = median_packet_period_us();
+  const double period = packet_period_us();
   const ReturnMode mode = mode_.value_or(ReturnMode::kStrongest);
   auto fits = [&](Model m) {
     const ModelSpec& s = model_spec(m);
@@ -753,7 +768,7 @@ std::optional<Model> ModelCheck::timing_model() const {
 
 std::string ModelCheck::mismatch() const {
   const auto timing = timing_model();
-  const std::string period = std::to_string(static_cast<int>(median_packet_period_us()));
+  const std::string period = std::to_string(std::lround(packet_period_us()));
   if (!product_model_) {
     if (!timing) return {};
     return "product byte names no known model; packet timing (" + period + " us) fits " +

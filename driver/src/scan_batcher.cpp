@@ -94,7 +94,16 @@ void ScanBatcher::finish(Scan& scan, bool ends_at_cut) {
 
 ScanBatcher::Ref ScanBatcher::ref_of(const PacketColumns& pk) {
   const auto last = static_cast<size_t>(std::max(pk.columns - 1, 0));
-  return {pk.stamp_ns, pk.column_azimuth_deg[0], pk.column_azimuth_deg[last], pk.rate_deg[last]};
+  // The rate across the whole packet: one column's step (0.2 deg on a VLP-32C, in 0.01 deg
+  // steps) is off by up to 5 %, which across a gap of several lost packets misplaces the next
+  // packet by more than the tolerance (a lost run would make a good packet look stray).
+  float rate = pk.rate_deg[last];
+  const double span_us = pk.column_time_us[last] - pk.column_time_us[0];
+  if (last > 0 && span_us > 0) {
+    const double turned = wrap360(pk.column_azimuth_deg[last] - pk.column_azimuth_deg[0]);
+    if (turned < 90.0) rate = static_cast<float>(turned / span_us);
+  }
+  return {pk.stamp_ns, pk.column_azimuth_deg[0], pk.column_azimuth_deg[last], rate};
 }
 
 bool ScanBatcher::fits(const Ref& ref, const PacketColumns& pk) const {

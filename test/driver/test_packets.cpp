@@ -175,7 +175,25 @@ TEST(ModelCheck, ReportsAProductByteThatContradictsTheTiming) {
   EXPECT_EQ(check.product_model(), Model::kHDL32E);
   EXPECT_EQ(check.timing_model(), Model::kVLP16);
   EXPECT_NE(check.mismatch().find("fit vlp16"), std::string::npos) << check.mismatch();
-  EXPECT_NEAR(check.median_packet_period_us(), 1327, 1);
+  EXPECT_NEAR(check.packet_period_us(), 1327, 1);
+}
+
+TEST(ModelCheck, HeavyLossDoesNotMakeAnotherModelOfTheTiming) {
+  // Half of a VLP-32C's packets lost at random: the steps between the others are 664 us, 1327 us
+  // (a VLP-16's period), 1991 us... The period must stay the VLP-32C's, as must the model.
+  for (const double loss : {0.5, 0.7}) {
+    ModelCheck check;
+    uint32_t seed = 7;
+    for (const auto& p :
+         testing::make_stream(model_spec(Model::kVLP32C), ReturnMode::kStrongest, 400)) {
+      seed = seed * 1664525u + 1013904223u;
+      if (static_cast<double>(seed >> 8) / 16777216.0 < loss) continue;
+      check.add(p.bytes);
+    }
+    EXPECT_NEAR(check.packet_period_us(), 664, 1) << "loss " << loss;
+    EXPECT_EQ(check.timing_model(), Model::kVLP32C) << "loss " << loss;
+    EXPECT_EQ(check.mismatch(), "") << "loss " << loss;
+  }
 }
 
 }  // namespace

@@ -149,6 +149,33 @@ TEST(ScanBatcher, LostPacketsAreCountedAndMarkTheRotationIncomplete) {
   EXPECT_EQ(rig.batcher.stats().missing_packets, 3u);
 }
 
+TEST(ScanBatcher, HeavyRandomLossIsCountedAsMissingNeverAsStray) {
+  // Half (or more) of the packets lost at random, the first and last kept: every lost packet is
+  // missing, none of those that arrived is taken for a stray one.
+  for (const Model m : {Model::kVLP16, Model::kVLP32C, Model::kVLS128}) {
+    for (const double loss : {0.2, 0.5, 0.7}) {
+      Rig rig(m, ReturnMode::kStrongest);
+      const auto stream = testing::make_stream(rig.spec, ReturnMode::kStrongest, 3000);
+      uint32_t seed = 11;
+      uint64_t lost = 0;
+      for (size_t i = 0; i < stream.size(); ++i) {
+        seed = seed * 1664525u + 1013904223u;
+        const bool drop =
+            i > 0 && i + 1 < stream.size() && static_cast<double>(seed >> 8) / 16777216.0 < loss;
+        if (drop) {
+          ++lost;
+          continue;
+        }
+        rig.feed(stream[i]);
+      }
+      rig.flush();
+      const std::string what = std::string(rig.spec.name) + " loss " + std::to_string(loss);
+      EXPECT_EQ(rig.batcher.stats().inconsistent, 0u) << what;
+      EXPECT_EQ(rig.batcher.stats().missing_packets, lost) << what;
+    }
+  }
+}
+
 TEST(ScanBatcher, DuplicatesAreDroppedAndAReorderedPairIsPutInPlace) {
   Rig rig(Model::kHDL32E, ReturnMode::kStrongest);
   auto stream = testing::make_stream(rig.spec, ReturnMode::kStrongest, 500);

@@ -75,7 +75,7 @@ int run_info(const InfoArgs& args) {
     j["product_model"] = product;
     j["timing_model"] = timing;
     j["model_mismatch"] = reader.model_mismatch();
-    j["median_packet_period_us"] = check.median_packet_period_us();
+    j["packet_period_us"] = check.packet_period_us();
     j["return_mode"] = mode;
     j["rpm"] = rpm;
     j["duration_s"] = duration_s;
@@ -110,7 +110,7 @@ int run_info(const InfoArgs& args) {
   fmt::print("capture:        {}\n", args.capture.capture);
   fmt::print("model:          {} (from {})\n", model, model_from);
   fmt::print("model check:    product byte {}, packet timing {} ({:.1f} us per packet)\n", product,
-             timing, check.median_packet_period_us());
+             timing, check.packet_period_us());
   // The reader reports a product byte the timing contradicts, a configured model the packets
   // contradict, and a model change mid-stream.
   if (!reader.model_mismatch().empty()) fmt::print("  MISMATCH:     {}\n", reader.model_mismatch());

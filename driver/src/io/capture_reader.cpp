@@ -1,6 +1,7 @@
 #include "lidartag/driver/io/capture_reader.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 #include "lidartag/driver/io/calibration_file.hpp"
 
@@ -46,7 +47,7 @@ std::string CaptureReader::model_mismatch() const {
     // reaches the mid-stream watch).
     const std::optional<Model> fits = check_.timing_model();
     if (!fits || *fits == *options_.model) return {};
-    return configured_mismatch(*fits, check_.median_packet_period_us());
+    return configured_mismatch(*fits, check_.packet_period_us());
   }
   return check_.mismatch();
 }
@@ -54,9 +55,8 @@ std::string CaptureReader::model_mismatch() const {
 std::string CaptureReader::configured_mismatch(Model fits, double period_us) const {
   return std::string(options_.model ? "configured model " : "calibration file's model ") +
          std::string(model_spec(model_ ? *model_ : fits).name) +
-         " but the packets' product byte and timing (" +
-         std::to_string(static_cast<int>(period_us)) + " us per packet) fit " +
-         std::string(model_spec(fits).name);
+         " but the packets' product byte and timing (" + std::to_string(std::lround(period_us)) +
+         " us per packet) fit " + std::string(model_spec(fits).name);
 }
 
 void CaptureReader::watch_model(std::span<const uint8_t> payload) {
@@ -65,7 +65,7 @@ void CaptureReader::watch_model(std::span<const uint8_t> payload) {
   if (epoch_.packets() < kModelEpochPackets) return;
   // The product byte's model if the timing fits it, else the model the timing fits.
   const std::optional<Model> fits = epoch_.timing_model();
-  const double period_us = epoch_.median_packet_period_us();
+  const double period_us = epoch_.packet_period_us();
   epoch_ = ModelCheck{};
   // Compared with what the first packets (or the configuration) said: a capture whose product
   // byte contradicts its timing from the start is ModelCheck's complaint, not a change.

@@ -178,7 +178,8 @@ class ModelCheck {
   // Needs a few packets; empty while undecided.
   std::optional<Model> product_model() const { return product_model_; }
   std::optional<Model> timing_model() const;
-  double median_packet_period_us() const;
+  // The packet period on the sensor's clock (microseconds; 0 until known), robust to loss.
+  double packet_period_us() const;
   std::optional<ReturnMode> return_mode() const { return mode_; }
   // Human-readable mismatch, empty when the product byte fits the timing.
   std::string mismatch() const;
