@@ -313,17 +313,7 @@ bool ScanBatcher::finish_close(Scan& scan) {
   next_starts_at_cut_ = false;
   have_last_ = false;
   have_head_ = have_previous_head_ = false;
-  // The new stream begins.
-  const int n = candidate_count_;
-  candidate_count_ = 0;
-  for (int i = 0; i < n; ++i) {
-    const PacketColumns& pk = (*candidates_)[static_cast<size_t>(i)].columns;
-    if (pk.mode != mode_) {
-      mode_ = pk.mode;
-      ++stats_.mode_changes;
-    }
-    insert(pk);
-  }
+  insert_candidates();  // the new stream begins
   return delivered;
 }
 
@@ -336,6 +326,11 @@ bool ScanBatcher::adopt_new_stream(Scan& scan) {
   const bool continues =
       have_head_ && dt_us > 0 && dt_us <= kNewStreamPackets * spec_.packet_period_us(first.mode);
   if (!continues) return close_stream(scan, true);
+  insert_candidates();
+  return false;
+}
+
+void ScanBatcher::insert_candidates() {
   const int n = candidate_count_;
   candidate_count_ = 0;
   for (int i = 0; i < n; ++i) {
@@ -346,7 +341,6 @@ bool ScanBatcher::adopt_new_stream(Scan& scan) {
     }
     insert(pk);
   }
-  return false;
 }
 
 bool ScanBatcher::pump(Scan& scan) {

@@ -125,6 +125,8 @@ class ScanBatcher {
   // stream's packets enter the window. True when `scan` then holds a rotation.
   bool finish_close(Scan& scan);
   bool adopt_new_stream(Scan& scan);
+  // The held candidates of a new stream into the window, in order (their return mode taken).
+  void insert_candidates();
   // add() without the deferred work of earlier calls.
   bool add_one(const PacketColumns& packet, Scan& scan);
   // Deferred work of earlier calls (a stream's tail, a packet that came meanwhile): true when it
