@@ -8,9 +8,11 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <fstream>
 #include <random>
 #include <stdexcept>
 #include <thread>
+#include <utility>
 
 #include "lidartag/driver/io/pcap_source.hpp"
 #include "lidartag/driver/packet.hpp"
@@ -50,6 +52,14 @@ std::vector<size_t> cut_crossings(const std::vector<Capture::Packet>& packets) {
     previous = az;
   }
   return crossings;
+}
+
+// The kernel's range of ports for sockets bound to port 0.
+std::pair<unsigned, unsigned> ephemeral_ports() {
+  std::ifstream in("/proc/sys/net/ipv4/ip_local_port_range");
+  unsigned low = 32768, high = 60999;  // Linux's default
+  if (unsigned l = 0, h = 0; in >> l >> h && l <= h) low = l, high = h;
+  return {low, high};
 }
 
 sockaddr_in address(const std::string& ip, uint16_t port) {
@@ -143,6 +153,11 @@ SenderCounts send(const Capture& capture, const SenderOptions& o, const std::ato
   const sockaddr_in data_to = address(o.destination, o.data_port);
   const sockaddr_in position_to = address(o.destination, o.position_port);
 
+  // Junk for closed ports never goes to an ephemeral port: a sender's own socket (this one, or a
+  // second sender's) is bound there, and junk it never reads would fill its buffer (a 10-minute
+  // soak hit the sender's port 111 times: 79 receive-buffer errors that nothing sent to the daemon
+  // explained).
+  const std::pair<unsigned, unsigned> ephemeral = ephemeral_ports();
   std::mt19937_64 rng(o.seed);
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
   std::vector<uint8_t> junk(kMaxDatagram + 4096);
@@ -174,7 +189,8 @@ SenderCounts send(const Capture& capture, const SenderOptions& o, const std::ato
     uint16_t port;
     do {
       port = static_cast<uint16_t>(1024 + rng() % (65536 - 1024));
-    } while (port == o.data_port || port == o.position_port || port == 7667);  // 7667: LCM
+    } while (port == o.data_port || port == o.position_port || port == 7667 ||  // 7667: LCM
+             (port >= ephemeral.first && port <= ephemeral.second));
     if (raw_send(junk.data() + offset, size, address(o.destination, port))) ++n.junk_wrong_port;
   };
 
