@@ -1,7 +1,7 @@
 // bench_tracker: what the tracker (evidence over rotations) adds to the detector, and what it
 // costs.
 //
-//   bench_tracker [--runs N] [--rotations R] [--quick] [--out DIR]
+//   bench_tracker [--runs N] [--rotations R] [--quick] [--trace] [--out DIR]
 //
 // Static scenes, the target grid: a 1.2 m tag16h5 on an easel, diamond mount, centre at
 // the sensor's height, face-on and turned 45 degrees, at 5, 6, 7, 8 and 10 m of a VLP-16 (and the
@@ -44,6 +44,7 @@ struct Args {
   int runs = 10;
   int rotations = 20;
   bool quick = false;
+  bool trace = false;  // print each static run's tracks after its last rotation
   std::string out;
   std::string command = "build/bin/bench_tracker";
 };
@@ -63,7 +64,7 @@ struct Cell {
 };
 
 // R rotations of a static tag; counts from rotation index 3 (the 4th) on.
-void run_cell(Cell& c, int run, int rotations) {
+void run_cell(Cell& c, int run, int rotations, bool trace) {
   const int code = (7 * run + 3 * static_cast<int>(c.distance) + c.angle) % 30;
   const sim::Simulator simulator(eval::accuracy_scene(c.model, c.distance, c.angle, code));
   eval::SimScans scans(simulator);
@@ -98,6 +99,18 @@ void run_cell(Cell& c, int run, int rotations) {
       }
       tracked = true;
       from_track = from_track || !t.decoded;
+    }
+    // --trace: where each run's evidence ended (a margin of 0: no cell seen tells the leading
+    // code from the runner-up).
+    if (trace && k + 1 == rotations_out.size()) {
+      std::printf("trace: %s %g m %d deg, run %d, code %d:",
+                  std::string(velodyne::model_spec(c.model).name).c_str(), c.distance, c.angle, run,
+                  tag.id);
+      for (const auto& t : rotations_out[k].second.seen)
+        std::printf(" track %d (%d rotations, %s, leader %d, margin %.2f cells, score %.3f)",
+                    t.track_id, t.rotations, t.confirmed ? "confirmed" : "not confirmed", t.id,
+                    t.margin_cells, t.mean_score);
+      std::printf("\n");
     }
     if (k < 3) continue;
     ++c.counted;
@@ -251,7 +264,7 @@ int run(const Args& args) {
        << "|---|---:|---:|---:|---:|---:|---:|---:|---:|---|\n";
   int never = 0;
   for (Cell& c : cells) {
-    for (int r = 0; r < runs; ++r) run_cell(c, r, rotations);
+    for (int r = 0; r < runs; ++r) run_cell(c, r, rotations, args.trace);
     // The tracker must add no wrong ID; the detector's own are bench_accuracy's to fail on, and
     // are shown here.
     never += c.wrong_by_track;
@@ -415,6 +428,8 @@ int main(int argc, char** argv) {
     } else if (a == "--rotations") {
       args.rotations = std::max(4, std::atoi(value("--rotations").c_str()));
       args.command += " --rotations " + std::to_string(args.rotations);
+    } else if (a == "--trace") {
+      args.trace = true;
     } else if (a == "--quick") {
       args.quick = true;
       args.command += " --quick";
@@ -422,8 +437,9 @@ int main(int argc, char** argv) {
       args.out = value("--out");
       args.command += " --out " + args.out;
     } else {
-      std::fprintf(stderr,
-                   "usage: bench_tracker [--runs N] [--rotations R] [--quick] [--out DIR]\n");
+      std::fprintf(
+          stderr,
+          "usage: bench_tracker [--runs N] [--rotations R] [--quick] [--trace] [--out DIR]\n");
       return 2;
     }
   }
