@@ -44,7 +44,7 @@ struct Args {
   int runs = 10;
   int rotations = 20;
   bool quick = false;
-  bool trace = false;  // print each static run's tracks after its last rotation
+  bool trace = false;  // print each static run's tracks and each rotation it missed
   std::string out;
   std::string command = "build/bin/bench_tracker";
 };
@@ -74,11 +74,13 @@ void run_cell(Cell& c, int run, int rotations, bool trace) {
   detector::ScanResult result;
   detector::TrackerResult tr;
   std::vector<std::pair<std::vector<detector::Detection>, detector::TrackerResult>> rotations_out;
+  std::vector<std::vector<detector::ClusterDiagnostic>> diags;  // with --trace
   const sim::Truth truth = scans.run(rotations, static_cast<uint64_t>(5000 + 100 * run + c.angle),
                                      [&](const Scan& scan, size_t) {
                                        det.detect(scan, result);
                                        tracker.update(result, scan.stamp_ns, tr);
                                        rotations_out.emplace_back(result.detections, tr);
+                                       if (trace) diags.push_back(result.diagnostics);
                                      });
   for (size_t k = 0; k < rotations_out.size() && k < truth.rotations.size(); ++k) {
     const sim::TagTruth& tag = truth.rotations[k].tags.front();
@@ -110,6 +112,26 @@ void run_cell(Cell& c, int run, int rotations, bool trace) {
         std::printf(" track %d (%d rotations, %s, leader %d, margin %.2f cells, score %.3f)",
                     t.track_id, t.rotations, t.confirmed ? "confirmed" : "not confirmed", t.id,
                     t.margin_cells, t.mean_score);
+      std::printf("\n");
+    }
+    // --trace: each rotation without the right ID, with what the clusters near the tag measured
+    // and the stage that dropped them.
+    if (trace && !tracked) {
+      std::printf("trace: %s %g m %d deg, run %d, rotation %zu missed:",
+                  std::string(velodyne::model_spec(c.model).name).c_str(), c.distance, c.angle, run,
+                  k);
+      for (const auto& d : diags[k]) {
+        const Eigen::Vector3d& p = tag.position;
+        if (p.x() < d.min_x - 0.5 || p.x() > d.max_x + 0.5 || p.y() < d.min_y - 0.5 ||
+            p.y() > d.max_y + 0.5)
+          continue;
+        std::printf(
+            " [%s/%s: %d points, %d boundary, rings %d-%d, side %.3f m, cost %.4f m, "
+            "coverage %.2f, score %.3f, margin %.2f]",
+            std::string(detector::rejection_stage(d.rejection)).c_str(),
+            std::string(detector::rejection_name(d.rejection)).c_str(), d.points, d.boundary_points,
+            d.min_ring, d.max_ring, d.side_m, d.mean_cost_m, d.coverage, d.score, d.margin);
+      }
       std::printf("\n");
     }
     if (k < 3) continue;
