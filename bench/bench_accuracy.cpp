@@ -35,6 +35,7 @@
 #include <string>
 #include <vector>
 
+#include "bench_args.hpp"
 #include "lidartag/detector/detector.hpp"
 #include "lidartag/driver/io/capture_reader.hpp"
 #include "sim_scans.hpp"
@@ -599,19 +600,16 @@ int main(int argc, char** argv) {
   args.command = "build/bin/bench_accuracy";
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
-    auto value = [&](const char* name) -> std::string {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "bench_accuracy: %s needs a value\n", name);
-        std::exit(2);
-      }
-      return argv[++i];
+    auto value = [&](const char* name) {
+      return bench_args::value("bench_accuracy", argc, argv, i, name);
+    };
+    auto count = [&](const char* name, int min) {
+      return bench_args::count("bench_accuracy", argc, argv, i, name, min, args.command);
     };
     if (a == "--rotations") {
-      args.rotations = std::max(1, std::atoi(value("--rotations").c_str()));
-      args.command += " --rotations " + std::to_string(args.rotations);
+      args.rotations = count("--rotations", 1);
     } else if (a == "--clutter") {
-      args.clutter = std::max(0, std::atoi(value("--clutter").c_str()));
-      args.command += " --clutter " + std::to_string(args.clutter);
+      args.clutter = count("--clutter", 0);
     } else if (a == "--cell") {
       args.cells.push_back(value("--cell"));
     } else if (a == "--verbose") {
@@ -635,10 +633,5 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  try {
-    return run(args);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "bench_accuracy: error: %s\n", e.what());
-    return 1;
-  }
+  return bench_args::run_reporting_errors("bench_accuracy", [&] { return run(args); });
 }

@@ -28,6 +28,7 @@
 #include <thread>
 #include <vector>
 
+#include "bench_args.hpp"
 #include "lidartag/detector/detector.hpp"
 #include "lidartag/detector/tracker.hpp"
 #include "lidartag/driver/io/capture_reader.hpp"
@@ -437,19 +438,16 @@ int main(int argc, char** argv) {
   Args args;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
-    auto value = [&](const char* name) -> std::string {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "bench_tracker: %s needs a value\n", name);
-        std::exit(2);
-      }
-      return argv[++i];
+    auto value = [&](const char* name) {
+      return bench_args::value("bench_tracker", argc, argv, i, name);
+    };
+    auto count = [&](const char* name, int min) {
+      return bench_args::count("bench_tracker", argc, argv, i, name, min, args.command);
     };
     if (a == "--runs") {
-      args.runs = std::max(1, std::atoi(value("--runs").c_str()));
-      args.command += " --runs " + std::to_string(args.runs);
+      args.runs = count("--runs", 1);
     } else if (a == "--rotations") {
-      args.rotations = std::max(4, std::atoi(value("--rotations").c_str()));
-      args.command += " --rotations " + std::to_string(args.rotations);
+      args.rotations = count("--rotations", 4);
     } else if (a == "--trace") {
       args.trace = true;
     } else if (a == "--quick") {
@@ -465,10 +463,5 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  try {
-    return run(args);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "bench_tracker: error: %s\n", e.what());
-    return 1;
-  }
+  return bench_args::run_reporting_errors("bench_tracker", [&] { return run(args); });
 }

@@ -5,6 +5,7 @@
 #include <limits>
 #include <numbers>
 #include <string>
+#include <utility>
 
 #include "lidartag/detector/ring_regression.hpp"
 
@@ -119,6 +120,43 @@ void to_grid(const CloudFields& f, int rings, int returns, double scale, CloudSc
 }
 
 }  // namespace
+
+CloudFields cloud_fields_by_name(const std::vector<std::string>& names,
+                                 const std::vector<std::vector<double>>& columns, size_t width,
+                                 size_t height) {
+  auto column = [&](const char* name) {
+    const auto it = std::find(names.begin(), names.end(), name);  // the first of a name
+    return it == names.end()
+               ? std::span<const double>()
+               : std::span<const double>(columns[static_cast<size_t>(it - names.begin())]);
+  };
+  CloudFields fields;
+  fields.x = column("x");
+  fields.y = column("y");
+  fields.z = column("z");
+  fields.intensity = column("intensity");
+  fields.ring = column("ring");
+  fields.azimuth_deg = column("azimuth");
+  fields.time_s = column("time");
+  fields.return_type = column("return_type");
+  fields.width = width;
+  fields.height = height;
+  return fields;
+}
+
+CloudScanOptions cloud_scan_options(const CloudFields& cloud,
+                                    std::vector<double> model_elevations_deg, int rings,
+                                    double resolution_deg) {
+  CloudScanOptions options;
+  options.resolution_deg = resolution_deg;
+  if (!model_elevations_deg.empty()) {
+    options.rings = static_cast<int>(model_elevations_deg.size());
+    options.elevations_deg = std::move(model_elevations_deg);
+  } else if (cloud.ring.empty()) {
+    options.rings = rings;
+  }
+  return options;
+}
 
 CloudScanReport cloud_to_scan(const CloudFields& f, const CloudScanOptions& options, Scan& out) {
   CloudScanReport report;

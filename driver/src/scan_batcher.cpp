@@ -304,16 +304,21 @@ bool ScanBatcher::finish_close(Scan& scan) {
   take_pending(scan);
   // A second cut this close to the first is not a rotation: the columns stay in this one.
   while (window_size_ > 0) (void)release_oldest(scan, false);
-  const bool delivered = open_;
   if (closing_jump_) {
     ++stats_.azimuth_jumps;
     if (open_) ++scan.azimuth_jumps;
   }
+  const bool delivered = end_stream(scan);
+  insert_candidates();  // the new stream begins
+  return delivered;
+}
+
+bool ScanBatcher::end_stream(Scan& scan) {
+  const bool delivered = open_;
   finish(scan, false);
   next_starts_at_cut_ = false;
   have_last_ = false;
   have_head_ = have_previous_head_ = false;
-  insert_candidates();  // the new stream begins
   return delivered;
 }
 
@@ -403,12 +408,7 @@ bool ScanBatcher::flush(Scan& scan) {
   // Candidates of a new stream that never got enough company.
   stats_.inconsistent += static_cast<uint64_t>(candidate_count_);
   candidate_count_ = 0;
-  const bool delivered = open_;
-  finish(scan, false);
-  next_starts_at_cut_ = false;
-  have_last_ = false;
-  have_head_ = have_previous_head_ = false;
-  return delivered;
+  return end_stream(scan);
 }
 
 bool ScanBatcher::poll(int64_t now_ns, Scan& scan) {

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <string>
 #include <utility>
+#include <vector>
 
 namespace lidartag::velodyne {
 namespace {
@@ -181,6 +182,14 @@ const ModelSpec& model_spec(Model model) {
   for (const auto& s : kModels)
     if (s.model == model) return s;
   return kModels[0];
+}
+
+std::vector<double> beam_elevations_deg(std::optional<Model> model) {
+  std::vector<double> elevations;
+  if (model)
+    for (const auto& laser : model_spec(*model).laser_table)
+      elevations.push_back(laser.elevation_deg);
+  return elevations;
 }
 
 std::span<const Model> all_models() {

@@ -113,31 +113,12 @@ py::dict arrays_of(const Scan& s) {
 Rotation rotation_of_pcd(const std::string& path, const std::optional<velodyne::Model>& model,
                          int rings, double resolution_deg) {
   const velodyne::PcdCloud pcd = velodyne::read_pcd(path);
-  auto column = [&](const char* name) {
-    return pcd.has(name) ? std::span<const double>(pcd.field(name)) : std::span<const double>();
-  };
   for (const char* axis : {"x", "y", "z"})
     if (!pcd.has(axis)) throw velodyne::IoError(path + ": no '" + axis + "' field");
-  detector::CloudFields fields;
-  fields.x = column("x");
-  fields.y = column("y");
-  fields.z = column("z");
-  fields.intensity = column("intensity");
-  fields.ring = column("ring");
-  fields.azimuth_deg = column("azimuth");
-  fields.time_s = column("time");
-  fields.return_type = column("return_type");
-  fields.width = pcd.width;
-  fields.height = pcd.height;
-  detector::CloudScanOptions options;
-  options.resolution_deg = resolution_deg;
-  if (model) {
-    options.rings = velodyne::model_spec(*model).lasers;
-    for (const auto& laser : velodyne::model_spec(*model).laser_table)
-      options.elevations_deg.push_back(laser.elevation_deg);
-  } else if (fields.ring.empty()) {
-    options.rings = rings;
-  }
+  const detector::CloudFields fields =
+      detector::cloud_fields_by_name(pcd.fields, pcd.columns, pcd.width, pcd.height);
+  const detector::CloudScanOptions options = detector::cloud_scan_options(
+      fields, velodyne::beam_elevations_deg(model), rings, resolution_deg);
   Rotation r;
   try {
     detector::cloud_to_scan(fields, options, r.scan);

@@ -17,6 +17,8 @@
 #include <set>
 #include <thread>
 
+#include "daemon/demo_daemon.hpp"
+#include "daemon/namespaces.hpp"
 #include "daemon/process.hpp"
 #include "fake_notify_socket.hpp"
 #include "lidartag/driver/io/pcap_source.hpp"
@@ -30,12 +32,9 @@ namespace lidartag::daemon {
 namespace {
 
 using namespace std::chrono_literals;
-using test::lines_of;
-using test::Process;
+// The daemon, the demo and the process runner (demo_daemon.hpp, process.hpp).
+using namespace test;
 
-const std::string kDaemon = LIDARTAGD_PATH;
-const std::string kDemoConfig = LIDARTAG_SOURCE_DIR "/config/demo.yaml";
-const std::string kDemo = LIDARTAG_SOURCE_DIR "/pcaps/demo.pcap";
 const std::string kTruth = LIDARTAG_SOURCE_DIR "/pcaps/demo.truth.json";
 
 // The demo capture comes from the simulator (pcaps/demo.yaml); without it there is nothing to run.
@@ -381,30 +380,11 @@ class Subscriber {
   std::thread thread_;
 };
 
-// Runs this test binary again, filtered to `test`, inside a new network namespace with lo up and
-// a multicast route, so that nothing reaches the machine's real interfaces.
-void run_in_network_namespace(const std::string& test) {
-  Process probe({"/usr/bin/unshare", "-n", "true"}, {}, temp("unshare_probe"));
-  if (probe.wait(10s) != 0) {
-    GTEST_SKIP() << "unshare -n is not permitted here (" << probe.err()
-                 << "): the multicast end-to-end test needs its own network namespace";
-  }
-  Process inner({"/usr/bin/unshare", "-n", "sh", "-c",
-                 "ip link set lo up && ip route add 224.0.0.0/4 dev lo && exec \"$0\" "
-                 "--gtest_filter=\"$1\"",
-                 std::filesystem::read_symlink("/proc/self/exe").string(), test},
-                {"LIDARTAG_IN_NETNS=1"}, temp("netns_" + test));
-  const int status = inner.wait(300s);
-  EXPECT_EQ(status, 0) << inner.out() << inner.err();
-  EXPECT_NE(inner.out().find("[  PASSED  ] 1 test"), std::string::npos) << inner.out();
-}
-
 TEST(Multicast, EndToEndInANetworkNamespaceWithLcmLogger) {
   REQUIRE_DEMO();
-  if (std::getenv("LIDARTAG_IN_NETNS") == nullptr) {
-    run_in_network_namespace("Multicast.EndToEndInANetworkNamespaceWithLcmLogger");
-    return;
-  }
+  LIDARTAG_RUN_IN_NAMESPACE(std::vector<std::string>{"-n"},
+                            "ip link set lo up && ip route add 224.0.0.0/4 dev lo",
+                            temp("netns_multicast"));
   const std::string logged = temp("logger.lcmlog");
   Process logger({"/usr/bin/lcm-logger", "-f", "--flush-interval=50", logged}, {}, temp("logger"));
   Subscriber subscriber;
@@ -486,47 +466,6 @@ TEST(Notify, ReadyStatusWatchdogAtTheIntervalAndStopping) {
 
 // ---------------------------------------------------------------------------------------------
 
-uint16_t free_udp_port() {
-  const int fd = socket(AF_INET, SOCK_DGRAM, 0);
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr));
-  socklen_t len = sizeof(addr);
-  getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len);
-  close(fd);
-  return ntohs(addr.sin_port);
-}
-
-// Sends the demo's packets to 127.0.0.1 at their recorded pace (one pass: bounded in count and
-// time). Returns the number sent.
-size_t send_demo(uint16_t data_port, uint16_t position_port) {
-  velodyne::PcapSourceOptions pacing;
-  pacing.pacing = velodyne::ReplayPacing::kCaptureTime;
-  velodyne::PcapSource source(kDemo, pacing);
-  const int fd = socket(AF_INET, SOCK_DGRAM, 0);
-  sockaddr_in to{};
-  to.sin_family = AF_INET;
-  to.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  velodyne::RawPacket packet;
-  size_t sent = 0;
-  const auto start = std::chrono::steady_clock::now();
-  while (std::chrono::steady_clock::now() - start < 30s) {
-    const auto status = source.next(packet, 100ms);
-    if (status == velodyne::ReadStatus::kTimeout) continue;
-    if (status != velodyne::ReadStatus::kPacket) break;
-    to.sin_port =
-        htons(packet.destination_port == velodyne::kDefaultDataPort ? data_port : position_port);
-    if (sendto(fd, packet.payload.data(), packet.payload.size(), 0,
-               reinterpret_cast<sockaddr*>(&to),
-               sizeof(to)) == static_cast<ssize_t>(packet.payload.size())) {
-      ++sent;
-    }
-  }
-  close(fd);
-  return sent;
-}
-
 // Runs the daemon on a live source (`source_settings`), sends the demo, stops it with SIGTERM and
 // expects the replay's detections, line for line.
 void expect_live_equals_replay(const std::vector<std::string>& source_settings, uint16_t data_port,
@@ -562,10 +501,9 @@ TEST(LiveUdp, DemoSentToLoopbackAtTheSensorRateGivesTheReplayDetections) {
 // the namespace's root has; nothing of the machine's traffic is seen).
 TEST(LiveInterface, DemoCapturedOnLoopbackGivesTheReplayDetections) {
   REQUIRE_DEMO();
-  if (std::getenv("LIDARTAG_IN_NETNS") == nullptr) {
-    run_in_network_namespace("LiveInterface.DemoCapturedOnLoopbackGivesTheReplayDetections");
-    return;
-  }
+  LIDARTAG_RUN_IN_NAMESPACE(std::vector<std::string>{"-n"},
+                            "ip link set lo up && ip route add 224.0.0.0/4 dev lo",
+                            temp("netns_interface"));
   // Nobody binds these ports: the datagrams are captured on lo, then refused.
   expect_live_equals_replay(
       {"sensors[0].source.kind=interface", "sensors[0].source.interface=lo",

@@ -17,6 +17,7 @@
 #include <regex>
 #include <thread>
 
+#include "daemon/demo_daemon.hpp"
 #include "daemon/namespaces.hpp"
 #include "daemon/process.hpp"
 #include "fake_notify_socket.hpp"
@@ -27,12 +28,8 @@ namespace lidartag::daemon {
 namespace {
 
 using namespace std::chrono_literals;
-using test::lines_of;
-using test::Process;
-
-const std::string kDaemon = LIDARTAGD_PATH;
-const std::string kDemoConfig = LIDARTAG_SOURCE_DIR "/config/demo.yaml";
-const std::string kDemo = LIDARTAG_SOURCE_DIR "/pcaps/demo.pcap";
+// The daemon, the demo and the process runner (demo_daemon.hpp, process.hpp).
+using namespace test;
 
 #define REQUIRE_DEMO()                                                                    \
   if (!std::filesystem::exists(kDemo)) {                                                  \
@@ -49,18 +46,6 @@ std::string temp(const std::string& name) {
 struct FakeNotifySocket : lidartag::testing::FakeNotifySocket {
   FakeNotifySocket() : lidartag::testing::FakeNotifySocket(temp("notify.sock")) {}
 };
-
-uint16_t free_udp_port() {
-  const int fd = socket(AF_INET, SOCK_DGRAM, 0);
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr));
-  socklen_t len = sizeof(addr);
-  getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len);
-  close(fd);
-  return ntohs(addr.sin_port);
-}
 
 size_t packets_in(const std::string& path) {
   velodyne::PcapSource source(path);

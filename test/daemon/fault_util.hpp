@@ -15,6 +15,7 @@
 #include <thread>
 #include <vector>
 
+#include "daemon/demo_daemon.hpp"  // kDaemon, kDemoConfig, kDemo
 #include "daemon/process.hpp"
 #include "lidartag/driver/io/pcap_source.hpp"
 #include "lidartag/driver/io/pcap_writer.hpp"
@@ -23,10 +24,6 @@
 namespace lidartag::test::faults {
 
 using namespace std::chrono_literals;
-
-inline const std::string kDaemon = LIDARTAGD_PATH;
-inline const std::string kDemoConfig = LIDARTAG_SOURCE_DIR "/config/demo.yaml";
-inline const std::string kDemo = LIDARTAG_SOURCE_DIR "/pcaps/demo.pcap";
 
 inline std::string temp(const std::string& name) {
   const std::string dir = ::testing::TempDir() + "/lidartagd_faults." + std::to_string(getpid());

@@ -14,6 +14,8 @@
 #include <filesystem>
 #include <lcm/lcm-cpp.hpp>
 
+#include "daemon/demo_daemon.hpp"
+#include "daemon/namespaces.hpp"
 #include "daemon/process.hpp"
 #include "fake_notify_socket.hpp"
 #include "lidartag/driver/io/pcap_source.hpp"
@@ -24,12 +26,8 @@ namespace lidartag::daemon {
 namespace {
 
 using namespace std::chrono_literals;
-using test::lines_of;
-using test::Process;
-
-const std::string kDaemon = LIDARTAGD_PATH;
-const std::string kDemoConfig = LIDARTAG_SOURCE_DIR "/config/demo.yaml";
-const std::string kDemo = LIDARTAG_SOURCE_DIR "/pcaps/demo.pcap";
+// The daemon, the demo and the process runner (demo_daemon.hpp, process.hpp).
+using namespace test;
 
 // A directory every user may write (the daemon's outputs as nobody), one per test process.
 std::string temp(const std::string& name) {
@@ -113,54 +111,6 @@ TEST(Unprivileged, ReplayAsNobodyGivesTheRootReplay) {
 
 // ---------------------------------------------------------------------------------------------
 
-// Runs this test binary again, filtered to `test`, inside a new network namespace (as root) with
-// lo up and a multicast route.
-void run_in_network_namespace(const std::string& test) {
-  Process probe({"/usr/bin/unshare", "-n", "true"}, {}, temp("unshare_probe"));
-  if (probe.wait(10s) != 0) GTEST_SKIP() << "unshare -n is not permitted here: " << probe.err();
-  Process inner({"/usr/bin/unshare", "-n", "sh", "-c",
-                 "ip link set lo up && ip route add 224.0.0.0/4 dev lo && exec \"$0\" "
-                 "--gtest_filter=\"$1\"",
-                 std::filesystem::read_symlink("/proc/self/exe").string(), test},
-                {"LIDARTAG_IN_NETNS=1"}, temp("netns"));
-  const int status = inner.wait(300s);
-  EXPECT_EQ(status, 0) << inner.out() << inner.err();
-  EXPECT_NE(inner.out().find("[  PASSED  ] 1 test"), std::string::npos) << inner.out();
-}
-
-#define IN_NETWORK_NAMESPACE(name)                   \
-  if (std::getenv("LIDARTAG_IN_NETNS") == nullptr) { \
-    run_in_network_namespace(name);                  \
-    return;                                          \
-  }
-
-// The demo's packets to 127.0.0.1 at their recorded pace (bounded: one pass). Returns the count.
-size_t send_demo(uint16_t data_port, uint16_t position_port) {
-  velodyne::PcapSourceOptions pacing;
-  pacing.pacing = velodyne::ReplayPacing::kCaptureTime;
-  velodyne::PcapSource source(kDemo, pacing);
-  const int fd = socket(AF_INET, SOCK_DGRAM, 0);
-  sockaddr_in to{};
-  to.sin_family = AF_INET;
-  to.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  velodyne::RawPacket packet;
-  size_t sent = 0;
-  const auto start = std::chrono::steady_clock::now();
-  while (std::chrono::steady_clock::now() - start < 30s) {
-    const auto status = source.next(packet, 100ms);
-    if (status == velodyne::ReadStatus::kTimeout) continue;
-    if (status != velodyne::ReadStatus::kPacket) break;
-    to.sin_port =
-        htons(packet.destination_port == velodyne::kDefaultDataPort ? data_port : position_port);
-    if (sendto(fd, packet.payload.data(), packet.payload.size(), 0,
-               reinterpret_cast<sockaddr*>(&to),
-               sizeof(to)) == static_cast<ssize_t>(packet.payload.size()))
-      ++sent;
-  }
-  close(fd);
-  return sent;
-}
-
 struct NotifySocket : lidartag::testing::FakeNotifySocket {
   NotifySocket() : lidartag::testing::FakeNotifySocket(temp("notify.sock")) {
     chmod(path().c_str(), 0666);  // the daemon writes to it as nobody
@@ -186,7 +136,9 @@ void expect_live_as_nobody_equals_replay(const std::vector<std::string>& setting
 
 TEST(Unprivileged, UdpAndLcmMulticastAsNobody) {
   REQUIRE_ROOT_AND_DEMO();
-  IN_NETWORK_NAMESPACE("Unprivileged.UdpAndLcmMulticastAsNobody");
+  LIDARTAG_RUN_IN_NAMESPACE(std::vector<std::string>{"-n"},
+                            "ip link set lo up && ip route add 224.0.0.0/4 dev lo",
+                            temp("netns_udp"));
   // lcm-logger (root) records what the daemon (nobody) publishes on LCM's default multicast URL.
   const std::string logged = temp("nobody_multicast.lcmlog");
   Process logger({"/usr/bin/lcm-logger", "-f", "--flush-interval=50", logged}, {}, temp("logger"));
@@ -209,7 +161,9 @@ TEST(Unprivileged, UdpAndLcmMulticastAsNobody) {
 // READY), and with CAP_NET_RAW alone it captures the demo on lo like the replay.
 TEST(Capture, InterfaceCaptureNeedsCapNetRawAndNothingElse) {
   REQUIRE_ROOT_AND_DEMO();
-  IN_NETWORK_NAMESPACE("Capture.InterfaceCaptureNeedsCapNetRawAndNothingElse");
+  LIDARTAG_RUN_IN_NAMESPACE(std::vector<std::string>{"-n"},
+                            "ip link set lo up && ip route add 224.0.0.0/4 dev lo",
+                            temp("netns_capture"));
   const std::vector<std::string> capture = {
       "sensors[0].source.kind=interface", "sensors[0].source.interface=lo",
       "sensors[0].source.data_port=23068", "sensors[0].source.position_port=28308"};

@@ -261,5 +261,29 @@ TEST(CloudScan, BadPointsAreCountedAndNaNIsNoReturn) {
   EXPECT_THROW(cloud_to_scan(no_ring.fields(), {}, out), CloudError);
 }
 
+// A PCD file's columns by name (the first of a repeated name; unknown names ignored), and the
+// options: a model's elevations give the rings, else `rings` counts only without ring numbers.
+TEST(CloudScan, FieldsByNameAndOptionsForAModelOrNot) {
+  const std::vector<std::string> names = {"x", "y", "z", "intensity", "curvature", "x"};
+  const std::vector<std::vector<double>> columns = {{1}, {2}, {3}, {4}, {5}, {6}};
+  const CloudFields f = cloud_fields_by_name(names, columns, 1, 1);
+  EXPECT_EQ(f.x.data(), columns[0].data());
+  EXPECT_EQ(f.intensity.data(), columns[3].data());
+  EXPECT_TRUE(f.ring.empty() && f.azimuth_deg.empty() && f.time_s.empty());
+  EXPECT_TRUE(f.return_type.empty());
+  EXPECT_EQ(f.width, 1u);
+  EXPECT_EQ(f.height, 1u);
+
+  const CloudScanOptions model = cloud_scan_options(f, {-15, 15}, 7, 0.4);
+  EXPECT_EQ(model.rings, 2);
+  EXPECT_EQ(model.elevations_deg, (std::vector<double>{-15, 15}));
+  EXPECT_EQ(model.resolution_deg, 0.4);
+  EXPECT_EQ(cloud_scan_options(f, {}, 7, 0.2).rings, 7);
+  CloudFields with_rings = f;
+  with_rings.ring = f.x;
+  EXPECT_EQ(cloud_scan_options(with_rings, {}, 7, 0.2).rings, 0);
+  EXPECT_TRUE(cloud_scan_options(with_rings, {}, 7, 0.2).elevations_deg.empty());
+}
+
 }  // namespace
 }  // namespace lidartag::detector

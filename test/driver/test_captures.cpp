@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <memory>
 
+#include "driver/keep_all.hpp"
 #include "lidartag/driver/decoder.hpp"
 #include "lidartag/driver/io/pcap_source.hpp"
 #include "lidartag/driver/scan_batcher.hpp"
@@ -18,22 +19,7 @@ std::string capture(const std::string& name) {
   return std::string(LIDARTAG_SHARED_DIR) + "/captures/" + name;
 }
 
-// Every rotation in a scan of its own (sized by the batcher on first use), kept.
-class KeepAll {
- public:
-  KeepAll() { fresh(); }
-  Scan& current() { return *pool_.back(); }
-  void keep(bool finished) {
-    if (!finished) return;
-    scans.push_back(pool_.back().get());
-    fresh();
-  }
-  std::vector<Scan*> scans;
-
- private:
-  void fresh() { pool_.push_back(std::make_unique<Scan>()); }
-  std::deque<std::unique_ptr<Scan>> pool_;
-};
+using testing::KeepAll;
 
 struct Decoded {
   Model model{};

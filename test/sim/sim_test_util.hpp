@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "driver/keep_all.hpp"
 #include "lidartag/driver/decoder.hpp"
 #include "lidartag/driver/scan_batcher.hpp"
 #include "lidartag/sim/simulator.hpp"
@@ -40,21 +41,7 @@ inline Capture simulate(const Scene& scene, int rotations, uint64_t seed) {
 }
 
 // Keeps every finished rotation, each in a scan of its own (sized by the batcher).
-class CollectSink {
- public:
-  CollectSink() { fresh(); }
-  Scan& current() { return *pool_.back(); }
-  void keep(bool finished) {
-    if (!finished) return;
-    scans.push_back(pool_.back().get());
-    fresh();
-  }
-  std::vector<Scan*> scans;
-
- private:
-  void fresh() { pool_.push_back(std::make_unique<Scan>()); }
-  std::deque<std::unique_ptr<Scan>> pool_;
-};
+using CollectSink = velodyne::testing::KeepAll;
 
 struct Decoded {
   std::unique_ptr<CollectSink> sink;

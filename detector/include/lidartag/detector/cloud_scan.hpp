@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <span>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "lidartag/driver/scan.hpp"
@@ -50,6 +51,20 @@ struct CloudScanReport {
   bool regressed = false;         // no ring numbers: rings from elevations (ring_regression.hpp)
   bool intensity_scaled = false;  // every intensity within [0, 1]: read as 0..1, scaled by 255
 };
+
+// The fields of a cloud whose columns are named as `lidartag dump` writes them (x y z intensity
+// ring azimuth time return_type; other names are ignored), e.g. a PCD file's (velodyne::PcdCloud's
+// fields and columns): each views its column, empty where the cloud has no column of that name.
+CloudFields cloud_fields_by_name(const std::vector<std::string>& names,
+                                 const std::vector<std::vector<double>>& columns, size_t width,
+                                 size_t height);
+
+// The options for `cloud` from a sensor model's beam elevations (`model_elevations_deg`, one per
+// ring: the scan has that many rings) or, without a model (empty), `rings` beams to estimate when
+// the cloud has no ring numbers (with ring numbers, the rings they give).
+CloudScanOptions cloud_scan_options(const CloudFields& cloud,
+                                    std::vector<double> model_elevations_deg, int rings,
+                                    double resolution_deg);
 
 // Fills `out` (resized as needed) with the cloud; its per-rotation fields (stamp, sequence, ...)
 // are left cleared for the caller. Throws CloudError: points without intensity (the detector

@@ -124,6 +124,9 @@ class ScanBatcher {
   // The rest of a closing stream into the rotation in progress, which is finished; then the new
   // stream's packets enter the window. True when `scan` then holds a rotation.
   bool finish_close(Scan& scan);
+  // The rotation in progress finished (true when one was open) and the stream forgotten: the next
+  // rotation does not start at a cut, and neither the last column nor the heads are known.
+  bool end_stream(Scan& scan);
   bool adopt_new_stream(Scan& scan);
   // The held candidates of a new stream into the window, in order (their return mode taken).
   void insert_candidates();

@@ -6,6 +6,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace lidartag::velodyne {
 
@@ -51,6 +52,8 @@ struct ModelSpec {
 };
 
 const ModelSpec& model_spec(Model model);
+// The elevation of each of `model`'s lasers, degrees, in laser order; empty without a model.
+std::vector<double> beam_elevations_deg(std::optional<Model> model);
 std::span<const Model> all_models();
 // The model of a name, case-insensitive and ignoring '-', '_', '.' and spaces ("VLP-32C",
 // "vlp_32c", "Puck Hi-Res"); Velodyne's product names puck, puck-lite (VLP-16), ultra-puck
