@@ -1,7 +1,6 @@
 // Fuzz target: `--set KEY=VALUE` overrides (one per line of the input) applied to the shipped
 // config/lidartagd.yaml, as `lidartagd --config /etc/lidartag/lidartagd.yaml --set ...` does.
-// Checks as for the file: ConfigError only, one line; accepted options validate and round-trip
-// through --print-config.
+// Checks as for the file (fuzz/config_round_trip.hpp).
 #include <cstddef>
 #include <cstdint>
 #include <fstream>
@@ -9,8 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "config_round_trip.hpp"
 #include "fuzz_util.hpp"
-#include "lidartag/daemon/config.hpp"
 
 using namespace lidartag;
 
@@ -36,22 +35,6 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       line.push_back(static_cast<char>(data[i]));
     }
   }
-  daemon::DaemonOptions options;
-  try {
-    options = daemon::parse_config(base, overrides);
-  } catch (const daemon::ConfigError& e) {
-    fuzz::check(fuzz::one_line(e.what()),
-                std::string("a config error that is not one line: ") + e.what());
-    return 0;
-  }
-  daemon::validate(options);
-  const std::string printed = daemon::print_config(options);
-  std::string again;
-  try {
-    again = daemon::print_config(daemon::parse_config(printed));
-  } catch (const daemon::ConfigError& e) {
-    fuzz::fail(std::string("--print-config output refused: ") + e.what() + "\n" + printed);
-  }
-  fuzz::check(again == printed, "--print-config does not round-trip:\n" + printed + "\n" + again);
+  fuzz::check_config([&] { return daemon::parse_config(base, overrides); });
   return 0;
 }
