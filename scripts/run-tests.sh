@@ -14,9 +14,9 @@ jobs=$(nproc)
 # Warnings are errors here (LIDARTAG_WERROR; off by default so that users' builds never break on
 # a compiler's new warning). The tests run on the Release build (-O3): what users and the Debian
 # package get, and where GCC 12 warns most (-Wrestrict and -Warray-bounds false positives that
-# -O2 does not show). The project has no assert(): NDEBUG changes no check. The sanitizer and fuzz
-# builds below are RelWithDebInfo, so both optimised build types build here. Installed under /usr:
-# the build the Debian package comes from.
+# -O2 does not show). The project has no assert(): NDEBUG changes no check. The TSan and fuzz
+# builds below are RelWithDebInfo (-O2 -g; the ASan build -O1 -g1). Installed under /usr: the
+# build the Debian package comes from.
 echo "== Release build (-O3, warnings as errors) and every test =="
 cmake -S . -B build-release -G Ninja -DCMAKE_BUILD_TYPE=Release -DLIDARTAG_WERROR=ON \
   -DCMAKE_INSTALL_PREFIX=/usr
