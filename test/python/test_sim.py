@@ -73,7 +73,9 @@ def test_simulating_runs_without_the_gil():
     done = {}
 
     def work():
-        lidartag.simulate(DEMO_SCENE, rotations=12)
+        # 48 rotations: about 2 s on the Release build, so that the work outlasts the main
+        # thread's 0.2 s sleep by far more than the 0.5 s asserted (12 took 0.69 s there: flaky).
+        lidartag.simulate(DEMO_SCENE, rotations=48)
         done["at"] = time.perf_counter()
 
     thread = threading.Thread(target=work)
