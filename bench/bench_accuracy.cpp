@@ -557,7 +557,11 @@ int run(const Args& args) {
         "and its ID is right; a wrong ID is a detection at the tag with another ID; errors are "
         "the distance between centres and the geodesic angle between orientations, eq. "
         "(23), over the detected rotations. Rates are per rotation: each rotation is detected on "
-        "its own (a tracker adds evidence over rotations on top of this).\n\n"
+        "its own. Below about 1.4 returns per cell of the marker (VLP-32C at 22-24 m and 45°) "
+        "one rotation gives no ID (`decode/sparse`: such reads were wrong in about 1 % of "
+        "rotations, `docs/detector.md`); the tracker, on by default in `lidartagd` and "
+        "`lidartag detect`, sums those rotations' evidence: the same targets with it, over 30 "
+        "codes and 20 consecutive rotations each, are in `docs/tracking.md`.\n\n"
      << "![error vs distance](accuracy.png)\n\n## Targets\n\n"
      << tgt;
   for (auto model : {velodyne::Model::kVLP32C, velodyne::Model::kVLP16, velodyne::Model::kVLS128})

@@ -10,7 +10,9 @@
 // the median total, and `period_pct`: the median total as a percentage of the 100 ms rotation
 // period of a sensor at 600 rpm (the target is <= 2 %). The *_no_polish variants skip the pose's
 // polish on every point, the *_no_family_check ones the decoding against the families not
-// configured. BM_EdgeFeatures and BM_Clustering time the first two stages alone.
+// configured, the *_no_track_only ones the clusters fitted and decoded for confirmed tracks only
+// (validation.track_boundary_scale = boundary_scale). BM_EdgeFeatures and BM_Clustering time the
+// first two stages alone.
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -66,7 +68,7 @@ double median(std::vector<double> v) {
 }
 
 // What a variant changes in the scene's options.
-enum class Variant { kDefault, kNoPolish, kNoFamilyCheck };
+enum class Variant { kDefault, kNoPolish, kNoFamilyCheck, kNoTrackOnly };
 
 void BM_Detect(benchmark::State& state, const std::string& name, Variant variant) {
   const Capture& c = capture(name);
@@ -77,6 +79,8 @@ void BM_Detect(benchmark::State& state, const std::string& name, Variant variant
   detector::DetectorOptions options = c.options;
   if (variant == Variant::kNoPolish) options.pose.polish_evaluations = 0;
   if (variant == Variant::kNoFamilyCheck) options.decode.reject_other_families = false;
+  if (variant == Variant::kNoTrackOnly)
+    options.validation.track_boundary_scale = options.validation.boundary_scale;
   detector::Detector det(options);
   detector::ScanResult result;
   std::array<std::vector<double>, detector::kStageCount> stage_ms;
@@ -152,6 +156,14 @@ BENCHMARK_CAPTURE(BM_Detect, demo_no_family_check, std::string("demo"), Variant:
     ->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Detect, outdoor_no_family_check, std::string("outdoor"),
                   Variant::kNoFamilyCheck)
+    ->Unit(benchmark::kMillisecond);
+// Without the track-only candidates (validation.track_boundary_scale = boundary_scale): what
+// looking at the clusters a little below eq. (6)'s bound costs.
+BENCHMARK_CAPTURE(BM_Detect, demo_no_track_only, std::string("demo"), Variant::kNoTrackOnly)
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Detect, outdoor_no_track_only, std::string("outdoor"), Variant::kNoTrackOnly)
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Detect, boards_no_track_only, std::string("boards"), Variant::kNoTrackOnly)
     ->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_EdgeFeatures, demo, std::string("demo"))->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_EdgeFeatures, outdoor, std::string("outdoor"))->Unit(benchmark::kMillisecond);

@@ -5,16 +5,16 @@
 //
 // Static scenes, the target grid: a 1.2 m tag16h5 on an easel, diamond mount, centre at
 // the sensor's height, face-on and turned 45 degrees, at 5, 6, 7, 8 and 10 m of a VLP-16 (and the
-// VLP-32C at 20 and 24 m); N runs per cell (default 10, each its own code and noise seed) of R
-// consecutive rotations of a static sensor (default 20). Per cell, over the rotations from the 4th
-// on: the share with the right ID from the detector alone and with the tracker, wrong IDs of both.
-// Moving sensors: the same tag with the sensor driving or turning; wrong IDs and tracks. Boards
-// (pcaps/boards.pcap) and clutter (pcaps/clutter.pcap): detections and confirmed tracks (all false
-// positives). Cost: Tracker::update per rotation (median, and its share of a VLP-32C's 100 ms
-// period at 600 rpm) on the bundled captures. --out DIR writes DIR/tracking.md. Exit status 1
-// when the tracker reported a wrong ID (a tag of its own, not a detection of the rotation), or
-// anything at all on the boards or the clutter; the detector's own wrong IDs are counted and
-// shown (bench_accuracy fails on them).
+// VLP-32C at 20 and 24 m, and a 0.6 m tag 0.3 m above the VLP-32C at 4 m); N runs per cell
+// (default 30: every code of tag16h5 once, each with its own noise seed) of R consecutive rotations
+// of a static sensor (default 20). Per cell, over the rotations from the 4th on: the share with the
+// right ID from the detector alone and with the tracker, wrong IDs of both. Moving sensors: the
+// same tag with the sensor driving or turning; wrong IDs and tracks. Boards (pcaps/boards.pcap) and
+// clutter (pcaps/clutter.pcap): detections and confirmed tracks (all false positives). Cost:
+// Tracker::update per rotation (median, and its share of a VLP-32C's 100 ms period at 600 rpm) on
+// the bundled captures. --out DIR writes DIR/tracking.md. Exit status 1 when the tracker reported a
+// wrong ID (a tag of its own, not a detection of the rotation), or anything at all on the boards or
+// the clutter; the detector's own wrong IDs are counted and shown (bench_accuracy fails on them).
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -42,7 +42,7 @@ namespace fs = std::filesystem;
 const std::string kPcaps = LIDARTAG_SOURCE_DIR "/pcaps/";
 
 struct Args {
-  int runs = 10;
+  int runs = 30;  // run k shows code (7 k + ...) mod 30: 30 runs show every code once
   int rotations = 20;
   bool quick = false;
   bool trace = false;  // print each static run's tracks and each rotation it missed
@@ -54,6 +54,8 @@ struct Cell {
   velodyne::Model model{};
   double distance = 0;
   int angle = 0;
+  double size = 1.2;            // tag side, m (the detector is given it)
+  double above = 0.0;           // tag centre above the sensor's height, m
   int counted = 0;              // rotations from the 4th on
   int single = 0, tracked = 0;  // of them with the right ID: detector alone, with the tracker
   int wrong_single = 0, wrong_tracked = 0;
@@ -64,12 +66,24 @@ struct Cell {
   double pct(int n) const { return counted ? 100.0 * n / counted : 0.0; }
 };
 
+// "1.2 m", or "0.6 m, 0.3 m above" for a tag whose centre is above the sensor's height.
+std::string tag_text(const Cell& c) {
+  char text[64];
+  if (c.above == 0.0)
+    std::snprintf(text, sizeof text, "%.1f m", c.size);
+  else
+    std::snprintf(text, sizeof text, "%.1f m, %.1f m above", c.size, c.above);
+  return text;
+}
+
 // R rotations of a static tag; counts from rotation index 3 (the 4th) on.
 void run_cell(Cell& c, int run, int rotations, bool trace) {
   const int code = (7 * run + 3 * static_cast<int>(c.distance) + c.angle) % 30;
-  const sim::Simulator simulator(eval::accuracy_scene(c.model, c.distance, c.angle, code));
+  const sim::Simulator simulator(
+      eval::accuracy_scene(c.model, c.distance, c.angle, code, c.size, c.above));
   eval::SimScans scans(simulator);
-  const detector::DetectorOptions options;
+  detector::DetectorOptions options;
+  options.tag_sizes_m = {c.size};
   detector::Detector det(options);
   detector::Tracker tracker({}, options);
   detector::ScanResult result;
@@ -88,10 +102,25 @@ void run_cell(Cell& c, int run, int rotations, bool trace) {
     bool single = false, tracked = false, from_track = false;
     for (const auto& d : rotations_out[k].first) {
       if (!eval::at_tag(d, tag)) continue;
-      if (d.id == tag.id)
+      if (d.id == tag.id) {
         single = true;
-      else
-        ++c.wrong_single;
+        continue;
+      }
+      ++c.wrong_single;
+      if (trace)
+        std::printf(
+            "trace: %s %s %g m %d deg, run %d, rotation %zu: wrong ID %d (code %d): score %.3f, "
+            "margin %.2f, %d points, cost %.4f m, centre off by %.3f m, normal by %.1f deg\n",
+            std::string(velodyne::model_spec(c.model).name).c_str(), tag_text(c).c_str(),
+            c.distance, c.angle, run, k, d.id, tag.id, d.score, d.margin, d.points, d.fit_cost,
+            (d.position - tag.position).norm(),
+            std::acos(std::clamp(d.orientation.toRotationMatrix().col(0).dot(
+                                     Eigen::Quaterniond(tag.orientation[0], tag.orientation[1],
+                                                        tag.orientation[2], tag.orientation[3])
+                                         .toRotationMatrix()
+                                         .col(0)),
+                                 -1.0, 1.0)) *
+                180.0 / std::numbers::pi);
     }
     for (const auto& t : rotations_out[k].second.tags) {
       if (!eval::at_tag(t.detection, tag)) continue;
@@ -106,9 +135,9 @@ void run_cell(Cell& c, int run, int rotations, bool trace) {
     // --trace: where each run's evidence ended (a margin of 0: no cell seen tells the leading
     // code from the runner-up).
     if (trace && k + 1 == rotations_out.size()) {
-      std::printf("trace: %s %g m %d deg, run %d, code %d:",
-                  std::string(velodyne::model_spec(c.model).name).c_str(), c.distance, c.angle, run,
-                  tag.id);
+      std::printf("trace: %s %s %g m %d deg, run %d, code %d:",
+                  std::string(velodyne::model_spec(c.model).name).c_str(), tag_text(c).c_str(),
+                  c.distance, c.angle, run, tag.id);
       for (const auto& t : rotations_out[k].second.seen)
         std::printf(" track %d (%d rotations, %s, leader %d, margin %.2f cells, score %.3f)",
                     t.track_id, t.rotations, t.confirmed ? "confirmed" : "not confirmed", t.id,
@@ -118,9 +147,9 @@ void run_cell(Cell& c, int run, int rotations, bool trace) {
     // --trace: each rotation without the right ID, with what the clusters near the tag measured
     // and the stage that dropped them.
     if (trace && !tracked) {
-      std::printf("trace: %s %g m %d deg, run %d, rotation %zu missed:",
-                  std::string(velodyne::model_spec(c.model).name).c_str(), c.distance, c.angle, run,
-                  k);
+      std::printf("trace: %s %s %g m %d deg, run %d, rotation %zu missed:",
+                  std::string(velodyne::model_spec(c.model).name).c_str(), tag_text(c).c_str(),
+                  c.distance, c.angle, run, k);
       for (const auto& d : diags[k]) {
         const Eigen::Vector3d& p = tag.position;
         if (p.x() < d.min_x - 0.5 || p.x() > d.max_x + 0.5 || p.y() < d.min_y - 0.5 ||
@@ -267,12 +296,15 @@ int run(const Args& args) {
   const int runs = args.quick ? 2 : args.runs;
   const int rotations = args.quick ? 8 : args.rotations;
   std::vector<Cell> cells;
-  auto cell = [](velodyne::Model model, double distance, int angle, double target) {
+  auto cell = [](velodyne::Model model, double distance, int angle, double target,
+                 double size = 1.2, double above = 0.0) {
     Cell c;
     c.model = model;
     c.distance = distance;
     c.angle = angle;
     c.target = target;
+    c.size = size;
+    c.above = above;
     return c;
   };
   for (double d : {5.0, 6.0, 7.0, 8.0, 10.0})
@@ -280,11 +312,14 @@ int run(const Args& args) {
       cells.push_back(cell(velodyne::Model::kVLP16, d, angle, d < 9 ? 95.0 : 50.0));
   for (double d : {20.0, 24.0})
     for (int angle : {0, 45}) cells.push_back(cell(velodyne::Model::kVLP32C, d, angle, 95.0));
+  // A 0.6 m tag whose upper half only the sparse upper beams cross (0.3 m above the sensor).
+  for (int angle : {0, 45})
+    cells.push_back(cell(velodyne::Model::kVLP32C, 4.0, angle, 95.0, 0.6, 0.3));
   std::ostringstream grid;
-  grid << "| sensor | distance | angle | rotations (4th on) | detector alone | with the tracker | "
-          "of which by a track only | wrong IDs alone | wrong IDs with the tracker (added by a "
-          "track) | target |\n"
-       << "|---|---:|---:|---:|---:|---:|---:|---:|---:|---|\n";
+  grid << "| sensor | tag | distance | angle | rotations (4th on) | detector alone | with the "
+          "tracker | of which by a track only | wrong IDs alone | wrong IDs with the tracker "
+          "(added by a track) | target |\n"
+       << "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|\n";
   int never = 0;
   for (Cell& c : cells) {
     for (int r = 0; r < runs; ++r) run_cell(c, r, rotations, args.trace);
@@ -294,16 +329,16 @@ int run(const Args& args) {
     const bool met = c.pct(c.tracked) >= c.target;
     const std::string sensor(velodyne::model_spec(c.model).display_name);
     std::printf(
-        "%-8s %4.0f m %2d deg: alone %5.1f %%  tracked %5.1f %% (%d by a track only)  "
+        "%-8s %-17s %4.0f m %2d deg: alone %5.1f %%  tracked %5.1f %% (%d by a track only)  "
         "wrong %d / %d  target %.0f %% %s\n",
-        std::string(velodyne::model_spec(c.model).name).c_str(), c.distance, c.angle,
-        c.pct(c.single), c.pct(c.tracked), c.confirmed_only, c.wrong_single, c.wrong_tracked,
-        c.target, met ? "met" : "NOT MET");
+        std::string(velodyne::model_spec(c.model).name).c_str(), tag_text(c).c_str(), c.distance,
+        c.angle, c.pct(c.single), c.pct(c.tracked), c.confirmed_only, c.wrong_single,
+        c.wrong_tracked, c.target, met ? "met" : "NOT MET");
     std::fflush(stdout);
-    grid << "| " << sensor << " | " << fmt(c.distance, 0) << " m | " << c.angle << "° | "
-         << c.counted << " | " << fmt(c.pct(c.single), 1) << " % | " << fmt(c.pct(c.tracked), 1)
-         << " % | " << c.confirmed_only << " | " << c.wrong_single << " | " << c.wrong_tracked
-         << " (" << c.wrong_by_track << ") | ≥ " << fmt(c.target, 0)
+    grid << "| " << sensor << " | " << tag_text(c) << " | " << fmt(c.distance, 0) << " m | "
+         << c.angle << "° | " << c.counted << " | " << fmt(c.pct(c.single), 1) << " % | "
+         << fmt(c.pct(c.tracked), 1) << " % | " << c.confirmed_only << " | " << c.wrong_single
+         << " | " << c.wrong_tracked << " (" << c.wrong_by_track << ") | ≥ " << fmt(c.target, 0)
          << " %: " << (met ? "met" : "**not met**") << " |\n";
   }
 
@@ -404,12 +439,17 @@ int run(const Args& args) {
      << "; source: `bench/bench_tracker.cpp`; how the tracker works: `docs/detector.md`, "
         "\"Evidence over rotations\").\n\n"
      << "## The issue's targets: static sensor\n\n"
-     << "A 1.2 m `tag16h5` on an easel stand, diamond mount, centre at the sensor's height, "
-        "face-on (0°) or turned 45°; "
-     << runs << " runs per cell, each with its own code and noise seed, of " << rotations
+     << "A 1.2 m `tag16h5` on an easel stand, diamond mount, centre at the sensor's height "
+        "(and a 0.6 m one 0.3 m above it, whose upper half only the VLP-32C's sparse upper beams "
+        "cross), face-on (0°) or turned 45°; "
+     << runs
+     << " runs per cell, each with its own noise seed and code (run k shows code (7 k + 3 d + "
+        "angle) mod 30: 30 runs show every code once), of "
+     << rotations
      << " consecutive rotations of a static sensor at 600 rpm (the simulator's default noise). "
         "Counted: the rotations from the 4th on, with the right ID at the tag (centre within t/2) "
-        "from the detector alone (`Detector::detect`, default options) and with the tracker "
+        "from the detector alone (`Detector::detect`, default options but the tag's size) and with "
+        "the tracker "
         "(`Tracker::update`, default options: a detection of the rotation, or a confirmed track "
         "of it); a wrong ID is any other ID at the tag.\n\n"
      << grid.str()

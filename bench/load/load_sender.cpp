@@ -158,6 +158,15 @@ SenderCounts send(const Capture& capture, const SenderOptions& o, const std::ato
   // soak hit the sender's port 111 times: 79 receive-buffer errors that nothing sent to the daemon
   // explained).
   const std::pair<unsigned, unsigned> ephemeral = ephemeral_ports();
+  std::vector<uint16_t> junk_ports;  // closed ports: not ephemeral, not the sensor's, not LCM's
+  for (unsigned p = 1024; p <= 65535; ++p)
+    if (p != o.data_port && p != o.position_port && p != 7667 &&
+        (p < ephemeral.first || p > ephemeral.second))
+      junk_ports.push_back(static_cast<uint16_t>(p));
+  if (junk_ports.empty() && o.junk_ratio > 0.0 && o.junk_to_sensor < 1.0)
+    throw std::runtime_error("no port above 1023 is outside the kernel's ephemeral range " +
+                             std::to_string(ephemeral.first) + "-" +
+                             std::to_string(ephemeral.second) + " for junk to closed ports");
   std::mt19937_64 rng(o.seed);
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
   std::vector<uint8_t> junk(kMaxDatagram + 4096);
@@ -186,11 +195,7 @@ SenderCounts send(const Capture& capture, const SenderOptions& o, const std::ato
       if (raw_send(junk.data() + offset, size, data_to)) ++n.junk_sensor_port;
       return;
     }
-    uint16_t port;
-    do {
-      port = static_cast<uint16_t>(1024 + rng() % (65536 - 1024));
-    } while (port == o.data_port || port == o.position_port || port == 7667 ||  // 7667: LCM
-             (port >= ephemeral.first && port <= ephemeral.second));
+    const uint16_t port = junk_ports[rng() % junk_ports.size()];
     if (raw_send(junk.data() + offset, size, address(o.destination, port))) ++n.junk_wrong_port;
   };
 

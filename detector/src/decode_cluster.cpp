@@ -197,6 +197,13 @@ ClusterDecode decode_cluster(std::span<const ClusterPoint> points, const RigidPo
       out.best.rejection = Rejection::kAmbiguous;
   }
 
+  // Too few returns per cell for one rotation's decision to be trusted (the margin and the score
+  // of a wrong code look like a right one's there): evidence for a tracker only.
+  const int w = dictionaries[static_cast<size_t>(out.family)].width();
+  if (out.best.rejection == Rejection::kNone &&
+      static_cast<double>(points.size()) < opt.min_returns_per_cell * w * w)
+    out.best.rejection = Rejection::kSparse;
+
   // The cell votes at the best shift, for evidence over rotations.
   if (shifted.applied() != out.shift) shifted.move_to(out.shift);
   cell_votes(ws.decode, dictionaries[static_cast<size_t>(out.family)].width(), opt.vote_inset_cells,

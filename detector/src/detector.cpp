@@ -37,6 +37,7 @@ DetectorLimits derive_limits(const DetectorOptions& o,
   l.max_extent_m = static_cast<float>(l.t_max * std::numbers::sqrt2 * 1.25);
   l.min_points = 1 << 30;
   l.min_boundary_points = 1 << 30;
+  l.min_track_boundary_points = 1 << 30;
   for (const auto& d : dictionaries) {
     const auto& fam = d.family();
     // eq. (3) with min_returns_per_cell returns per cell (the paper: 5).
@@ -49,7 +50,12 @@ DetectorLimits derive_limits(const DetectorOptions& o,
         std::min(l.min_boundary_points,
                  static_cast<int>(std::ceil(o.validation.boundary_scale *
                                             static_cast<float>(2 * (fam.payload_width() + 2)))));
+    l.min_track_boundary_points =
+        std::min(l.min_track_boundary_points,
+                 static_cast<int>(std::ceil(o.validation.track_boundary_scale *
+                                            static_cast<float>(2 * (fam.payload_width() + 2)))));
   }
+  l.min_track_boundary_points = std::min(l.min_track_boundary_points, l.min_boundary_points);
   l.min_ring_width_m =
       o.validation.min_ring_width *
       static_cast<float>(*std::min_element(o.tag_sizes_m.begin(), o.tag_sizes_m.end()));
@@ -179,8 +185,12 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
   StageClock clock(out.timing_ms);
   ClusterDiagnostic diag = diagnostic_of(b.clusters[c]);
   // Every exit: the time to its stage, the reason counted, the points and the diagnostic kept.
+  // A cluster below eq. (6)'s bound but above the tracks' is looked at to the end for a track
+  // (Candidate::track_only); whatever the later stages say, eq. (6) is why it is no detection.
+  bool track_only = false;
   auto finish = [&](Stage s, Rejection r) {
     clock.lap(s);
+    if (track_only) r = Rejection::kFewBoundaryPoints;
     diag.rejection = r;
     if (r != Rejection::kNone) ++out.rejected[static_cast<size_t>(r)];
     if (opt_.keep_cluster_points && !b.points.empty()) {
@@ -210,8 +220,9 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
   r = check_point_counts(b.points, limits_.min_points, limits_.t_max, res, opt_.validation);
   if (r != Rejection::kNone) return finish(Stage::kValidation, r);
   diag.boundary_points = count_boundary_points(b.points, opt_.validation);
-  if (diag.boundary_points < limits_.min_boundary_points)
+  if (diag.boundary_points < limits_.min_track_boundary_points)
     return finish(Stage::kValidation, Rejection::kFewBoundaryPoints);
+  track_only = diag.boundary_points < limits_.min_boundary_points;
   clock.lap(Stage::kValidation);
 
   // Sec. IV-C: the plane and its outlier ratio kappa. Posts and poles above or below the tag are
@@ -269,7 +280,9 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
   const int points = static_cast<int>(b.points.size());
   diag.candidate =
       add_candidate(dec, frame.center, frame.undecoded, t, points, fit.cost, diag.coverage, out);
-  if (dec.best.rejection != Rejection::kNone) return finish(Stage::kDecode, dec.best.rejection);
+  out.candidates[static_cast<size_t>(diag.candidate)].track_only = track_only;
+  if (dec.best.rejection != Rejection::kNone || track_only)
+    return finish(Stage::kDecode, dec.best.rejection);
 
   // The detection: the pose with the decoded quarter turns (Sec. V remark).
   Detection det =

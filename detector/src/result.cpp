@@ -35,6 +35,8 @@ std::string_view rejection_name(Rejection r) {
       return "ambiguous";
     case Rejection::kOtherFamily:
       return "other_family";
+    case Rejection::kSparse:
+      return "sparse";
     case Rejection::kCount:
       break;
   }

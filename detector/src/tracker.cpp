@@ -87,15 +87,18 @@ struct Tracker::Track {
   int id = -1;
   int family = 0;
   double size_m = 0.0;
-  int rotations = 0;
+  int rotations = 0;  // rotations seen
+  int scored = 0;     // of them, the ones whose candidate added evidence (not track_only)
   int64_t last_seen_ns = 0;
   // Per function of the family in the track's frame (4 code + quarter turns): summed normalised
   // scores. Per cell of the marker in the track's frame: summed votes (+1 white, -1 black) of the
   // points well inside it, and their number.
   std::vector<double> score_sum;
   std::vector<float> votes, counts;
-  double other_sum = 0.0;  // summed best score of the families not configured
-  int other_count = 0;     // rotations in which they were decoded
+  // Over the rotations in which the families not configured were decoded: their best score and
+  // the configured family's best score, summed, and the number of those rotations.
+  double other_sum = 0.0, own_sum = 0.0;
+  int other_count = 0;
   // The window: centres and frames turned into the track's frame (quarter turns taken out).
   std::vector<Eigen::Vector3d> positions;
   std::vector<Eigen::Quaterniond> frames;
@@ -207,7 +210,8 @@ void Tracker::track(const ScanResult& result, int64_t stamp_ns, TrackerResult& o
     const Eigen::Matrix3d frame = cand.undecoded_orientation.normalized().toRotationMatrix();
     for (size_t k = 0; k < tracks_.size(); ++k) {
       const Track& t = tracks_[k];
-      if (!t.live || t.family != cand.family_index || std::abs(t.size_m - cand.size_m) > 1e-9)
+      if (!t.live || t.family != cand.family_index || std::abs(t.size_m - cand.size_m) > 1e-9 ||
+          (cand.track_only && !t.confirmed))
         continue;
       const double d = (cand.position - t.ref_position).norm();
       if (d > opt_.max_distance_m) continue;
@@ -230,7 +234,7 @@ void Tracker::track(const ScanResult& result, int64_t stamp_ns, TrackerResult& o
   }
   // The others start tracks: a free slot, else the one seen longest ago (not in this rotation).
   for (size_t c = 0; c < cands.size(); ++c) {
-    if (assigned_[c] >= 0 || evidence(cands[c], result) == nullptr) continue;
+    if (assigned_[c] >= 0 || cands[c].track_only || evidence(cands[c], result) == nullptr) continue;
     int slot = -1;
     for (size_t k = 0; k < tracks_.size() && slot < 0; ++k)
       if (!tracks_[k].live) slot = static_cast<int>(k);
@@ -276,11 +280,12 @@ void Tracker::start(Track& t, const Candidate& c) {
   t.family = c.family_index;
   t.size_m = c.size_m;
   t.rotations = 0;
+  t.scored = 0;
   const size_t n = static_cast<size_t>(families_[static_cast<size_t>(c.family_index)].functions);
   std::fill(t.score_sum.begin(), t.score_sum.begin() + static_cast<std::ptrdiff_t>(n), 0.0);
   std::fill(t.votes.begin(), t.votes.end(), 0.0f);
   std::fill(t.counts.begin(), t.counts.end(), 0.0f);
-  t.other_sum = 0.0;
+  t.other_sum = t.own_sum = 0.0;
   t.other_count = 0;
   t.window_count = t.window_next = 0;
   t.ref_position = c.position;
@@ -292,6 +297,44 @@ void Tracker::start(Track& t, const Candidate& c) {
 void Tracker::add(Track& t, const Candidate& c, const ScanResult& result, int64_t stamp_ns) {
   ++t.rotations;
   t.last_seen_ns = stamp_ns;
+  // A track-only candidate (too few boundary points to stand alone) shows where the confirmed tag
+  // is in this rotation; its votes and scores are left out, so the decision stays the evidence's.
+  if (!c.track_only) add_evidence(t, c, result);
+
+  // The window: the frame turned into the track's frame, its sign next to the reference's.
+  const Eigen::Quaterniond aligned(c.undecoded_orientation.normalized().toRotationMatrix() *
+                                   quarter_turn(t.delta));
+  Eigen::Quaterniond q = aligned;
+  if (q.dot(t.ref_frame) < 0.0) q.coeffs() *= -1.0;
+  const auto w = static_cast<size_t>(t.window_next);
+  t.positions[w] = c.position;
+  t.frames[w] = q;
+  t.window_next = (t.window_next + 1) % opt_.window;
+  t.window_count = std::min(t.window_count + 1, opt_.window);
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  Eigen::Vector4d qsum = Eigen::Vector4d::Zero();
+  for (int i = 0; i < t.window_count; ++i) {
+    mean += t.positions[static_cast<size_t>(i)];
+    qsum += t.frames[static_cast<size_t>(i)].coeffs();
+  }
+  mean /= t.window_count;
+  Eigen::Vector3d var = Eigen::Vector3d::Zero();
+  double angle2 = 0.0;
+  const Eigen::Quaterniond qmean =
+      Eigen::Quaterniond(Eigen::Vector4d(qsum.normalized())).normalized();
+  for (int i = 0; i < t.window_count; ++i) {
+    var += (t.positions[static_cast<size_t>(i)] - mean).cwiseAbs2();
+    const double a = t.frames[static_cast<size_t>(i)].angularDistance(qmean);
+    angle2 += a * a;
+  }
+  t.ref_position = mean;
+  t.ref_frame = qmean;
+  t.position_std = (var / t.window_count).cwiseSqrt();
+  t.angle_std_deg = std::sqrt(angle2 / t.window_count) / kDeg;
+}
+
+void Tracker::add_evidence(Track& t, const Candidate& c, const ScanResult& result) {
+  ++t.scored;
   // Normalised scores, for the mean score of the leading function: function (code k, quarter
   // turns q) of the candidate's frame is (k, q + delta) of the track's frame (its tag frame is
   // frame Rx(-q pi/2) = aligned Rx(-(q + delta) pi/2)).
@@ -303,6 +346,7 @@ void Tracker::add(Track& t, const Candidate& c, const ScanResult& result, int64_
         s[static_cast<size_t>(f)];
   if (c.other_family_score >= 0.0) {
     t.other_sum += c.other_family_score;
+    t.own_sum += c.score;
     ++t.other_count;
   }
   // Cell votes: the candidate's grid turned delta times clockwise ((r, c) -> (c, W-1-r) per turn).
@@ -341,43 +385,15 @@ void Tracker::add(Track& t, const Candidate& c, const ScanResult& result, int64_
     if (f != lead) rival = std::max(rival, scores_[static_cast<size_t>(f)]);
   t.leader = lead;
   t.margin = n > 1 ? (scores_[static_cast<size_t>(lead)] - rival) / 2.0 : 1e9;
-  t.mean_score = t.score_sum[static_cast<size_t>(lead)] / t.rotations;
+  t.mean_score = t.score_sum[static_cast<size_t>(lead)] / t.scored;
   // Another family fitting better on average makes it that family's tag (as the detector's
-  // decode/other_family for one rotation).
-  const bool other_better = t.other_count > 0 && t.other_sum / t.other_count > t.mean_score + 1e-6;
-  t.confirmed = t.rotations >= opt_.min_rotations && t.margin >= opt_.min_margin_cells &&
+  // decode/other_family for one rotation), best against best as there: the leading function's own
+  // score is lower in the rotations another function of the family led, and the decoys' best
+  // would beat it by that alone (a VLP-32C's 1.2 m tag16h5 at 24 m and 45 degrees, whose codes
+  // tag16h6 shares, was never confirmed).
+  const bool other_better = t.other_count > 0 && t.other_sum > t.own_sum + 1e-6 * t.other_count;
+  t.confirmed = t.scored >= opt_.min_rotations && t.margin >= opt_.min_margin_cells &&
                 t.mean_score >= min_score_ && !other_better;
-
-  // The window: the frame turned into the track's frame, its sign next to the reference's.
-  const Eigen::Quaterniond aligned(c.undecoded_orientation.normalized().toRotationMatrix() *
-                                   quarter_turn(t.delta));
-  Eigen::Quaterniond q = aligned;
-  if (q.dot(t.ref_frame) < 0.0) q.coeffs() *= -1.0;
-  const auto w = static_cast<size_t>(t.window_next);
-  t.positions[w] = c.position;
-  t.frames[w] = q;
-  t.window_next = (t.window_next + 1) % opt_.window;
-  t.window_count = std::min(t.window_count + 1, opt_.window);
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  Eigen::Vector4d qsum = Eigen::Vector4d::Zero();
-  for (int i = 0; i < t.window_count; ++i) {
-    mean += t.positions[static_cast<size_t>(i)];
-    qsum += t.frames[static_cast<size_t>(i)].coeffs();
-  }
-  mean /= t.window_count;
-  Eigen::Vector3d var = Eigen::Vector3d::Zero();
-  double angle2 = 0.0;
-  const Eigen::Quaterniond qmean =
-      Eigen::Quaterniond(Eigen::Vector4d(qsum.normalized())).normalized();
-  for (int i = 0; i < t.window_count; ++i) {
-    var += (t.positions[static_cast<size_t>(i)] - mean).cwiseAbs2();
-    const double a = t.frames[static_cast<size_t>(i)].angularDistance(qmean);
-    angle2 += a * a;
-  }
-  t.ref_position = mean;
-  t.ref_frame = qmean;
-  t.position_std = (var / t.window_count).cwiseSqrt();
-  t.angle_std_deg = std::sqrt(angle2 / t.window_count) / kDeg;
 }
 
 void Tracker::fill_info(const Track& t, TrackInfo& info) const {

@@ -318,6 +318,97 @@ TEST(Detector, CandidatesCarryThePoseAndTheEvidenceOfEveryCode) {
   }
 }
 
+TEST(Detector, ClustersBelowTheBoundaryBoundButAboveTheTracksAreTrackOnlyCandidates) {
+  const TwoTags s;
+  Detector det(s.options);
+  ScanResult res;
+  det.detect(s.scan, res);
+  ASSERT_EQ(res.detections.size(), 2u);
+  int fewest = 1 << 30, most = 0;  // boundary points of the two tags' clusters
+  for (const Candidate& k : res.candidates) {
+    EXPECT_FALSE(k.track_only);
+    if (k.detection < 0) continue;
+    const int n = res.diagnostics[static_cast<size_t>(k.cluster)].boundary_points;
+    fewest = std::min(fewest, n);
+    most = std::max(most, n);
+  }
+  // eq. (6)'s bound (scale x 12, tag16h5's 2 (d + 2), the smaller of the two families) above
+  // both tags, the tracks' below both: the same candidates, none of them a detection, the two
+  // tags' track-only, and their clusters counted as validation/few_boundary_points.
+  DetectorOptions o = s.options;
+  o.validation.boundary_scale = (static_cast<float>(most) + 0.5f) / 12.0f;
+  o.validation.track_boundary_scale = (static_cast<float>(fewest) - 0.5f) / 12.0f;
+  Detector weak_det(o);
+  ScanResult weak;
+  weak_det.detect(s.scan, weak);
+  EXPECT_TRUE(weak.detections.empty());
+  std::vector<const Candidate*> tags;
+  for (const Candidate& k : weak.candidates)
+    if (k.track_only && k.rejection == Rejection::kNone) tags.push_back(&k);
+  ASSERT_EQ(tags.size(), 2u);
+  for (const Candidate* k : tags) {
+    EXPECT_EQ(k->detection, -1);
+    const ClusterDiagnostic& d = weak.diagnostics[static_cast<size_t>(k->cluster)];
+    EXPECT_EQ(d.rejection, Rejection::kFewBoundaryPoints);
+    EXPECT_TRUE(std::any_of(res.detections.begin(), res.detections.end(), [&](const Detection& x) {
+      return x.id == k->id && x.family_index == k->family_index && x.position == k->position;
+    }));
+  }
+  EXPECT_GE(weak.rejected[static_cast<size_t>(Rejection::kFewBoundaryPoints)],
+            res.rejected[static_cast<size_t>(Rejection::kFewBoundaryPoints)] + 2);
+  // The tracks' bound at the detections' bound: those clusters stop at validation.
+  o.validation.track_boundary_scale = o.validation.boundary_scale;
+  Detector off_det(o);
+  ScanResult off;
+  off_det.detect(s.scan, off);
+  EXPECT_TRUE(off.detections.empty());
+  for (const Candidate& k : off.candidates) EXPECT_FALSE(k.track_only);
+  EXPECT_EQ(off.candidates.size() + 2, weak.candidates.size());
+}
+
+TEST(Detector, TooFewReturnsPerCellForOneRotationIsSparseNotADetection) {
+  const TwoTags s;
+  Detector det(s.options);
+  ScanResult res;
+  det.detect(s.scan, res);
+  ASSERT_EQ(res.detections.size(), 2u);
+  double fewest = 1e9, most = 0.0;  // returns per cell of the two tags
+  for (const Candidate& k : res.candidates) {
+    if (k.detection < 0) continue;
+    const int w = det.dictionaries()[static_cast<size_t>(k.family_index)].width();
+    fewest = std::min(fewest, static_cast<double>(k.points) / (w * w));
+    most = std::max(most, static_cast<double>(k.points) / (w * w));
+  }
+  // Above both: two candidates rejected as sparse, with the detections' IDs and poses.
+  DetectorOptions o = s.options;
+  o.decode.min_returns_per_cell = most + 0.01;
+  Detector sparse_det(o);
+  ScanResult sparse;
+  sparse_det.detect(s.scan, sparse);
+  EXPECT_TRUE(sparse.detections.empty());
+  EXPECT_EQ(sparse.rejected[static_cast<size_t>(Rejection::kSparse)], 2u);
+  int matched = 0;
+  for (const Candidate& k : sparse.candidates) {
+    if (k.rejection != Rejection::kSparse) continue;
+    EXPECT_EQ(k.detection, -1);
+    matched += std::any_of(res.detections.begin(), res.detections.end(),
+                           [&](const Detection& x) {
+                             return x.id == k.id && x.family_index == k.family_index &&
+                                    x.position == k.position;
+                           })
+                   ? 1
+                   : 0;
+  }
+  EXPECT_EQ(matched, 2);
+  // Just below the sparser one: both detected as before.
+  o.decode.min_returns_per_cell = fewest - 0.01;
+  Detector dense_det(o);
+  ScanResult dense;
+  dense_det.detect(s.scan, dense);
+  EXPECT_EQ(dense.detections.size(), 2u);
+  EXPECT_EQ(dense.rejected[static_cast<size_t>(Rejection::kSparse)], 0u);
+}
+
 TEST(Detector, ClusterPointsOnlyWhenAskedForAsEachClusterWasLeft) {
   const TwoTags s;
   DetectorOptions with = s.options;

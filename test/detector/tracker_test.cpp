@@ -41,6 +41,7 @@ struct Cand {
   Rejection rejection = Rejection::kAmbiguous;
   double other_family_score = -1.0;
   bool shift_searched = false;
+  bool track_only = false;
   double size = 1.2;
 };
 
@@ -63,6 +64,7 @@ void add(ScanResult& r, const RkhsDictionary& dict, const Cand& c) {
   d.points = 500;
   d.fit_cost = 1.0;
   d.shift_searched = c.shift_searched;
+  d.track_only = c.track_only;
   d.first_evidence = static_cast<int>(r.family_evidence.size());
   d.evidence_count = 1;
   FamilyEvidence& e = r.family_evidence.emplace_back();
@@ -80,7 +82,7 @@ void add(ScanResult& r, const RkhsDictionary& dict, const Cand& c) {
     r.cell_votes.push_back(seen ? c.votes * dict.signs(f)[i] : 0.0f);
     r.cell_vote_counts.push_back(seen ? c.votes : 0.0f);
   }
-  if (c.rejection == Rejection::kNone) {
+  if (c.rejection == Rejection::kNone && !c.track_only) {
     Detection det;
     det.id = c.code;
     det.position = c.position;
@@ -333,6 +335,28 @@ TEST_F(TrackerTest, AnotherFamilyFittingBetterOnAverageBlocksConfirmation) {
   EXPECT_TRUE(out.seen[0].confirmed);
 }
 
+TEST_F(TrackerTest, OtherFamiliesAreComparedBestAgainstBestInEachRotation) {
+  // Four rotations lead with code 3; in a fifth another code leads (no votes), where code 3
+  // scores 0.6: code 3's mean score is 0.88. The decoys tie with the best of every rotation
+  // (0.95), as identical patterns do: that is no better fit, and the track confirms.
+  Tracker tracker({}, det_opt);
+  Cand c;
+  c.other_family_score = 0.95;
+  Cand other = c;
+  other.code = 5;
+  other.observed = std::vector<bool>(64, false);
+  for (int k = 0; k < 5; ++k) step(tracker, {k == 2 ? other : c});
+  ASSERT_EQ(out.seen.size(), 1u);
+  EXPECT_EQ(out.seen[0].id, 3);
+  EXPECT_NEAR(out.seen[0].mean_score, (4 * 0.95 + 0.6) / 5, 1e-6);
+  EXPECT_TRUE(out.seen[0].confirmed);
+  // Decoys above the best of every rotation still block it.
+  Tracker blocked({}, det_opt);
+  c.other_family_score = other.other_family_score = 0.96;
+  for (int k = 0; k < 5; ++k) step(blocked, {k == 2 ? other : c});
+  EXPECT_FALSE(out.seen[0].confirmed);
+}
+
 TEST_F(TrackerTest, ClustersWhosePositionWasSearchedByDecodingGiveNoVotes) {
   Tracker tracker({}, det_opt);
   Cand c;
@@ -341,6 +365,44 @@ TEST_F(TrackerTest, ClustersWhosePositionWasSearchedByDecodingGiveNoVotes) {
   EXPECT_EQ(out.seen[0].rotations, 5);
   EXPECT_FALSE(out.seen[0].confirmed);
   EXPECT_NEAR(out.seen[0].margin_cells, 0.0, 1e-9);
+}
+
+TEST_F(TrackerTest, TrackOnlyCandidatesStartNoTrackAndJoinOnlyConfirmedOnes) {
+  Tracker tracker({}, det_opt);
+  Cand weak;  // decodes code 3 well, but too few boundary points to stand alone
+  weak.rejection = Rejection::kNone;
+  weak.track_only = true;
+  for (int k = 0; k < 5; ++k) {
+    step(tracker, {weak});
+    EXPECT_TRUE(out.seen.empty()) << "rotation " << k;
+    EXPECT_TRUE(out.tags.empty()) << "rotation " << k;
+    EXPECT_EQ(out.tracks, 0) << "rotation " << k;
+  }
+  // Three ambiguous rotations with votes confirm a track; then a track-only candidate of
+  // another code at the same place is reported with the track's ID, and adds no evidence.
+  Cand c;
+  for (int k = 0; k < 3; ++k) step(tracker, {c});
+  ASSERT_EQ(out.seen.size(), 1u);
+  ASSERT_TRUE(out.seen[0].confirmed);
+  const double margin = out.seen[0].margin_cells, score = out.seen[0].mean_score;
+  weak.code = 9;
+  weak.position.x() += 0.01;
+  step(tracker, {weak});
+  ASSERT_EQ(out.seen.size(), 1u);
+  EXPECT_EQ(out.seen[0].rotations, 4);
+  EXPECT_EQ(out.seen[0].id, 3);
+  EXPECT_EQ(out.seen[0].margin_cells, margin);
+  EXPECT_EQ(out.seen[0].mean_score, score);
+  ASSERT_EQ(out.tags.size(), 1u);
+  EXPECT_FALSE(out.tags[0].decoded);
+  EXPECT_EQ(out.tags[0].detection.id, 3);
+  EXPECT_EQ(out.tags[0].detection.position, weak.position);
+  // Beyond the gates it joins nothing and starts nothing.
+  weak.position.x() += 1.0;
+  step(tracker, {weak});
+  EXPECT_TRUE(out.seen.empty());
+  EXPECT_TRUE(out.tags.empty());
+  EXPECT_EQ(out.tracks, 1);
 }
 
 TEST_F(TrackerTest, DetectionsKeepTheirOwnFieldsAndGetTheirTrack) {

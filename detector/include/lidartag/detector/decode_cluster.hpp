@@ -47,7 +47,7 @@ struct ClusterDecodeWorkspace {
 struct ClusterDecode {
   // The best hypothesis over every family and shift, its margin taken against the best other
   // function of its family at any shift, and the decision (rejection kNone, kLowContrast,
-  // kLowScore, kAmbiguous or kOtherFamily).
+  // kLowScore, kAmbiguous, kOtherFamily or kSparse).
   DecodeResult best;
   int family = 0;      // index of its configured family
   double shift = 0.0;  // metres along the unseen axis (0 when every side was seen)

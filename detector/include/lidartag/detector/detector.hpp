@@ -30,7 +30,8 @@ struct DetectorLimits {
   float max_extent_m = 0.0f;      // clusters split above 1.25 x t_max's diagonal
   int min_points = 0;             // eq. (3) with min_returns_per_cell, smallest over the families
   int min_boundary_points = 0;    // eq. (6) with boundary_scale, smallest over the families
-  float min_ring_width_m = 0.0f;  // validation.min_ring_width x the smallest tag size
+  int min_track_boundary_points = 0;  // the same with track_boundary_scale (at most the above)
+  float min_ring_width_m = 0.0f;      // validation.min_ring_width x the smallest tag size
 };
 DetectorLimits derive_limits(const DetectorOptions& options,
                              std::span<const RkhsDictionary> dictionaries);

@@ -195,6 +195,7 @@ void visit_options(V& v, DetectorOptions& o) {
     s.field("boundary_ratio", o.validation.boundary_ratio, at_least(0.0f), "");
     s.field("min_intensity_step", o.validation.min_intensity_step, at_least(0.0f), "intensity");
     s.field("boundary_scale", o.validation.boundary_scale, at_least(0.0f), "");
+    s.field("track_boundary_scale", o.validation.track_boundary_scale, at_least(0.0f), "");
     s.field("min_ring_width", o.validation.min_ring_width, half_open(0.0f, 1.0f), "tag sizes");
   });
   v.section("plane", [&](V& s) {
@@ -240,6 +241,7 @@ void visit_options(V& v, DetectorOptions& o) {
     s.field("reject_other_families", o.decode.reject_other_families, Any{}, "");
     s.field("other_family_min_score", o.decode.other_family_min_score, closed(0.0, 1.0), "");
     s.field("vote_inset_cells", o.decode.vote_inset_cells, half_open(0.0, 0.5), "cells");
+    s.field("min_returns_per_cell", o.decode.min_returns_per_cell, at_least(0.0), "points");
   });
 }
 

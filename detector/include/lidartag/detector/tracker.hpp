@@ -32,7 +32,9 @@ struct TrackerOptions {
   // 0.1 m and 10 degrees: single-rotation poses of a 1.2 m tag scatter by a few millimetres and
   // well below a degree (1-3 mm and 0.4 deg at 6 m on a VLP-16), and two tags cannot be closer
   // than their size. A tag or sensor that moves more than this from where the track has been (the
-  // mean of its window) starts a new track; a slow drift is followed.
+  // mean of its window) starts a new track; a slow drift is followed. A track-only candidate
+  // (Candidate::track_only: too few boundary points to stand alone) joins only a confirmed track,
+  // starts none and adds no evidence: it makes the track seen, and reported, in its rotation.
   double max_distance_m = 0.1;
   double max_angle_deg = 10.0;
   // Confirmation. The evidence of a track is, per cell of the marker, the votes of the points
@@ -161,6 +163,7 @@ class Tracker {
   const FamilyEvidence* evidence(const Candidate& c, const ScanResult& result) const;
   void start(Track& t, const Candidate& c);
   void add(Track& t, const Candidate& c, const ScanResult& result, int64_t stamp_ns);
+  void add_evidence(Track& t, const Candidate& c, const ScanResult& result);
   void fill_info(const Track& t, TrackInfo& info) const;
   void report(const ScanResult& result, TrackerResult& out) const;
 

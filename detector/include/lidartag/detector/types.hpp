@@ -23,6 +23,7 @@ enum class Rejection : uint8_t {
   kLowScore,           // RKHS decoding: best score below the threshold
   kAmbiguous,          // RKHS decoding: best and second best too close
   kOtherFamily,        // RKHS decoding: a built-in family that is not configured fits better
+  kSparse,  // too few returns per cell for an ID from one rotation (a tracker's evidence)
   kCount
 };
 inline constexpr int kRejectionCount = static_cast<int>(Rejection::kCount);
