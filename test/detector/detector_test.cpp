@@ -148,6 +148,14 @@ struct TwoTags {
   }
 };
 
+// One rotation through a Detector built with `options`.
+ScanResult detect_once(const Scan& scan, const DetectorOptions& options) {
+  Detector det(options);
+  ScanResult res;
+  det.detect(scan, res);
+  return res;
+}
+
 TEST(Detector, TagPointsOnlyWhenAskedFor) {
   const TwoTags s;
   Detector det(s.options);
@@ -320,9 +328,7 @@ TEST(Detector, CandidatesCarryThePoseAndTheEvidenceOfEveryCode) {
 
 TEST(Detector, ClustersBelowTheBoundaryBoundButAboveTheTracksAreTrackOnlyCandidates) {
   const TwoTags s;
-  Detector det(s.options);
-  ScanResult res;
-  det.detect(s.scan, res);
+  const ScanResult res = detect_once(s.scan, s.options);
   ASSERT_EQ(res.detections.size(), 2u);
   int fewest = 1 << 30, most = 0;  // boundary points of the two tags' clusters
   for (const Candidate& k : res.candidates) {
@@ -338,9 +344,7 @@ TEST(Detector, ClustersBelowTheBoundaryBoundButAboveTheTracksAreTrackOnlyCandida
   DetectorOptions o = s.options;
   o.validation.boundary_scale = (static_cast<float>(most) + 0.5f) / 12.0f;
   o.validation.track_boundary_scale = (static_cast<float>(fewest) - 0.5f) / 12.0f;
-  Detector weak_det(o);
-  ScanResult weak;
-  weak_det.detect(s.scan, weak);
+  const ScanResult weak = detect_once(s.scan, o);
   EXPECT_TRUE(weak.detections.empty());
   std::vector<const Candidate*> tags;
   for (const Candidate& k : weak.candidates)
@@ -358,9 +362,7 @@ TEST(Detector, ClustersBelowTheBoundaryBoundButAboveTheTracksAreTrackOnlyCandida
             res.rejected[static_cast<size_t>(Rejection::kFewBoundaryPoints)] + 2);
   // The tracks' bound at the detections' bound: those clusters stop at validation.
   o.validation.track_boundary_scale = o.validation.boundary_scale;
-  Detector off_det(o);
-  ScanResult off;
-  off_det.detect(s.scan, off);
+  const ScanResult off = detect_once(s.scan, o);
   EXPECT_TRUE(off.detections.empty());
   for (const Candidate& k : off.candidates) EXPECT_FALSE(k.track_only);
   EXPECT_EQ(off.candidates.size() + 2, weak.candidates.size());
@@ -382,9 +384,7 @@ TEST(Detector, TooFewReturnsPerCellForOneRotationIsSparseNotADetection) {
   // Above both: two candidates rejected as sparse, with the detections' IDs and poses.
   DetectorOptions o = s.options;
   o.decode.min_returns_per_cell = most + 0.01;
-  Detector sparse_det(o);
-  ScanResult sparse;
-  sparse_det.detect(s.scan, sparse);
+  const ScanResult sparse = detect_once(s.scan, o);
   EXPECT_TRUE(sparse.detections.empty());
   EXPECT_EQ(sparse.rejected[static_cast<size_t>(Rejection::kSparse)], 2u);
   int matched = 0;
@@ -402,9 +402,7 @@ TEST(Detector, TooFewReturnsPerCellForOneRotationIsSparseNotADetection) {
   EXPECT_EQ(matched, 2);
   // Just below the sparser one: both detected as before.
   o.decode.min_returns_per_cell = fewest - 0.01;
-  Detector dense_det(o);
-  ScanResult dense;
-  dense_det.detect(s.scan, dense);
+  const ScanResult dense = detect_once(s.scan, o);
   EXPECT_EQ(dense.detections.size(), 2u);
   EXPECT_EQ(dense.rejected[static_cast<size_t>(Rejection::kSparse)], 0u);
 }
