@@ -76,6 +76,13 @@ std::string tag_text(const Cell& c) {
   return text;
 }
 
+// "trace: vlp16 1.2 m 6 m 0 deg, run 3": what each --trace line starts with.
+void print_trace_prefix(const Cell& c, int run) {
+  std::printf("trace: %s %s %g m %d deg, run %d",
+              std::string(velodyne::model_spec(c.model).name).c_str(), tag_text(c).c_str(),
+              c.distance, c.angle, run);
+}
+
 // R rotations of a static tag; counts from rotation index 3 (the 4th) on.
 void run_cell(Cell& c, int run, int rotations, bool trace) {
   const int code = (7 * run + 3 * static_cast<int>(c.distance) + c.angle) % 30;
@@ -107,20 +114,15 @@ void run_cell(Cell& c, int run, int rotations, bool trace) {
         continue;
       }
       ++c.wrong_single;
-      if (trace)
+      if (trace) {
+        print_trace_prefix(c, run);
         std::printf(
-            "trace: %s %s %g m %d deg, run %d, rotation %zu: wrong ID %d (code %d): score %.3f, "
-            "margin %.2f, %d points, cost %.4f m, centre off by %.3f m, normal by %.1f deg\n",
-            std::string(velodyne::model_spec(c.model).name).c_str(), tag_text(c).c_str(),
-            c.distance, c.angle, run, k, d.id, tag.id, d.score, d.margin, d.points, d.fit_cost,
+            ", rotation %zu: wrong ID %d (code %d): score %.3f, margin %.2f, %d points, cost %.4f "
+            "m, centre off by %.3f m, normal by %.1f deg\n",
+            k, d.id, tag.id, d.score, d.margin, d.points, d.fit_cost,
             (d.position - tag.position).norm(),
-            std::acos(std::clamp(d.orientation.toRotationMatrix().col(0).dot(
-                                     Eigen::Quaterniond(tag.orientation[0], tag.orientation[1],
-                                                        tag.orientation[2], tag.orientation[3])
-                                         .toRotationMatrix()
-                                         .col(0)),
-                                 -1.0, 1.0)) *
-                180.0 / std::numbers::pi);
+            eval::normal_error_deg(d.orientation, tag.orientation));
+      }
     }
     for (const auto& t : rotations_out[k].second.tags) {
       if (!eval::at_tag(t.detection, tag)) continue;
@@ -135,9 +137,8 @@ void run_cell(Cell& c, int run, int rotations, bool trace) {
     // --trace: where each run's evidence ended (a margin of 0: no cell seen tells the leading
     // code from the runner-up).
     if (trace && k + 1 == rotations_out.size()) {
-      std::printf("trace: %s %s %g m %d deg, run %d, code %d:",
-                  std::string(velodyne::model_spec(c.model).name).c_str(), tag_text(c).c_str(),
-                  c.distance, c.angle, run, tag.id);
+      print_trace_prefix(c, run);
+      std::printf(", code %d:", tag.id);
       for (const auto& t : rotations_out[k].second.seen)
         std::printf(" track %d (%d rotations, %s, leader %d, margin %.2f cells, score %.3f)",
                     t.track_id, t.rotations, t.confirmed ? "confirmed" : "not confirmed", t.id,
@@ -147,9 +148,8 @@ void run_cell(Cell& c, int run, int rotations, bool trace) {
     // --trace: each rotation without the right ID, with what the clusters near the tag measured
     // and the stage that dropped them.
     if (trace && !tracked) {
-      std::printf("trace: %s %s %g m %d deg, run %d, rotation %zu missed:",
-                  std::string(velodyne::model_spec(c.model).name).c_str(), tag_text(c).c_str(),
-                  c.distance, c.angle, run, k);
+      print_trace_prefix(c, run);
+      std::printf(", rotation %zu missed:", k);
       for (const auto& d : diags[k]) {
         const Eigen::Vector3d& p = tag.position;
         if (p.x() < d.min_x - 0.5 || p.x() > d.max_x + 0.5 || p.y() < d.min_y - 0.5 ||

@@ -76,12 +76,25 @@ class SimScans final {
   size_t index_ = 0;
 };
 
+// A truth orientation (w, x, y, z) as a quaternion.
+inline Eigen::Quaterniond truth_quaternion(const Eigen::Vector4d& wxyz) {
+  return Eigen::Quaterniond(wxyz[0], wxyz[1], wxyz[2], wxyz[3]).normalized();
+}
+
 // Geodesic distance between two rotations, eq. (23), degrees.
 inline double rotation_error_deg(const Eigen::Quaterniond& estimate,
                                  const Eigen::Vector4d& truth_wxyz) {
-  const Eigen::Quaterniond t(truth_wxyz[0], truth_wxyz[1], truth_wxyz[2], truth_wxyz[3]);
-  const double d = std::min(1.0, std::abs(estimate.normalized().dot(t.normalized())));
+  const double d = std::min(1.0, std::abs(estimate.normalized().dot(truth_quaternion(truth_wxyz))));
   return 2.0 * std::acos(d) * 180.0 / std::numbers::pi;
+}
+
+// Angle between the tags' normals (their x axes), degrees: the plane's error alone, whatever the
+// quarter turns about the normal (a wrong code's may be any).
+inline double normal_error_deg(const Eigen::Quaterniond& estimate,
+                               const Eigen::Vector4d& truth_wxyz) {
+  const double c = (estimate.normalized() * Eigen::Vector3d::UnitX())
+                       .dot(truth_quaternion(truth_wxyz) * Eigen::Vector3d::UnitX());
+  return std::acos(std::clamp(c, -1.0, 1.0)) * 180.0 / std::numbers::pi;
 }
 
 // One truth tag of one rotation against the detections of that rotation.

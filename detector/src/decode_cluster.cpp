@@ -206,8 +206,7 @@ ClusterDecode decode_cluster(std::span<const ClusterPoint> points, const RigidPo
 
   // The cell votes at the best shift, for evidence over rotations.
   if (shifted.applied() != out.shift) shifted.move_to(out.shift);
-  cell_votes(ws.decode, dictionaries[static_cast<size_t>(out.family)].width(), opt.vote_inset_cells,
-             ws.votes, ws.vote_counts);
+  cell_votes(ws.decode, w, opt.vote_inset_cells, ws.votes, ws.vote_counts);
   return out;
 }
 

@@ -36,8 +36,7 @@ DetectorLimits derive_limits(const DetectorOptions& o,
   l.max_pair_chord_m = static_cast<float>(l.t_max * std::numbers::sqrt2 * 1.1);
   l.max_extent_m = static_cast<float>(l.t_max * std::numbers::sqrt2 * 1.25);
   l.min_points = 1 << 30;
-  l.min_boundary_points = 1 << 30;
-  l.min_track_boundary_points = 1 << 30;
+  int psi = 1 << 30;  // eq. (6): at least 2 (d + 2) payload boundary points, smallest family
   for (const auto& d : dictionaries) {
     const auto& fam = d.family();
     // eq. (3) with min_returns_per_cell returns per cell (the paper: 5).
@@ -45,17 +44,16 @@ DetectorLimits derive_limits(const DetectorOptions& o,
         l.min_points,
         static_cast<int>(std::ceil(o.validation.min_returns_per_cell *
                                    static_cast<float>(fam.total_width * fam.total_width))));
-    // eq. (6): at least 2 (d + 2) payload boundary points.
-    l.min_boundary_points =
-        std::min(l.min_boundary_points,
-                 static_cast<int>(std::ceil(o.validation.boundary_scale *
-                                            static_cast<float>(2 * (fam.payload_width() + 2)))));
-    l.min_track_boundary_points =
-        std::min(l.min_track_boundary_points,
-                 static_cast<int>(std::ceil(o.validation.track_boundary_scale *
-                                            static_cast<float>(2 * (fam.payload_width() + 2)))));
+    psi = std::min(psi, 2 * (fam.payload_width() + 2));
   }
-  l.min_track_boundary_points = std::min(l.min_track_boundary_points, l.min_boundary_points);
+  l.min_boundary_points = l.min_track_boundary_points = psi;
+  if (!dictionaries.empty()) {
+    l.min_boundary_points =
+        static_cast<int>(std::ceil(o.validation.boundary_scale * static_cast<float>(psi)));
+    l.min_track_boundary_points = std::min(
+        l.min_boundary_points,
+        static_cast<int>(std::ceil(o.validation.track_boundary_scale * static_cast<float>(psi))));
+  }
   l.min_ring_width_m =
       o.validation.min_ring_width *
       static_cast<float>(*std::min_element(o.tag_sizes_m.begin(), o.tag_sizes_m.end()));
