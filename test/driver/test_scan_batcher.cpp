@@ -579,6 +579,57 @@ TEST(ScanBatcher, ReturnModeChangeEndsTheRotationAndResizesTheNextScan) {
   EXPECT_EQ(rig.scans[3]->returns, 2);
 }
 
+TEST(ScanBatcher, EveryCellOfARotationIsWrittenSoAReusedScanNeedsNoClearing) {
+  // Scan::reserve keeps storage that is large enough as it is (not cleared): one scan handed to a
+  // dual-return stream, then a single-return one, then dual again (a fuzz input after another, a
+  // sensor reconfigured) is allocated once. That is right only if every cell of every column
+  // appended is written: here the scan starts full of poison, and each rotation must equal, cell
+  // by cell, the same packets assembled into new scans.
+  const ModelSpec& spec = model_spec(Model::kVLP32C);
+  Scan reused;
+  reused.reserve(spec.lasers, 2, ScanBatcher::column_capacity(spec));
+  for (auto* v :
+       {&reused.x, &reused.y, &reused.z, &reused.range, &reused.azimuth_deg, &reused.time_s})
+    std::fill(v->begin(), v->end(), 12345.0f);
+  std::fill(reused.intensity.begin(), reused.intensity.end(), uint8_t{0xab});
+  std::fill(reused.return_type.begin(), reused.return_type.end(), ReturnType::kSecond);
+  const float* storage = reused.x.data();
+  for (ReturnMode mode : {ReturnMode::kDual, ReturnMode::kStrongest, ReturnMode::kDual}) {
+    const auto stream = testing::make_stream(spec, mode, 800);
+    Rig fresh(Model::kVLP32C, mode);
+    fresh.feed_all(stream);
+    Decoder decoder(Calibration::builtin(Model::kVLP32C));
+    SensorClock clock;
+    ScanBatcher batcher(spec, mode, {});
+    DecodedPacket pk;
+    size_t rotation = 0;
+    for (const auto& p : stream) {
+      ASSERT_EQ(decoder.decode(p.bytes, clock, p.time_ns, pk), DecodeStatus::kOk);
+      if (!batcher.add(pk, reused)) continue;
+      ASSERT_LT(rotation, fresh.scans.size());
+      const Scan& want = *fresh.scans[rotation++];
+      ASSERT_EQ(reused.returns, want.returns);
+      ASSERT_EQ(reused.columns, want.columns);
+      for (int r = 0; r < want.returns; ++r)
+        for (int ring = 0; ring < want.rings; ++ring)
+          for (int c = 0; c < want.columns; ++c) {
+            const size_t i = reused.at(r, ring, c), j = want.at(r, ring, c);
+            ASSERT_EQ(reused.range[i], want.range[j]) << r << " " << ring << " " << c;
+            ASSERT_EQ(reused.x[i], want.x[j]);
+            ASSERT_EQ(reused.y[i], want.y[j]);
+            ASSERT_EQ(reused.z[i], want.z[j]);
+            ASSERT_EQ(reused.azimuth_deg[i], want.azimuth_deg[j]);
+            ASSERT_EQ(reused.time_s[i], want.time_s[j]);
+            ASSERT_EQ(reused.intensity[i], want.intensity[j]);
+            ASSERT_EQ(reused.return_type[i], want.return_type[j]);
+          }
+    }
+    EXPECT_EQ(rotation, fresh.scans.size());
+    EXPECT_GE(rotation, 2u);
+    EXPECT_EQ(reused.x.data(), storage) << "the scan was allocated again";
+  }
+}
+
 TEST(ScanBatcher, APacketEndsAtMostOneRotation) {
   // Block azimuths that cross the cut several times inside one packet (garbage, or a spoofed
   // packet) cannot deliver rotations shorter than a packet.

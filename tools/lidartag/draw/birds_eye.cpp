@@ -73,8 +73,12 @@ double auto_range_m(const Scan& scan, const det::ScanResult& result,
   if (far > 0) return std::max(5.0, 1.25 * far + 1.0);
   // Nothing of interest: most of the points (their 80th percentile of horizontal range).
   std::vector<float> r;
-  for (size_t i = 0; i < scan.range.size(); ++i)
-    if (scan.range[i] > 0) r.push_back(std::hypot(scan.x[i], scan.y[i]));
+  for (int ret = 0; ret < scan.returns; ++ret)
+    for (int ring = 0; ring < scan.rings; ++ring)
+      for (int col = 0; col < scan.columns; ++col) {
+        const size_t i = scan.at(ret, ring, col);
+        if (scan.valid(i)) r.push_back(std::hypot(scan.x[i], scan.y[i]));
+      }
   if (r.empty()) return 10.0;
   auto at = r.begin() + static_cast<long>(r.size() * 8 / 10);
   std::nth_element(r.begin(), at, r.end());

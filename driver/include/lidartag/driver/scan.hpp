@@ -27,7 +27,8 @@ struct Scan {
   int column_capacity = 0;  // allocated columns per ring
   int columns = 0;          // columns filled in this rotation
 
-  // Per cell, index with at(ret, ring, col). range == 0 marks "no return".
+  // Per cell, index with at(ret, ring, col); at least rings x returns x column_capacity cells
+  // (more when the scan had a larger shape before). range == 0 marks "no return".
   std::vector<float> x, y, z;           // metres, sensor frame (x forward, y left, z up)
   std::vector<float> range;             // metres, after distance correction; 0 = no return
   std::vector<float> azimuth_deg;       // firing-time azimuth with the laser's offset, [0, 360)
@@ -55,18 +56,25 @@ struct Scan {
   uint32_t azimuth_jumps = 0;    // discontinuities not explained by loss or a known FOV gap
   float rpm = 0.0f;              // measured rotation rate
 
+  // Lays the storage out for the shape. Storage already large enough is kept as it is, neither
+  // shrunk nor cleared (every cell of a column is written when the column is appended, and only
+  // the `columns` filled are read), so a scan used for both single and dual return (up to 26 MB
+  // for a VLS-128) is allocated and zero-filled once, not at every change of shape.
   void reserve(int n_rings, int n_returns, int n_columns) {
     rings = n_rings;
     returns = n_returns;
     column_capacity = n_columns;
     const size_t n = static_cast<size_t>(n_rings) * static_cast<size_t>(n_returns) *
                      static_cast<size_t>(n_columns);
-    for (auto* v : {&x, &y, &z, &range, &azimuth_deg, &time_s}) v->assign(n, 0.0f);
-    intensity.assign(n, 0);
-    return_type.assign(n, ReturnType::kNone);
+    auto at_least = [](auto& v, size_t size) {
+      if (v.size() < size) v.resize(size);
+    };
+    for (auto* v : {&x, &y, &z, &range, &azimuth_deg, &time_s}) at_least(*v, n);
+    at_least(intensity, n);
+    at_least(return_type, n);
     laser_id.assign(static_cast<size_t>(n_rings), 0);
-    column_azimuth_deg.assign(static_cast<size_t>(n_columns), 0.0f);
-    column_time_s.assign(static_cast<size_t>(n_columns), 0.0);
+    at_least(column_azimuth_deg, static_cast<size_t>(n_columns));
+    at_least(column_time_s, static_cast<size_t>(n_columns));
     clear();
   }
 
