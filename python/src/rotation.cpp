@@ -112,9 +112,7 @@ py::dict arrays_of(const Scan& s) {
 // A PCD file as one rotation (what `lidartag detect` does with one).
 Rotation rotation_of_pcd(const std::string& path, const std::optional<velodyne::Model>& model,
                          int rings, double resolution_deg) {
-  const velodyne::PcdCloud pcd = velodyne::read_pcd(path);
-  for (const char* axis : {"x", "y", "z"})
-    if (!pcd.has(axis)) throw velodyne::IoError(path + ": no '" + axis + "' field");
+  const velodyne::PcdCloud pcd = velodyne::read_pcd_points(path);
   const detector::CloudFields fields =
       detector::cloud_fields_by_name(pcd.fields, pcd.columns, pcd.width, pcd.height);
   const detector::CloudScanOptions options = detector::cloud_scan_options(

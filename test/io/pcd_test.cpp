@@ -312,6 +312,26 @@ TEST(Pcd, HandMadeBinaryCompressedBytesDecodeToKnownValues) {
   std::filesystem::remove(path);
 }
 
+TEST(Pcd, APointCloudNeedsXYAndZ) {
+  // read_pcd reads any fields; read_pcd_points (lidartag detect, the Python module) refuses a
+  // cloud without a coordinate, naming the file and the field.
+  const std::string path = temp_path("no_z.pcd");
+  std::ofstream(path, std::ios::trunc) << "FIELDS x y intensity\nSIZE 4 4 4\nTYPE F F F\n"
+                                          "WIDTH 1\nHEIGHT 1\nDATA ascii\n1 2 3\n";
+  EXPECT_EQ(read_pcd(path).size(), 1u);
+  try {
+    read_pcd_points(path);
+    ADD_FAILURE() << "a cloud without z accepted";
+  } catch (const IoError& e) {
+    EXPECT_NE(std::string(e.what()).find("no 'z' field"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+  }
+  std::ofstream(path, std::ios::trunc) << "FIELDS y z x\nSIZE 4 4 4\nTYPE F F F\n"
+                                          "WIDTH 1\nHEIGHT 1\nDATA ascii\n1 2 3\n";
+  EXPECT_EQ(read_pcd_points(path).field("x"), (std::vector<double>{3}));
+  std::filesystem::remove(path);
+}
+
 TEST(Pcd, EmptyScanWritesAValidEmptyCloudInEveryFormat) {
   Scan scan;
   scan.reserve(16, 1, 4);

@@ -113,9 +113,7 @@ bool is_pcd(const std::string& path) {
 // other fields come from the header comments `lidartag dump` writes.
 void load_pcd_scan(const CaptureArgs& args, int rings, double resolution_deg, Scan& scan) {
   const std::string& path = args.capture;
-  const velodyne::PcdCloud pcd = velodyne::read_pcd(path);
-  for (const char* axis : {"x", "y", "z"})
-    if (!pcd.has(axis)) throw velodyne::IoError(path + ": no '" + axis + "' field");
+  const velodyne::PcdCloud pcd = velodyne::read_pcd_points(path);
   const detector::CloudFields fields =
       detector::cloud_fields_by_name(pcd.fields, pcd.columns, pcd.width, pcd.height);
   const auto model = args.model.empty() ? std::nullopt : velodyne::model_from_name(args.model);

@@ -302,6 +302,13 @@ void apply_pcd_rotation(const PcdRotation& rotation, Scan& scan) {
   if (rotation.rpm) scan.rpm = *rotation.rpm;
 }
 
+PcdCloud read_pcd_points(const std::string& path) {
+  PcdCloud cloud = read_pcd(path);
+  for (const char* axis : {"x", "y", "z"})
+    if (!cloud.has(axis)) throw pcd_error(path, std::string("no '") + axis + "' field");
+  return cloud;
+}
+
 bool PcdCloud::has(const std::string& name) const {
   return std::find(fields.begin(), fields.end(), name) != fields.end();
 }

@@ -76,6 +76,10 @@ struct PcdCloud {
 // the problem (bad header, short or corrupt data, an unsupported type, a bad rotation comment).
 PcdCloud read_pcd(const std::string& path);
 
+// read_pcd for a cloud of points (what `lidartag detect` and the Python module read): also an
+// IoError naming the file when it has no x, y or z field.
+PcdCloud read_pcd_points(const std::string& path);
+
 // Sets the per-rotation fields of `scan` (stamp_ns, sequence, model, return_mode, complete, rpm)
 // that `rotation` has; the others are left as they are.
 void apply_pcd_rotation(const PcdRotation& rotation, Scan& scan);
