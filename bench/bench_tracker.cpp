@@ -1,20 +1,23 @@
 // bench_tracker: what the tracker (evidence over rotations) adds to the detector, and what it
 // costs.
 //
-//   bench_tracker [--runs N] [--rotations R] [--quick] [--trace] [--out DIR]
+//   bench_tracker [--runs N] [--rotations R] [--quick] [--trace] [--fixed-height] [--out DIR]
 //
-// Static scenes, the target grid: a 1.2 m tag16h5 on an easel, diamond mount, centre at
-// the sensor's height, face-on and turned 45 degrees, at 5, 6, 7, 8 and 10 m of a VLP-16 (and the
-// VLP-32C at 20 and 24 m, and a 0.6 m tag 0.3 m above the VLP-32C at 4 m); N runs per cell
-// (default 30: every code of tag16h5 once, each with its own noise seed) of R consecutive rotations
-// of a static sensor (default 20). Per cell, over the rotations from the 4th on: the share with the
-// right ID from the detector alone and with the tracker, wrong IDs of both. Moving sensors: the
-// same tag with the sensor driving or turning; wrong IDs and tracks. Boards (pcaps/boards.pcap) and
-// clutter (pcaps/clutter.pcap): detections and confirmed tracks (all false positives). Cost:
-// Tracker::update per rotation (median, and its share of a VLP-32C's 100 ms period at 600 rpm) on
-// the bundled captures. --out DIR writes DIR/tracking.md. Exit status 1 when the tracker reported a
-// wrong ID (a tag of its own, not a detection of the rotation), or anything at all on the boards or
-// the clutter; the detector's own wrong IDs are counted and shown (bench_accuracy fails on them).
+// Static scenes, the target grid: a 1.2 m tag16h5 on an easel, diamond mount, centre near
+// the sensor's height (run k raised or lowered by a share of the spacing of the beams there, so
+// that the runs of a cell see every offset of the rings across the tag; --fixed-height: exactly at
+// the sensor's height, one offset), face-on and turned 45 degrees, at 5, 6, 7, 8 and 10 m of a
+// VLP-16 (and the VLP-32C at 20 and 24 m, and a 0.6 m tag 0.3 m above the VLP-32C at 4 m); N runs
+// per cell (default 30: every code of tag16h5 once, each with its own noise seed) of R consecutive
+// rotations of a static sensor (default 20). Per cell, over the rotations from the 4th on: the
+// share with the right ID from the detector alone and with the tracker, wrong IDs of both. Moving
+// sensors: the same tag with the sensor driving or turning; wrong IDs and tracks. Boards
+// (pcaps/boards.pcap) and clutter (pcaps/clutter.pcap): detections and confirmed tracks (all false
+// positives). Cost: Tracker::update per rotation (median, and its share of a VLP-32C's 100 ms
+// period at 600 rpm) on the bundled captures. --out DIR writes DIR/tracking.md. Exit status 1 when
+// the tracker reported a wrong ID (a tag of its own, not a detection of the rotation), or anything
+// at all on the boards or the clutter; the detector's own wrong IDs are counted and shown
+// (bench_accuracy fails on them).
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -32,6 +35,7 @@
 #include "lidartag/detector/detector.hpp"
 #include "lidartag/detector/tracker.hpp"
 #include "lidartag/driver/io/capture_reader.hpp"
+#include "lidartag/driver/sensor_model.hpp"
 #include "sim_scans.hpp"
 
 namespace {
@@ -45,7 +49,8 @@ struct Args {
   int runs = 30;  // run k shows code (7 k + ...) mod 30: 30 runs show every code once
   int rotations = 20;
   bool quick = false;
-  bool trace = false;  // print each static run's tracks and each rotation it missed
+  bool trace = false;         // print each static run's tracks and each rotation it missed
+  bool fixed_height = false;  // every run's tag centre exactly at its cell's height
   std::string out;
   std::string command = "build/bin/bench_tracker";
 };
@@ -83,11 +88,36 @@ void print_trace_prefix(const Cell& c, int run) {
               c.distance, c.angle, run);
 }
 
+// Metres between the two beams whose elevations enclose the direction of a point `above` metres
+// above the sensor's height at `distance` (2 degrees on a VLP-16, 0.33 near the horizon on a
+// VLP-32C), measured at that distance.
+double beam_spacing_m(velodyne::Model model, double distance, double above) {
+  std::vector<double> el = velodyne::beam_elevations_deg(model);
+  std::sort(el.begin(), el.end());
+  const double e = std::atan2(above, distance) * 180.0 / std::numbers::pi;
+  auto hi = std::upper_bound(el.begin(), el.end(), e);
+  if (hi == el.begin()) ++hi;
+  if (hi == el.end()) --hi;
+  const double deg = std::numbers::pi / 180.0;
+  return distance * (std::tan(*hi * deg) - std::tan(*(hi - 1) * deg));
+}
+
+// The tag centre's height above the sensor's in run `run`: the cell's, moved by a share of the
+// beam spacing there, ((11 run) mod 30 + 0.5) / 30 - 0.5 of it (each of 30 offsets once in 30
+// runs, in another order than the codes), so that a cell's figure is no lucky or unlucky crossing
+// of the rings. --fixed-height: the cell's own.
+double run_height(const Cell& c, int run, bool fixed) {
+  if (fixed) return c.above;
+  const double share = ((11 * run) % 30 + 0.5) / 30.0 - 0.5;
+  return c.above + share * beam_spacing_m(c.model, c.distance, c.above);
+}
+
 // R rotations of a static tag; counts from rotation index 3 (the 4th) on.
-void run_cell(Cell& c, int run, int rotations, bool trace) {
+void run_cell(Cell& c, int run, int rotations, bool trace, bool fixed_height) {
   const int code = (7 * run + 3 * static_cast<int>(c.distance) + c.angle) % 30;
+  const double above = run_height(c, run, fixed_height);
   const sim::Simulator simulator(
-      eval::accuracy_scene(c.model, c.distance, c.angle, code, c.size, c.above));
+      eval::accuracy_scene(c.model, c.distance, c.angle, code, c.size, above));
   eval::SimScans scans(simulator);
   detector::DetectorOptions options;
   options.tag_sizes_m = {c.size};
@@ -138,7 +168,7 @@ void run_cell(Cell& c, int run, int rotations, bool trace) {
     // code from the runner-up).
     if (trace && k + 1 == rotations_out.size()) {
       print_trace_prefix(c, run);
-      std::printf(", code %d:", tag.id);
+      std::printf(", code %d, centre %+.3f m:", tag.id, above);
       for (const auto& t : rotations_out[k].second.seen)
         std::printf(" track %d (%d rotations, %s, leader %d, margin %.2f cells, score %.3f)",
                     t.track_id, t.rotations, t.confirmed ? "confirmed" : "not confirmed", t.id,
@@ -322,7 +352,7 @@ int run(const Args& args) {
        << "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|\n";
   int never = 0;
   for (Cell& c : cells) {
-    for (int r = 0; r < runs; ++r) run_cell(c, r, rotations, args.trace);
+    for (int r = 0; r < runs; ++r) run_cell(c, r, rotations, args.trace, args.fixed_height);
     // The tracker must add no wrong ID; the detector's own are bench_accuracy's to fail on, and
     // are shown here.
     never += c.wrong_by_track;
@@ -444,7 +474,13 @@ int run(const Args& args) {
         "cross), face-on (0°) or turned 45°; "
      << runs
      << " runs per cell, each with its own noise seed and code (run k shows code (7 k + 3 d + "
-        "angle) mod 30: 30 runs show every code once), of "
+        "angle) mod 30: 30 runs show every code once)"
+     << (args.fixed_height
+             ? " and the tag exactly at that height (`--fixed-height`), of "
+             : " and its own height: the centre moved up or down by ((11 k) mod 30 + 0.5) / 30 - "
+               "0.5 of the spacing of the two beams around it at that distance (VLP-16: 2°, "
+               "0.21 m at 6 m; VLP-32C near the horizon: 0.33°), so that 30 runs see the rings "
+               "cross the tag at every offset, not at one lucky or unlucky one, of ")
      << rotations
      << " consecutive rotations of a static sensor at 600 rpm (the simulator's default noise). "
         "Counted: the rotations from the 4th on, with the right ID at the tag (centre within t/2) "
@@ -490,6 +526,8 @@ int main(int argc, char** argv) {
       args.rotations = count("--rotations", 4);
     } else if (a == "--trace") {
       args.trace = true;
+    } else if (a == "--fixed-height") {
+      args.fixed_height = true;
     } else if (a == "--quick") {
       args.quick = true;
       args.command += " --quick";
@@ -499,7 +537,8 @@ int main(int argc, char** argv) {
     } else {
       std::fprintf(
           stderr,
-          "usage: bench_tracker [--runs N] [--rotations R] [--quick] [--trace] [--out DIR]\n");
+          "usage: bench_tracker [--runs N] [--rotations R] [--quick] [--trace] [--fixed-height] "
+          "[--out DIR]\n");
       return 2;
     }
   }

@@ -186,14 +186,15 @@ ClusterDecode decode_cluster(std::span<const ClusterPoint> points, const RigidPo
     out.best.rejection = Rejection::kOtherFamily;
 
   // The margin counts every cell's evidence, also the kernel tails that cells no ring crosses get
-  // from their neighbours. When the cells actually seen prefer another code or rotation, the
-  // decision rests on those tails: with 1 point per cell (VLP-32C at 24 m, 45 degrees) they once
-  // made a wrong ID with a margin of 1.7 cells.
+  // from their neighbours. When the cells actually seen do not lead on their own, the decision
+  // rests on those tails: with 1 point per cell (VLP-32C at 24 m, 45 degrees) they once made a
+  // wrong ID with a margin of 1.7 cells, and with the rings at an unlucky height a VLP-16 at 7 m
+  // one with 1.46 (of which the seen cells gave 0.4).
   if (out.best.rejection == Rejection::kNone) {
     const RkhsDictionary& dict = dictionaries[static_cast<size_t>(out.family)];
     if (shifted.applied() != out.shift) shifted.move_to(out.shift);
     (void)decode_prepared(dict, opt, ws.decode);
-    if (seen_cells_lead(dict, out.best.function, opt, ws.decode) < 0.0)
+    if (seen_cells_lead(dict, out.best.function, opt, ws.decode) < opt.min_seen_margin_cells)
       out.best.rejection = Rejection::kAmbiguous;
   }
 

@@ -290,6 +290,7 @@ DecodeResult decode_prepared(const RkhsDictionary& dict, const DecodeOptions& op
   }
   ws.common = common;
   ws.total = total;
+  ws.payload = payload;
   res.function = best;
   res.code_index = best / 4;
   res.quarter_turns = best % 4;
@@ -348,7 +349,8 @@ double seen_cells_lead(const RkhsDictionary& dict, int function, const DecodeOpt
   float rival = -1e30f;
   for (int f = 0; f < nf; ++f)
     if (f != function) rival = std::max(rival, ws.scores[static_cast<size_t>(f)]);
-  return nf > 1 ? static_cast<double>(ws.scores[static_cast<size_t>(function)] - rival) : 0.0;
+  if (nf <= 1 || !(ws.payload > 0.0)) return 0.0;
+  return static_cast<double>(ws.scores[static_cast<size_t>(function)] - rival) / (2.0 * ws.payload);
 }
 
 }  // namespace lidartag::detector

@@ -205,6 +205,65 @@ TEST(DecodeCluster, ATagOfAFamilyNotConfiguredIsRejected) {
   EXPECT_EQ(hopeless.other_family_score, -1.0);
 }
 
+TEST(DecodeCluster, TheCellsSeenMustCarryTheirShareOfTheMargin) {
+  // The margin counts the kernel's evidence in every cell, also in cells no return fell in; the
+  // cells seen must lead by decode.min_seen_margin_cells on their own.
+  const auto& fam = tags::builtin_family("tag16h5");
+  const std::vector<RkhsDictionary> dicts = {RkhsDictionary(fam)};
+  const int W = fam.total_width, a = 4 * 7 + 1;
+  std::vector<ClusterPoint> full = marker_points(fam, 7, 1, 1.2, 3);
+  ClusterDecodeWorkspace ws;
+  DecodeOptions opt;
+  opt.max_points = 1000;
+  opt.min_margin_bits = 0.0;
+  // Every cell seen: the cells seen give the whole margin, and the gate is against it.
+  const Placed all = place(full, facing(), {6, 1, 0});
+  const ClusterDecode d =
+      decode_cluster(all.points, all.pull_back, Eigen::Vector3d::Zero(), 1.2, dicts, {}, opt, ws);
+  ASSERT_EQ(d.best.rejection, Rejection::kNone);
+  ASSERT_EQ(d.best.function, a);
+  opt.min_seen_margin_cells = d.best.margin_bits * 0.99;
+  EXPECT_EQ(
+      decode_cluster(all.points, all.pull_back, Eigen::Vector3d::Zero(), 1.2, dicts, {}, opt, ws)
+          .best.rejection,
+      Rejection::kNone);
+  opt.min_seen_margin_cells = d.best.margin_bits * 1.01;
+  EXPECT_EQ(
+      decode_cluster(all.points, all.pull_back, Eigen::Vector3d::Zero(), 1.2, dicts, {}, opt, ws)
+          .best.rejection,
+      Rejection::kAmbiguous);
+  // No return in the cells where the nearest other code differs: only the kernel's spill from
+  // the neighbours tells the two apart there.
+  int b = -1, nearest = 1 << 30;
+  for (int f = 0; f < dicts[0].functions(); ++f) {
+    if (f == a) continue;
+    int n = 0;
+    for (int i = 0; i < W * W; ++i) n += dicts[0].signs(a)[i] != dicts[0].signs(f)[i] ? 1 : 0;
+    if (n < nearest) {
+      nearest = n;
+      b = f;
+    }
+  }
+  std::vector<ClusterPoint> blind;
+  for (const ClusterPoint& p : full) {
+    const int c = static_cast<int>((p.y / 1.2 + 0.5) * W),
+              r = static_cast<int>((0.5 - p.z / 1.2) * W);
+    const auto i = static_cast<size_t>(r * W + c);
+    if (dicts[0].signs(a)[i] == dicts[0].signs(b)[i]) blind.push_back(p);
+  }
+  ASSERT_LT(blind.size(), full.size());
+  const Placed tag = place(blind, facing(), {6, 1, 0});
+  opt.min_seen_margin_cells = 0.0;
+  const ClusterDecode tails =
+      decode_cluster(tag.points, tag.pull_back, Eigen::Vector3d::Zero(), 1.2, dicts, {}, opt, ws);
+  EXPECT_EQ(tails.best.rejection, Rejection::kNone) << "a margin from the tails alone";
+  opt.min_seen_margin_cells = DecodeOptions{}.min_seen_margin_cells;
+  EXPECT_EQ(
+      decode_cluster(tag.points, tag.pull_back, Eigen::Vector3d::Zero(), 1.2, dicts, {}, opt, ws)
+          .best.rejection,
+      Rejection::kAmbiguous);
+}
+
 TEST(DecodeCluster, OneIntensityGivesNothingToDecode) {
   const auto& fam = tags::builtin_family("tag16h5");
   const std::vector<RkhsDictionary> dicts = {RkhsDictionary(fam)};

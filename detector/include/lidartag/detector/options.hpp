@@ -241,6 +241,7 @@ void visit_options(V& v, DetectorOptions& o) {
     s.field("reject_other_families", o.decode.reject_other_families, Any{}, "");
     s.field("other_family_min_score", o.decode.other_family_min_score, closed(0.0, 1.0), "");
     s.field("vote_inset_cells", o.decode.vote_inset_cells, half_open(0.0, 0.5), "cells");
+    s.field("min_seen_margin_cells", o.decode.min_seen_margin_cells, at_least(0.0), "cells");
     s.field("min_returns_per_cell", o.decode.min_returns_per_cell, at_least(0.0), "points");
   });
 }

@@ -57,9 +57,21 @@ struct DecodeOptions {
   double other_family_min_score = 0.5;
   // A decoded point counts as seeing its cell only when it lies at least this many cells inside
   // the cell's borders (a beam's footprint near a border sees both colours): for the cell votes
-  // (Candidate, ScanResult::cell_votes, evidence over rotations) and for seen_cells_lead (a
-  // decision the seen cells contradict is rejected as ambiguous). Default 0.1.
-  double vote_inset_cells = 0.1;
+  // (Candidate, ScanResult::cell_votes, evidence over rotations) and for seen_cells_lead. Default
+  // 0.05 (7.5 mm on a 1.2 m tag16h5; a 3 mrad footprint is 18-24 mm wide at 6-8 m): a return that
+  // near a border is mostly inside its cell, and its vote, scaled by its intensity, is weakened
+  // rather than turned by the neighbour. bench_tracker with the tag's height spread: 0.1 -> 0.05
+  // raised a VLP-16 at 8 m from 88 to 96 % of rotations, at 10 m face-on from 55 to 66 %, with no
+  // wrong ID; at the sensor's height 0 gave a wrong ID (VLP-16, 6 m, 45 degrees).
+  double vote_inset_cells = 0.05;
+  // The margin counts every cell's evidence, also what the kernel spreads into cells no ring
+  // crosses; the cells seen (vote_inset_cells) must give the decision at least this many cells of
+  // it on their own, else decode/ambiguous (a candidate for a tracker). Default 0.5: with the tag's
+  // height spread over a beam spacing (bench_tracker), a VLP-16 at 7 m read code 25 as 2 twice with
+  // margins of 1.26 and 1.46 cells, of which the seen cells gave 0.06 and 0.40; a VLP-16 at 10 m
+  // read code 4 as 0 with a margin of 1.32 that no seen cell supported (0.00). About 5 % of the
+  // right single-rotation reads there lead by less on the seen cells; the tracker carries them.
+  double min_seen_margin_cells = 0.5;
   // A detection of one rotation needs at least this many returns per cell of its marker (the
   // points of the pose fit over total_width^2); a cluster with fewer that decodes is rejected as
   // decode/sparse and stays a candidate, evidence for a tracker. Default 1.4: a 1.2 m tag16h5
@@ -143,6 +155,7 @@ struct DecodeWorkspace {
   // total).
   double common = 0.0;
   double total = 0.0;
+  double payload = 0.0;  // mean |evidence| of a payload cell: the unit of margins in cells
   // The cell evidence depends on the points and the family's width only: kept per width until
   // the next prepare_decode, so families of the same width share it.
   struct Evidence {
@@ -184,9 +197,9 @@ void normalised_scores(const DecodeWorkspace& ws, std::vector<float>& out);
 
 // After a decode_prepared against `dict`: how far `function` leads every other function on the
 // cells that hold a decoded point (its evidence minus the best other's there, summed over the
-// varying cells, evidence units). A cell no ring crosses only carries its neighbours' kernel tails;
-// a negative lead means that another code (or rotation) fits the cells actually seen better, and
-// the decision rests on guesses about the others. Overwrites ws.scores.
+// varying cells, in cells as DecodeResult::margin_bits). A cell no ring crosses only carries its
+// neighbours' kernel tails; a negative lead means that another code (or rotation) fits the cells
+// actually seen better, and the decision rests on guesses about the others. Overwrites ws.scores.
 double seen_cells_lead(const RkhsDictionary& dict, int function, const DecodeOptions& opt,
                        DecodeWorkspace& ws);
 
