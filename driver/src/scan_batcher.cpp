@@ -472,6 +472,14 @@ bool ScanBatcher::run(const PacketColumns& pk, int first, Scan& scan, bool may_e
         cut = crossed_cut(last_column_azimuth_, az);
       }
     }
+    if (jump && !may_end && open_ && stamp < scan.stamp_ns) {
+      // Time went back to before the rotation in progress began, where it cannot end (the rest
+      // of a stream being closed; only garbage or a replayed packet does this): its columns
+      // would precede the rotation's own start. Only a packet's first column can step back (a
+      // packet's columns are in firing order), so the whole packet is dropped, as stray.
+      ++stats_.inconsistent;
+      break;
+    }
     if (jump || cut) {
       if (!open_) {
         if (cut) next_starts_at_cut_ = true;
@@ -604,6 +612,16 @@ void ScanBatcher::write_batch(Scan& s) {
         std::fill_n(s.return_type.begin() + dst, n, ReturnType::kNone);
       }
     }
+  } else if (n > 0 && batch_column_ + n <= s.column_capacity) {
+    // Columns the decoder cannot write here (dual-return packets in a single-return scan: a new
+    // stream whose first packets mixed modes, counted in mode_changes) hold no return rather
+    // than what the scan held before: a scan's storage is reused without being cleared.
+    for (int r = 0; r < s.returns; ++r)
+      for (int ring = 0; ring < s.rings; ++ring) {
+        const auto dst = static_cast<std::ptrdiff_t>(s.at(r, ring, batch_column_));
+        std::fill_n(s.range.begin() + dst, n, 0.0f);
+        std::fill_n(s.return_type.begin() + dst, n, ReturnType::kNone);
+      }
   }
   batch_.columns = 0;
   // The held packets the batch read are free now, but the one being run.

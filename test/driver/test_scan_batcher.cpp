@@ -630,6 +630,57 @@ TEST(ScanBatcher, EveryCellOfARotationIsWrittenSoAReusedScanNeedsNoClearing) {
   }
 }
 
+TEST(ScanBatcher, ANewStreamThatMixesReturnModesLeavesNoCellUnwritten) {
+  // A restart whose first packets disagree on the return mode (garbage, or a sensor switched
+  // during the restart): the dual-return packet lands in a single-return scan, where the decoder
+  // cannot write it. Its columns must hold no return, not what the reused scan held before.
+  const ModelSpec& spec = model_spec(Model::kVLP32C);
+  Decoder decoder(Calibration::builtin(Model::kVLP32C));
+  SensorClock clock;
+  ScanBatcher batcher(spec, ReturnMode::kStrongest, {});
+  DecodedPacket pk;
+  Scan scan;
+  scan.reserve(spec.lasers, 1, ScanBatcher::column_capacity(spec));
+  auto poison = [&] {
+    std::fill(scan.range.begin(), scan.range.end(), 12345.0f);
+    std::fill(scan.return_type.begin(), scan.return_type.end(), ReturnType::kSecond);
+  };
+  poison();
+  std::vector<testing::StreamPacket> stream =
+      testing::make_stream(spec, ReturnMode::kStrongest, 300);
+  // 5 s later: one dual-return packet, then single-return ones that go on where it ended.
+  const double fp = spec.firing_period_us, rate = 600.0 * 360.0 / 60e6;
+  testing::StreamOptions b;
+  b.start_ns = stream.back().time_ns + 5'000'000'000LL;
+  b.start_azimuth_deg = 40.0;
+  const auto dual = testing::make_stream(spec, ReturnMode::kDual, 1, b);
+  const int dual_columns = spec.columns_per_packet(ReturnMode::kDual);
+  b.start_ns += static_cast<int64_t>(std::llround(dual_columns * fp * 1e3));
+  b.start_azimuth_deg += rate * dual_columns * fp;
+  const auto single = testing::make_stream(spec, ReturnMode::kStrongest, 300, b);
+  stream.insert(stream.end(), dual.begin(), dual.end());
+  stream.insert(stream.end(), single.begin(), single.end());
+  int rotations = 0;
+  auto check = [&] {
+    ++rotations;
+    for (int ring = 0; ring < scan.rings; ++ring)
+      for (int c = 0; c < scan.columns; ++c) {
+        const size_t i = scan.at(0, ring, c);
+        ASSERT_NE(scan.range[i], 12345.0f) << "rotation " << rotations << " ring " << ring
+                                           << " column " << c << " was never written";
+        ASSERT_NE(scan.return_type[i], ReturnType::kSecond);
+      }
+    poison();
+  };
+  for (const auto& p : stream) {
+    ASSERT_EQ(decoder.decode(p.bytes, clock, p.time_ns, pk), DecodeStatus::kOk);
+    if (batcher.add(pk, scan)) check();
+  }
+  while (batcher.flush(scan)) check();
+  EXPECT_GE(batcher.stats().mode_changes, 1u) << "the mixed modes are counted";
+  EXPECT_GE(rotations, 3);
+}
+
 TEST(ScanBatcher, APacketEndsAtMostOneRotation) {
   // Block azimuths that cross the cut several times inside one packet (garbage, or a spoofed
   // packet) cannot deliver rotations shorter than a packet.
