@@ -11,8 +11,9 @@
 // period of a sensor at 600 rpm (the target is <= 2 %). The *_no_polish variants skip the pose's
 // polish on every point, the *_no_family_check ones the decoding against the families not
 // configured, the *_no_track_only ones the clusters fitted and decoded for confirmed tracks only
-// (validation.track_boundary_scale = boundary_scale). BM_EdgeFeatures and BM_Clustering time the
-// first two stages alone.
+// (validation.track_boundary_scale = boundary_scale), the *_no_retry ones the second pose fit of
+// clusters whose fit stays poor (pose.retry_mean_cost_m = 0). BM_EdgeFeatures and BM_Clustering
+// time the first two stages alone.
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -68,7 +69,7 @@ double median(std::vector<double> v) {
 }
 
 // What a variant changes in the scene's options.
-enum class Variant { kDefault, kNoPolish, kNoFamilyCheck, kNoTrackOnly };
+enum class Variant { kDefault, kNoPolish, kNoFamilyCheck, kNoTrackOnly, kNoRetry };
 
 void BM_Detect(benchmark::State& state, const std::string& name, Variant variant) {
   const Capture& c = capture(name);
@@ -79,6 +80,7 @@ void BM_Detect(benchmark::State& state, const std::string& name, Variant variant
   detector::DetectorOptions options = c.options;
   if (variant == Variant::kNoPolish) options.pose.polish_evaluations = 0;
   if (variant == Variant::kNoFamilyCheck) options.decode.reject_other_families = false;
+  if (variant == Variant::kNoRetry) options.pose.retry_mean_cost_m = 0.0;
   if (variant == Variant::kNoTrackOnly)
     options.validation.track_boundary_scale = options.validation.boundary_scale;
   detector::Detector det(options);
@@ -164,6 +166,14 @@ BENCHMARK_CAPTURE(BM_Detect, demo_no_track_only, std::string("demo"), Variant::k
 BENCHMARK_CAPTURE(BM_Detect, outdoor_no_track_only, std::string("outdoor"), Variant::kNoTrackOnly)
     ->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Detect, boards_no_track_only, std::string("boards"), Variant::kNoTrackOnly)
+    ->Unit(benchmark::kMillisecond);
+// Without the second pose fit, turned 45 degrees, of clusters whose fit stays above
+// pose.retry_mean_cost_m: what it costs.
+BENCHMARK_CAPTURE(BM_Detect, demo_no_retry, std::string("demo"), Variant::kNoRetry)
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Detect, outdoor_no_retry, std::string("outdoor"), Variant::kNoRetry)
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Detect, boards_no_retry, std::string("boards"), Variant::kNoRetry)
     ->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_EdgeFeatures, demo, std::string("demo"))->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_EdgeFeatures, outdoor, std::string("outdoor"))->Unit(benchmark::kMillisecond);

@@ -6,6 +6,7 @@
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <stdexcept>
 
 #include "geometry.hpp"
@@ -311,13 +312,26 @@ PoseFitResult fit_tag_pose(PoseSolver& solver, std::span<const ClusterPoint> poi
                            const RigidPose& initial, double t_fit, double epsilon,
                            const PoseOptions& opt, TagPoseWorkspace& ws) {
   select_pose_points(points, opt.max_points, ws.subset, ws.weights);
-  PoseFitResult fit = solver.fit(ws.subset, t_fit, epsilon, initial, opt, ws.weights);
-  if (ws.subset.size() < points.size() && opt.polish_evaluations > 0) {
-    PoseOptions polish = opt;
-    polish.max_evaluations = opt.polish_evaluations;
-    polish.translation_bound_m = 0.02;
-    polish.rotation_bound_rad = 0.02;
-    fit = solver.fit(points, t_fit, epsilon, fit.pose, polish);
+  auto fit_from = [&](const RigidPose& start) {
+    PoseFitResult fit = solver.fit(ws.subset, t_fit, epsilon, start, opt, ws.weights);
+    if (ws.subset.size() < points.size() && opt.polish_evaluations > 0) {
+      PoseOptions polish = opt;
+      polish.max_evaluations = opt.polish_evaluations;
+      polish.translation_bound_m = 0.02;
+      polish.rotation_bound_rad = 0.02;
+      fit = solver.fit(points, t_fit, epsilon, fit.pose, polish);
+    }
+    return fit;
+  };
+  PoseFitResult fit = fit_from(initial);
+  // The square's other guess: turned 45 degrees in its plane (the tag frame's x is the normal;
+  // +45 and -45 give the same square).
+  if (opt.retry_mean_cost_m > 0.0 &&
+      fit.cost > opt.retry_mean_cost_m * static_cast<double>(points.size())) {
+    const Eigen::Matrix3d turn =
+        Eigen::AngleAxisd(std::numbers::pi / 4.0, Eigen::Vector3d::UnitX()).toRotationMatrix();
+    const PoseFitResult other = fit_from({turn * initial.R, turn * initial.p});
+    if (other.cost < fit.cost) fit = other;
   }
   return fit;
 }

@@ -66,13 +66,13 @@ TEST(Config, EveryDetectorOptionIsMapped) {
   EXPECT_EQ(field_count<detector::ValidationOptions>(), 11u);
   EXPECT_EQ(field_count<detector::PlaneOptions>(), 4u);
   EXPECT_EQ(field_count<detector::CornerOptions>(), 8u);
-  EXPECT_EQ(field_count<detector::PoseOptions>(), 12u);
+  EXPECT_EQ(field_count<detector::PoseOptions>(), 13u);
   EXPECT_EQ(field_count<detector::DecodeOptions>(), 14u);
   std::set<std::string> keys;
   leaf_keys(YAML::Load(print_config(DaemonOptions{})), "", keys);
   size_t detector_keys = 0;
   for (const auto& k : keys) detector_keys += k.rfind("detector.", 0) == 0 ? 1u : 0u;
-  EXPECT_EQ(detector_keys, 3u + 6u + 2u + 11u + 4u + 8u + 12u + 14u);
+  EXPECT_EQ(detector_keys, 3u + 6u + 2u + 11u + 4u + 8u + 13u + 14u);
 }
 
 TEST(Config, PrintedConfigParsesBackToTheSameOptions) {

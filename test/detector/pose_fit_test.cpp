@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <numbers>
 #include <random>
 
 namespace lidartag::detector {
@@ -343,6 +344,44 @@ TEST(PoseFit, TagPoseFitsTheSubsampleThenPolishesOnEveryPoint) {
   const PoseFitResult sub = fit_tag_pose(solver, pts, init, 1.2, 0.01, opt, ws);
   EXPECT_NEAR(sub.cost, fitting_cost(pts, sub.pose, 1.2, 0.01), 0.5 * (1 + sub.cost));
   EXPECT_GT(sub.evaluations, 0);
+}
+
+TEST(PoseFit, AFitStartedFromCornersTurned45DegreesIsTriedAgainFromTheSquaresOtherGuess) {
+  // A diamond-mounted tag seen by a few rings: corners found at the middle of its sides give a
+  // guess turned 45 degrees in its plane, a local minimum (the template's corners poke out past
+  // the diamond's sides, points near its corners lie outside the template).
+  const Eigen::Matrix3d R = truth_rotation();
+  const Eigen::Vector3d c(7, 1, 0.2);
+  const auto pts = tag_cloud(R, c, 1.2, 0.003, 5);
+  RigidPose wrong;
+  const Eigen::Matrix3d turn =
+      Eigen::AngleAxisd(std::numbers::pi / 4.0, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  wrong.R = turn * R.transpose();
+  wrong.p = -wrong.R * c;
+  PoseSolver solver(PoseAlgorithm::kMMA);
+  TagPoseWorkspace ws;
+  PoseOptions opt;
+  opt.retry_mean_cost_m = 0.0;  // off
+  const PoseFitResult stuck = fit_tag_pose(solver, pts, wrong, 1.2, 0.01, opt, ws);
+  const double n = static_cast<double>(pts.size());
+  ASSERT_GT(stuck.cost / n, PoseOptions{}.retry_mean_cost_m) << "the guess is no local minimum";
+  opt.retry_mean_cost_m = PoseOptions{}.retry_mean_cost_m;
+  const PoseFitResult fit = fit_tag_pose(solver, pts, wrong, 1.2, 0.01, opt, ws);
+  EXPECT_LT(fit.cost / n, 0.2 * stuck.cost / n);
+  // The tag's frame up to its quarter turns (which decoding decides): the normal and the centre.
+  const Eigen::Matrix3d got = fit.pose.R.transpose();
+  EXPECT_GT(std::abs(got.col(0).dot(R.col(0))), std::cos(1.0 * std::numbers::pi / 180.0));
+  EXPECT_LT((got * -fit.pose.p - c).norm(), 0.01);
+  const double in_plane = std::atan2(got.col(1).dot(R.col(2)), got.col(1).dot(R.col(1)));
+  const double off = std::remainder(in_plane, std::numbers::pi / 2.0);
+  EXPECT_LT(std::abs(off), 1.0 * std::numbers::pi / 180.0) << "turned " << in_plane;
+  // A fit that is good from the start is not done again (same result with the retry off).
+  RigidPose right;
+  right.R = R.transpose();
+  right.p = -right.R * c;
+  const PoseFitResult good = fit_tag_pose(solver, pts, right, 1.2, 0.01, opt, ws);
+  opt.retry_mean_cost_m = 0.0;
+  EXPECT_EQ(fit_tag_pose(solver, pts, right, 1.2, 0.01, opt, ws).cost, good.cost);
 }
 
 }  // namespace

@@ -227,6 +227,7 @@ void visit_options(V& v, DetectorOptions& o) {
     s.field("max_points", o.pose.max_points, at_least(8), "points");
     s.field("polish_evaluations", o.pose.polish_evaluations, at_least(0), "evaluations");
     s.field("border_refine", o.pose.border_refine, Any{}, "");
+    s.field("retry_mean_cost_m", o.pose.retry_mean_cost_m, at_least(0.0), "m");
   });
   v.section("decode", [&](V& s) {
     s.field("samples_per_cell", o.decode.samples_per_cell, closed(1, 8), "samples");
