@@ -1,7 +1,8 @@
 // bench_tracker: what the tracker (evidence over rotations) adds to the detector, and what it
 // costs.
 //
-//   bench_tracker [--runs N] [--rotations R] [--quick] [--trace] [--fixed-height] [--out DIR]
+//   bench_tracker [--runs N] [--rotations R] [--quick] [--trace] [--fixed-height]
+//                 [--cell MODEL:DISTANCE:ANGLE ...] [--out DIR]
 //
 // Static scenes, the target grid: a 1.2 m tag16h5 on an easel, diamond mount, centre near
 // the sensor's height (run k raised or lowered by a share of the spacing of the beams there, so
@@ -17,7 +18,8 @@
 // period at 600 rpm) on the bundled captures. --out DIR writes DIR/tracking.md. Exit status 1 when
 // the tracker reported a wrong ID (a tag of its own, not a detection of the rotation), or anything
 // at all on the boards or the clutter; the detector's own wrong IDs are counted and shown
-// (bench_accuracy fails on them).
+// (bench_accuracy fails on them). --cell (repeatable, e.g. `--cell vlp16:10:45`) runs only those
+// cells of the static grid and nothing else, to study one cell with --trace; no report is written.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -27,6 +29,7 @@
 #include <fstream>
 #include <numbers>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <thread>
 #include <vector>
@@ -49,8 +52,9 @@ struct Args {
   int runs = 30;  // run k shows code (7 k + ...) mod 30: 30 runs show every code once
   int rotations = 20;
   bool quick = false;
-  bool trace = false;         // print each static run's tracks and each rotation it missed
-  bool fixed_height = false;  // every run's tag centre exactly at its cell's height
+  bool trace = false;             // print each static run's tracks and each rotation it missed
+  bool fixed_height = false;      // every run's tag centre exactly at its cell's height
+  std::vector<std::string> only;  // --cell: "vlp16:10:45", the static cells to run (empty: all)
   std::string out;
   std::string command = "build/bin/bench_tracker";
 };
@@ -345,6 +349,15 @@ int run(const Args& args) {
   // A 0.6 m tag whose upper half only the sparse upper beams cross (0.3 m above the sensor).
   for (int angle : {0, 45})
     cells.push_back(cell(velodyne::Model::kVLP32C, 4.0, angle, 95.0, 0.6, 0.3));
+  if (!args.only.empty()) {
+    std::erase_if(cells, [&](const Cell& c) {
+      char key[64];
+      std::snprintf(key, sizeof key, "%s:%g:%d",
+                    std::string(velodyne::model_spec(c.model).name).c_str(), c.distance, c.angle);
+      return std::find(args.only.begin(), args.only.end(), key) == args.only.end();
+    });
+    if (cells.empty()) throw std::invalid_argument("--cell matches no cell of the grid");
+  }
   std::ostringstream grid;
   grid << "| sensor | tag | distance | angle | rotations (4th on) | detector alone | with the "
           "tracker | of which by a track only | wrong IDs alone | wrong IDs with the tracker "
@@ -371,6 +384,8 @@ int run(const Args& args) {
          << " | " << c.wrong_tracked << " (" << c.wrong_by_track << ") | ≥ " << fmt(c.target, 0)
          << " %: " << (met ? "met" : "**not met**") << " |\n";
   }
+
+  if (!args.only.empty()) return never == 0 ? 0 : 1;
 
   std::vector<Motion> motions = {
       {"VLP-16 driving toward the tag at 0.1 m/s from 7 m",
@@ -531,6 +546,8 @@ int main(int argc, char** argv) {
     } else if (a == "--quick") {
       args.quick = true;
       args.command += " --quick";
+    } else if (a == "--cell") {
+      args.only.push_back(value("--cell"));
     } else if (a == "--out") {
       args.out = value("--out");
       args.command += " --out " + args.out;
@@ -538,9 +555,14 @@ int main(int argc, char** argv) {
       std::fprintf(
           stderr,
           "usage: bench_tracker [--runs N] [--rotations R] [--quick] [--trace] [--fixed-height] "
-          "[--out DIR]\n");
+          "[--cell MODEL:DISTANCE:ANGLE ...] [--out DIR]\n");
       return 2;
     }
+  }
+  if (!args.only.empty() && !args.out.empty()) {
+    std::fprintf(stderr,
+                 "bench_tracker: --cell runs part of the grid; it writes no report (--out)\n");
+    return 2;
   }
   return bench_args::run_reporting_errors("bench_tracker", [&] { return run(args); });
 }
