@@ -12,7 +12,8 @@
 // upper beams. N rotations per cell (default 50), each with its own noise seed. Per cell:
 // detection rate, wrong IDs, translation and rotation (geodesic, eq. (23)) error, mean and median.
 // False positives: the real captures in --captures (none holds a tag) and N simulated rotations of
-// tagless clutter (default 1000) from a moving sensor, with three families and three sizes.
+// tagless clutter (default 1000) from a moving sensor, with three families and three sizes, each
+// capture and scene also through a tracker (what lidartagd reports by default).
 // With --out DIR: DIR/accuracy.md (tables, the command, targets met or not) and DIR/accuracy.png
 // (gnuplot). --quick: 3 rotations per cell and 30 clutter rotations (a smoke test for CI).
 // --cell: only these cells (tag SIZE metres, its centre ABOVE the sensor's height, code ID or
@@ -37,6 +38,7 @@
 
 #include "bench_args.hpp"
 #include "lidartag/detector/detector.hpp"
+#include "lidartag/detector/tracker.hpp"
 #include "lidartag/driver/io/capture_reader.hpp"
 #include "sim_scans.hpp"
 
@@ -254,41 +256,63 @@ void run_cell(Cell& c, int id, bool verbose, bool border_refine) {
   }
 }
 
-struct FalsePositives {
-  std::vector<std::pair<std::string, std::pair<size_t, size_t>>> captures;  // rotations, found
-  size_t sim_rotations = 0, sim_found = 0, sim_scenes = 0;
+// Rotations and what was reported in them: detections of the detector alone, and tags reported
+// with the tracker (its default options: those detections and the confirmed tracks' reports).
+struct FpCount {
+  size_t rotations = 0, found = 0, tracked = 0;
 };
+
+struct FalsePositives {
+  std::vector<std::pair<std::string, FpCount>> captures;
+  FpCount sim;
+  size_t sim_scenes = 0;
+};
+
+// One rotation of a false-positive run: everything reported is a false positive.
+void count_false_positives(const Scan& scan, detector::Detector& det, detector::Tracker& tracker,
+                           detector::ScanResult& result, detector::TrackerResult& tracked,
+                           FpCount& n) {
+  det.detect(scan, result);
+  tracker.update(result, scan.stamp_ns, tracked);
+  ++n.rotations;
+  n.found += result.detections.size();
+  n.tracked += tracked.tags.size();
+}
+
+// Every rotation of a capture, with a tracker of its own.
+FpCount capture_false_positives(const std::string& path, detector::Detector& det) {
+  velodyne::CaptureReader reader(path, {});
+  detector::Tracker tracker({}, det.options());
+  detector::ScanResult result;
+  detector::TrackerResult tracked;
+  FpCount n;
+  while (const Scan* scan = reader.next())
+    count_false_positives(*scan, det, tracker, result, tracked, n);
+  return n;
+}
 
 FalsePositives run_false_positives(const Args& args, int clutter_rotations) {
   FalsePositives fp;
   detector::Detector det(all_families());
-  detector::ScanResult result;
   std::error_code ec;
   if (fs::is_directory(args.captures, ec)) {
     std::vector<fs::path> files;
     for (const auto& e : fs::directory_iterator(args.captures))
       if (e.path().extension() == ".pcap") files.push_back(e.path());
     std::sort(files.begin(), files.end());
-    for (const auto& f : files) {
-      velodyne::CaptureReader reader(f.string(), {});
-      size_t rotations = 0, found = 0;
-      while (const Scan* scan = reader.next()) {
-        det.detect(*scan, result);
-        ++rotations;
-        found += result.detections.size();
-      }
-      fp.captures.push_back({f.filename().string(), {rotations, found}});
-    }
+    for (const auto& f : files)
+      fp.captures.push_back({f.filename().string(), capture_false_positives(f.string(), det)});
   }
   const int per_scene = 50;
-  for (int k = 0; static_cast<int>(fp.sim_rotations) < clutter_rotations; ++k) {
+  detector::ScanResult result;
+  detector::TrackerResult tracked;
+  for (int k = 0; static_cast<int>(fp.sim.rotations) < clutter_rotations; ++k) {
     const sim::Simulator simulator(eval::clutter_scene(k));
     eval::SimScans scans(simulator);
-    const int n = std::min(per_scene, clutter_rotations - static_cast<int>(fp.sim_rotations));
+    detector::Tracker tracker({}, det.options());
+    const int n = std::min(per_scene, clutter_rotations - static_cast<int>(fp.sim.rotations));
     scans.run(n, static_cast<uint64_t>(7 + k), [&](const Scan& scan, size_t) {
-      det.detect(scan, result);
-      ++fp.sim_rotations;
-      fp.sim_found += result.detections.size();
+      count_false_positives(scan, det, tracker, result, tracked, fp.sim);
     });
     ++fp.sim_scenes;
   }
@@ -298,17 +322,9 @@ FalsePositives run_false_positives(const Args& args, int clutter_rotations) {
 // The boards people put in front of LiDARs (pcaps/boards.pcap, issue 11 item 5: checkerboards,
 // boards with holes, retro-reflective strips, signs; no tag), every rotation: rotations and
 // detections (all false positives), with the false-positive detector (three families and sizes).
-std::pair<size_t, size_t> board_false_positives() {
+FpCount board_false_positives() {
   detector::Detector det(all_families());
-  detector::ScanResult result;
-  velodyne::CaptureReader reader(LIDARTAG_SOURCE_DIR "/pcaps/boards.pcap", {});
-  size_t rotations = 0, found = 0;
-  while (const Scan* scan = reader.next()) {
-    det.detect(*scan, result);
-    ++rotations;
-    found += result.detections.size();
-  }
-  return {rotations, found};
+  return capture_false_positives(LIDARTAG_SOURCE_DIR "/pcaps/boards.pcap", det);
 }
 
 std::string fmt_num(double v, int digits) {
@@ -515,17 +531,20 @@ int run(const Args& args) {
   }
   const FalsePositives fp = run_false_positives(args, clutter);
   const auto boards = board_false_positives();
-  std::printf("false positives pcaps/boards.pcap: %zu detections in %zu rotations\n", boards.second,
-              boards.first);
+  std::printf(
+      "false positives pcaps/boards.pcap: %zu detections, %zu with the tracker, in %zu rotations\n",
+      boards.found, boards.tracked, boards.rotations);
   for (const auto& [name, counts] : fp.captures)
-    std::printf("false positives %s: %zu detections in %zu rotations\n", name.c_str(),
-                counts.second, counts.first);
+    std::printf("false positives %s: %zu detections, %zu with the tracker, in %zu rotations\n",
+                name.c_str(), counts.found, counts.tracked, counts.rotations);
   // Said on every run, so that a smoke test without the real captures does not pass for one that
   // read them.
   if (fp.captures.empty())
     std::printf("false positives real captures: skipped, no .pcap in %s\n", args.captures.c_str());
-  std::printf("false positives simulated clutter: %zu detections in %zu rotations (%zu scenes)\n",
-              fp.sim_found, fp.sim_rotations, fp.sim_scenes);
+  std::printf(
+      "false positives simulated clutter: %zu detections, %zu with the tracker, in %zu rotations "
+      "(%zu scenes)\n",
+      fp.sim.found, fp.sim.tracked, fp.sim.rotations, fp.sim_scenes);
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::printf("%.0f s\n", seconds);
@@ -533,9 +552,9 @@ int run(const Args& args) {
   const std::string tgt = targets(cells);
   std::printf("%s", tgt.c_str());
   // Wrong IDs and false positives must never happen: they fail the run (and the CI smoke test).
-  int never = static_cast<int>(fp.sim_found + boards.second);
+  int never = static_cast<int>(fp.sim.tracked + boards.tracked);
   for (const auto& c : cells) never += c.wrong + c.false_pos;
-  for (const auto& [name, counts] : fp.captures) never += static_cast<int>(counts.second);
+  for (const auto& [name, counts] : fp.captures) never += static_cast<int>(counts.tracked);
   const int status = never == 0 ? 0 : 1;
   if (status != 0) std::printf("FAILED: %d wrong IDs or false positives\n", never);
   if (args.out.empty()) return status;
@@ -578,18 +597,23 @@ int run(const Args& args) {
         "each rotation, all 30 in turn, so the rate is the family's, not one code's.\n\n"
      << sweep_table(cells);
   md << "\n## False positives\n\nEvery detection here is a false positive. Detector: families "
-        "tag16h5, tag25h9 and tag36h11, sizes 1.2, 0.8 and 0.6 m, default thresholds.\n\n"
-     << "| data | rotations | detections |\n|---|---:|---:|\n";
+        "tag16h5, tag25h9 and tag36h11, sizes 1.2, 0.8 and 0.6 m, default thresholds; \"with the "
+        "tracker\": the tags reported with `Tracker` (default options) fed every rotation in "
+        "order, one tracker per capture or scene: the detections and the confirmed tracks' "
+        "reports.\n\n"
+     << "| data | rotations | detections | with the tracker |\n|---|---:|---:|---:|\n";
   for (const auto& [name, counts] : fp.captures)
     md << "| real capture `" << name << "` (all rotations, partial ones included) | "
-       << counts.first << " | " << counts.second << " |\n";
-  if (fp.captures.empty()) md << "| real captures (`../shared/captures`) | not available | – |\n";
+       << counts.rotations << " | " << counts.found << " | " << counts.tracked << " |\n";
+  if (fp.captures.empty())
+    md << "| real captures (`../shared/captures`) | not available | – | – |\n";
   md << "| simulated clutter, VLP-32C moving at 0.5 m/s turning 5°/s: trees, poles, people, cars, "
         "walls, blank boards of 0.6–1.2 m ("
-     << fp.sim_scenes << " scenes) | " << fp.sim_rotations << " | " << fp.sim_found << " |\n"
+     << fp.sim_scenes << " scenes) | " << fp.sim.rotations << " | " << fp.sim.found << " | "
+     << fp.sim.tracked << " |\n"
      << "| `pcaps/boards.pcap`, static VLP-32C: checkerboards (square, diamond, a 1.2 m tag16h5's "
         "cell size), boards with holes, retro-reflective strips, signs (`docs/simulator.md`) | "
-     << boards.first << " | " << boards.second << " |\n";
+     << boards.rotations << " | " << boards.found << " | " << boards.tracked << " |\n";
   md.close();
   write_plot(cells, dir);
   std::printf("wrote %s and %s\n", (dir / "accuracy.md").string().c_str(),

@@ -10,7 +10,7 @@
 // the median total, and `period_pct`: the median total as a percentage of the 100 ms rotation
 // period of a sensor at 600 rpm (the target is <= 2 %). The *_no_polish variants skip the pose's
 // polish on every point, the *_no_family_check ones the decoding against the families not
-// configured, the *_no_track_only ones the clusters fitted and decoded for confirmed tracks only
+// configured, the *_no_track_only ones the clusters fitted and decoded as tracker evidence only
 // (validation.track_boundary_scale = boundary_scale), the *_no_retry ones the second pose fit of
 // clusters whose fit stays poor (pose.retry_mean_cost_m = 0). BM_EdgeFeatures and BM_Clustering
 // time the first two stages alone.

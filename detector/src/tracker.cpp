@@ -88,7 +88,6 @@ struct Tracker::Track {
   int family = 0;
   double size_m = 0.0;
   int rotations = 0;  // rotations seen
-  int scored = 0;     // of them, the ones whose candidate added evidence (not track_only)
   int64_t last_seen_ns = 0;
   // Per function of the family in the track's frame (4 code + quarter turns): summed normalised
   // scores. Per cell of the marker in the track's frame: summed votes (+1 white, -1 black) of the
@@ -210,8 +209,7 @@ void Tracker::track(const ScanResult& result, int64_t stamp_ns, TrackerResult& o
     const Eigen::Matrix3d frame = cand.undecoded_orientation.normalized().toRotationMatrix();
     for (size_t k = 0; k < tracks_.size(); ++k) {
       const Track& t = tracks_[k];
-      if (!t.live || t.family != cand.family_index || std::abs(t.size_m - cand.size_m) > 1e-9 ||
-          (cand.track_only && !t.confirmed))
+      if (!t.live || t.family != cand.family_index || std::abs(t.size_m - cand.size_m) > 1e-9)
         continue;
       const double d = (cand.position - t.ref_position).norm();
       if (d > opt_.max_distance_m) continue;
@@ -234,7 +232,7 @@ void Tracker::track(const ScanResult& result, int64_t stamp_ns, TrackerResult& o
   }
   // The others start tracks: a free slot, else the one seen longest ago (not in this rotation).
   for (size_t c = 0; c < cands.size(); ++c) {
-    if (assigned_[c] >= 0 || cands[c].track_only || evidence(cands[c], result) == nullptr) continue;
+    if (assigned_[c] >= 0 || evidence(cands[c], result) == nullptr) continue;
     int slot = -1;
     for (size_t k = 0; k < tracks_.size() && slot < 0; ++k)
       if (!tracks_[k].live) slot = static_cast<int>(k);
@@ -280,7 +278,6 @@ void Tracker::start(Track& t, const Candidate& c) {
   t.family = c.family_index;
   t.size_m = c.size_m;
   t.rotations = 0;
-  t.scored = 0;
   const size_t n = static_cast<size_t>(families_[static_cast<size_t>(c.family_index)].functions);
   std::fill(t.score_sum.begin(), t.score_sum.begin() + static_cast<std::ptrdiff_t>(n), 0.0);
   std::fill(t.votes.begin(), t.votes.end(), 0.0f);
@@ -297,9 +294,9 @@ void Tracker::start(Track& t, const Candidate& c) {
 void Tracker::add(Track& t, const Candidate& c, const ScanResult& result, int64_t stamp_ns) {
   ++t.rotations;
   t.last_seen_ns = stamp_ns;
-  // A track-only candidate (too few boundary points to stand alone) shows where the confirmed tag
-  // is in this rotation; its votes and scores are left out, so the decision stays the evidence's.
-  if (!c.track_only) add_evidence(t, c, result);
+  // A track-only candidate (too few boundary points for a detection of its own, eq. (6)) is
+  // evidence like any other: its votes are cells seen, and the track's own gates decide.
+  add_evidence(t, c, result);
 
   // The window: the frame turned into the track's frame, its sign next to the reference's.
   const Eigen::Quaterniond aligned(c.undecoded_orientation.normalized().toRotationMatrix() *
@@ -334,7 +331,6 @@ void Tracker::add(Track& t, const Candidate& c, const ScanResult& result, int64_
 }
 
 void Tracker::add_evidence(Track& t, const Candidate& c, const ScanResult& result) {
-  ++t.scored;
   // Normalised scores, for the mean score of the leading function: function (code k, quarter
   // turns q) of the candidate's frame is (k, q + delta) of the track's frame (its tag frame is
   // frame Rx(-q pi/2) = aligned Rx(-(q + delta) pi/2)).
@@ -385,14 +381,14 @@ void Tracker::add_evidence(Track& t, const Candidate& c, const ScanResult& resul
     if (f != lead) rival = std::max(rival, scores_[static_cast<size_t>(f)]);
   t.leader = lead;
   t.margin = n > 1 ? (scores_[static_cast<size_t>(lead)] - rival) / 2.0 : 1e9;
-  t.mean_score = t.score_sum[static_cast<size_t>(lead)] / t.scored;
+  t.mean_score = t.score_sum[static_cast<size_t>(lead)] / t.rotations;
   // Another family fitting better on average makes it that family's tag (as the detector's
   // decode/other_family for one rotation), best against best as there: the leading function's own
   // score is lower in the rotations another function of the family led, and the decoys' best
   // would beat it by that alone (a VLP-32C's 1.2 m tag16h5 at 24 m and 45 degrees, whose codes
   // tag16h6 shares, was never confirmed).
   const bool other_better = t.other_count > 0 && t.other_sum > t.own_sum + 1e-6 * t.other_count;
-  t.confirmed = t.scored >= opt_.min_rotations && t.margin >= opt_.min_margin_cells &&
+  t.confirmed = t.rotations >= opt_.min_rotations && t.margin >= opt_.min_margin_cells &&
                 t.mean_score >= min_score_ && !other_better;
 }
 

@@ -35,10 +35,9 @@ struct ValidationOptions {
   // Default 1 (the paper's bound).
   float boundary_scale = 1.0f;
   // A cluster below that bound but with at least track_boundary_scale * 2 (d + 2) boundary points
-  // is still fitted and decoded, as a candidate that can only be seen by a confirmed track
-  // (Candidate::track_only), never a detection of its own: a sparse rotation misses a few
-  // transitions of a tag whose ID many rotations have already shown. Default 0.75; a value at
-  // or above boundary_scale turns it off.
+  // is still fitted and decoded, as evidence for a tracker (Candidate::track_only), never a
+  // detection of its own: a sparse rotation misses a few transitions of a tag whose ID several
+  // rotations together can show. Default 0.75; a value at or above boundary_scale turns it off.
   float track_boundary_scale = 0.75f;
   // Rings at the top and bottom of a cluster whose run is narrower than this fraction of the
   // smallest tag size are dropped before the point counts: the post of an easel or a pole under

@@ -112,8 +112,8 @@ struct Candidate {
   // along the other, so votes and scores agree with the decoder by construction there.
   bool shift_searched = false;
   // Fewer boundary points than eq. (6) asks but at least validation.track_boundary_scale of them:
-  // never a detection (its diagnostic says validation/few_boundary_points); a tracker lets it
-  // see a confirmed track, not start one or add to its evidence.
+  // never a detection (its diagnostic says validation/few_boundary_points), but evidence for a
+  // tracker like any other candidate (its own gates confirm an ID over rotations).
   bool track_only = false;
   int points = 0;         // points of the pose fit
   double fit_cost = 0.0;  // eq. (8) at the optimum
