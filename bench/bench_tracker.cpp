@@ -163,6 +163,14 @@ void run_cell(Cell& c, int run, int rotations, bool trace, bool fixed_height) {
       if (t.detection.id != tag.id) {
         ++c.wrong_tracked;
         c.wrong_by_track += t.decoded ? 0 : 1;
+        if (trace) {
+          print_trace_prefix(c, run);
+          std::printf(
+              ", rotation %zu: wrong ID %d (code %d) %s: track %d, %d rotations, margin %.2f "
+              "cells, score %.3f\n",
+              k, t.detection.id, tag.id, t.decoded ? "decoded" : "by the track", t.track.track_id,
+              t.track.rotations, t.track.margin_cells, t.track.mean_score);
+        }
         continue;
       }
       tracked = true;
