@@ -181,10 +181,17 @@ void run_cell(Cell& c, int run, int rotations, bool trace, bool fixed_height) {
     if (trace && k + 1 == rotations_out.size()) {
       print_trace_prefix(c, run);
       std::printf(", code %d, centre %+.3f m:", tag.id, above);
+      // The track's mean pose against the truth (its rotation error only when the leader is
+      // right: another code's quarter turns may be any), and the window's spread.
       for (const auto& t : rotations_out[k].second.seen)
-        std::printf(" track %d (%d rotations, %s, leader %d, margin %.2f cells, score %.3f)",
-                    t.track_id, t.rotations, t.confirmed ? "confirmed" : "not confirmed", t.id,
-                    t.margin_cells, t.mean_score);
+        std::printf(
+            " track %d (%d rotations, %s, leader %d, margin %.2f cells, score %.3f; mean pose off "
+            "by %.1f mm, %.2f deg, normal %.2f deg; spread %.1f mm, %.2f deg)",
+            t.track_id, t.rotations, t.confirmed ? "confirmed" : "not confirmed", t.id,
+            t.margin_cells, t.mean_score, 1e3 * (t.position - tag.position).norm(),
+            t.id == tag.id ? eval::rotation_error_deg(t.orientation, tag.orientation) : NAN,
+            eval::normal_error_deg(t.orientation, tag.orientation), 1e3 * t.position_std_m.norm(),
+            t.angle_std_deg);
       std::printf("\n");
     }
     // --trace: each rotation without the right ID, with what the clusters near the tag measured

@@ -337,6 +337,12 @@ int Detector::add_candidate(const ClusterDecode& dec, const Eigen::Vector3d& cen
       out.cell_votes.insert(out.cell_votes.end(), ws.votes.begin(), ws.votes.end());
       out.cell_vote_counts.insert(out.cell_vote_counts.end(), ws.vote_counts.begin(),
                                   ws.vote_counts.end());
+      // The points behind those votes (prepared at the best shift, in units of t).
+      k.first_vote_point = static_cast<int>(out.vote_points.size());
+      k.vote_point_count = static_cast<int>(ws.decode.prepared.size());
+      for (const DecodePoint& q : ws.decode.prepared)
+        out.vote_points.push_back({static_cast<float>(q.xn * t), static_cast<float>(q.yn * t),
+                                   static_cast<float>(q.zn * t), static_cast<float>(q.label)});
     }
   }
   return static_cast<int>(out.candidates.size()) - 1;

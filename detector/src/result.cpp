@@ -141,6 +141,10 @@ std::span<const float> ScanResult::vote_counts_of(const Candidate& c) const {
   return slice(cell_vote_counts, c.first_cell, c.grid_width * c.grid_width);
 }
 
+std::span<const VotePoint> ScanResult::vote_points_of(const Candidate& c) const {
+  return slice(vote_points, c.first_vote_point, c.vote_point_count);
+}
+
 uint32_t ScanResult::rejected_at(Stage s) const {
   uint32_t n = 0;
   for (int r = 1; r < kRejectionCount; ++r)
@@ -161,6 +165,7 @@ void ScanResult::clear() {
   cell_evidence.clear();
   cell_votes.clear();
   cell_vote_counts.clear();
+  vote_points.clear();
   tag_points.clear();
   cluster_points.clear();
 }

@@ -291,6 +291,26 @@ TEST(Detector, CandidatesCarryThePoseAndTheEvidenceOfEveryCode) {
     const auto counts = res.vote_counts_of(k);
     ASSERT_EQ(counts.size(), res.cells_of(k).size());
     EXPECT_GT(std::accumulate(counts.begin(), counts.end(), 0.0f), 50.0f);
+    // The points behind the votes, in the candidate's frame: voted again with the same layout
+    // and inset, they give its votes, cell for cell (what a tracker re-votes in its own frame).
+    const auto vp = res.vote_points_of(k);
+    ASSERT_EQ(vp.size(), static_cast<size_t>(k.vote_point_count));
+    const int w = k.grid_width;
+    const double inset = s.options.decode.vote_inset_cells;
+    std::vector<float> again(counts.size(), 0.0f), again_n(counts.size(), 0.0f);
+    for (const VotePoint& p : vp) {
+      const double fc = (p.y / k.size_m + 0.5) * w, fr = (0.5 - p.z / k.size_m) * w;
+      if (!(fc >= 0.0 && fc < w && fr >= 0.0 && fr < w)) continue;
+      const double uc = fc - std::floor(fc), ur = fr - std::floor(fr);
+      if (uc < inset || uc > 1.0 - inset || ur < inset || ur > 1.0 - inset) continue;
+      const auto i = static_cast<size_t>(static_cast<int>(fr) * w + static_cast<int>(fc));
+      again[i] += std::clamp(2.0f * p.label - 1.0f, -1.0f, 1.0f);
+      again_n[i] += 1.0f;
+    }
+    for (size_t i = 0; i < again.size(); ++i) {
+      EXPECT_EQ(again_n[i], counts[i]) << "cell " << i;
+      EXPECT_NEAR(again[i], res.votes_of(k)[i], 1e-3) << "cell " << i;
+    }
     EXPECT_GE(k.other_family_score, 0.0);  // decoys are on by default
     EXPECT_LT(k.other_family_score, k.score);
     // Linked to its cluster's diagnostic.

@@ -8,6 +8,7 @@
 #include <Eigen/Geometry>
 #include <cmath>
 #include <numbers>
+#include <optional>
 #include <vector>
 
 #include "count_allocations.hpp"
@@ -43,6 +44,10 @@ struct Cand {
   bool shift_searched = false;
   bool track_only = false;
   double size = 1.2;
+  // When set: the points decoding read, one at the centre of each cell of a tag centred here (in
+  // `frame`, showing the fitting function), given in the candidate's own frame as the detector
+  // gives them; the cell votes are then those points' (one per cell they fall well inside).
+  std::optional<Eigen::Vector3d> tag_at;
 };
 
 // Appends a candidate as the detector reports one: the normalised score of every function (the
@@ -79,8 +84,27 @@ void add(ScanResult& r, const RkhsDictionary& dict, const Cand& c) {
   for (int i = 0; i < W * W; ++i) {
     const bool seen = c.observed.empty() || c.observed[static_cast<size_t>(i)];
     r.cell_evidence.push_back(dict.signs(f)[i]);
-    r.cell_votes.push_back(seen ? c.votes * dict.signs(f)[i] : 0.0f);
-    r.cell_vote_counts.push_back(seen ? c.votes : 0.0f);
+    r.cell_votes.push_back(seen && !c.tag_at ? c.votes * dict.signs(f)[i] : 0.0f);
+    r.cell_vote_counts.push_back(seen && !c.tag_at ? c.votes : 0.0f);
+  }
+  if (c.tag_at) {
+    d.first_vote_point = static_cast<int>(r.vote_points.size());
+    d.vote_point_count = W * W;
+    for (int i = 0; i < W * W; ++i) {
+      const double y = ((i % W + 0.5) / W - 0.5) * c.size, z = (0.5 - (i / W + 0.5) / W) * c.size;
+      const Eigen::Vector3d p = *c.tag_at + c.frame * Eigen::Vector3d(0.0, y, z);
+      const Eigen::Vector3d q = c.frame.transpose() * (p - c.position);
+      const float label = dict.signs(f)[i] > 0 ? 1.0f : 0.0f;
+      r.vote_points.push_back(
+          {static_cast<float>(q.x()), static_cast<float>(q.y()), static_cast<float>(q.z()), label});
+      // The detector's votes: the cell the point falls in, in the candidate's frame.
+      const double fc = (q.y() / c.size + 0.5) * W, fr = (0.5 - q.z() / c.size) * W;
+      if (!(fc >= 0.0 && fc < W && fr >= 0.0 && fr < W)) continue;
+      const auto cell =
+          static_cast<size_t>(d.first_cell + static_cast<int>(fr) * W + static_cast<int>(fc));
+      r.cell_votes[cell] += 2.0f * label - 1.0f;
+      r.cell_vote_counts[cell] += 1.0f;
+    }
   }
   if (c.rejection == Rejection::kNone && !c.track_only) {
     Detection det;
@@ -159,6 +183,25 @@ TEST_F(TrackerTest, VotesAccumulateAndConfirmAfterMinRotations) {
   Tracker fresh(o, det_opt);
   step(fresh, {c});
   EXPECT_NEAR(out.seen[0].margin_cells, whole / 2, 1e-5);
+}
+
+TEST_F(TrackerTest, EachRotationsPointsAreVotedInTheTracksMeanFrame) {
+  Tracker tracker({}, det_opt);
+  Cand c;
+  c.tag_at = c.position;
+  for (int k = 0; k < 9; ++k) step(tracker, {c});
+  ASSERT_EQ(out.seen.size(), 1u);
+  ASSERT_TRUE(out.seen[0].confirmed);
+  const double margin = out.seen[0].margin_cells;
+  // One rotation whose pose is 0.09 m (0.6 cell) off along the tag, inside the association gate:
+  // in its own frame each of its points reads the cell beside its own, in the track's mean frame
+  // (0.009 m off) its own cell.
+  c.position += c.frame * Eigen::Vector3d(0.0, 0.09, 0.0);
+  step(tracker, {c});
+  ASSERT_EQ(out.seen.size(), 1u);
+  EXPECT_EQ(out.seen[0].rotations, 10);
+  EXPECT_EQ(out.seen[0].id, 3);
+  EXPECT_GE(out.seen[0].margin_cells, margin - 1e-9);
 }
 
 TEST_F(TrackerTest, CodesThatDifferOnlyOnUnobservedCellsAreNeverConfirmed) {

@@ -85,6 +85,14 @@ struct FamilyEvidence {
   float shift_m = 0.0f;  // along the candidate's unseen axis (0 when every side was seen)
 };
 
+// A point that decoding read, in its candidate's undecoded tag frame (metres; x along the normal)
+// at the best shift, with its intensity label (0 black, 1 white, between the cluster's levels;
+// not clamped): what a tracker votes again in the frame of a track.
+struct VotePoint {
+  float x = 0.0f, y = 0.0f, z = 0.0f;
+  float label = 0.0f;
+};
+
 // A cluster that reached decoding (Sec. VI), accepted or not: its pose, what decoding found and
 // the evidence for every code, so that a tracker can add evidence up over rotations.
 struct Candidate {
@@ -131,6 +139,10 @@ struct Candidate {
   // number).
   int first_cell = 0;
   int grid_width = 0;
+  // The points decoding read (its best hypothesis' family was scored): ScanResult::vote_points
+  // [first_vote_point, first_vote_point + vote_point_count).
+  int first_vote_point = 0;
+  int vote_point_count = 0;
   // With keep_cluster_points: its points in ScanResult::cluster_points (-1 / 0 otherwise).
   int first_point = -1;
   int point_count = 0;
@@ -153,6 +165,7 @@ struct ScanResult {
   std::vector<FamilyEvidence> family_evidence;
   std::vector<float> evidence_scores;
   std::vector<float> cell_evidence, cell_votes, cell_vote_counts;
+  std::vector<VotePoint> vote_points;
   // When DetectorOptions::keep_tag_points: the points each detection's pose was fitted to (sensor
   // frame), one detection after the other; one vector for all, so that it is reused.
   std::vector<ClusterPoint> tag_points;
@@ -172,6 +185,8 @@ struct ScanResult {
   std::span<const float> cells_of(const Candidate& c) const;
   std::span<const float> votes_of(const Candidate& c) const;
   std::span<const float> vote_counts_of(const Candidate& c) const;
+  // The points a candidate's decoding read (Candidate::first_vote_point).
+  std::span<const VotePoint> vote_points_of(const Candidate& c) const;
   // Clusters rejected at a stage (sum over that stage's reasons).
   uint32_t rejected_at(Stage s) const;
   // Empties every list and counter (keeps the capacity).

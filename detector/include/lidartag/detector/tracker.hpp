@@ -1,6 +1,7 @@
 // Evidence over rotations (issue 11, item 3): the clusters that reached decoding are associated
 // across rotations by position and orientation; while a tag stays put, the votes of its cells
-// (ScanResult::cell_votes) are summed, so that a tag whose single rotations are ambiguous gets an
+// are summed (each rotation's points, ScanResult::vote_points, voted in the track's mean frame),
+// so that a tag whose single rotations are ambiguous gets an
 // ID once the summed evidence tells its code apart from every other. A candidate that moved
 // farther than the association gates from a track starts a new one: evidence is never mixed
 // between two places. Pure: ScanResults in, tracks out; no I/O, no allocation once its buffers
@@ -40,7 +41,8 @@ struct TrackerOptions {
   double max_distance_m = 0.1;
   double max_angle_deg = 10.0;
   // Confirmation. The evidence of a track is, per cell of the marker, the votes of the points
-  // that fell well inside the cell (decode.vote_inset_cells from its borders) over every rotation:
+  // that fell well inside the cell (decode.vote_inset_cells from its borders) of the track's mean
+  // pose over the window (not the rotation's own, which scatters more) over every rotation:
   // +1 white, -1 black, by the point's intensity between the cluster's black and white levels.
   // Each cell's mean vote (its sum over max(votes, full_cell_votes)) scores every function; the
   // leading function (code and quarter turns) must beat the best other one by min_margin_cells
@@ -171,7 +173,8 @@ class Tracker {
   void report(const ScanResult& result, TrackerResult& out) const;
 
   TrackerOptions opt_;
-  double min_score_ = 0.8;  // the detector's decode.min_score
+  double min_score_ = 0.8;    // the detector's decode.min_score
+  double vote_inset_ = 0.05;  // the detector's decode.vote_inset_cells
   std::vector<Family> families_;
   std::vector<Track> tracks_;  // the pool, max_tracks of them
   std::vector<Pair> pairs_;
