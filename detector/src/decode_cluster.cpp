@@ -53,15 +53,10 @@ void cell_votes(const DecodeWorkspace& dw, int w, double inset, std::vector<floa
   votes.assign(cells, 0.0f);
   counts.assign(cells, 0.0f);
   for (const auto& p : dw.prepared) {
-    // The same cell layout as the evidence: column from -y, row from +z (units of the tag size).
-    const double fc = (p.yn + 0.5) * w, fr = (0.5 - p.zn) * w;
-    if (!(fc >= 0.0 && fc < w && fr >= 0.0 && fr < w)) continue;
-    const int c = static_cast<int>(fc), r = static_cast<int>(fr);
-    const double uc = fc - c, ur = fr - r;
-    if (uc < inset || uc > 1.0 - inset || ur < inset || ur > 1.0 - inset) continue;
-    const auto i = static_cast<size_t>(r * w + c);
-    votes[i] += static_cast<float>(std::clamp(2.0 * p.label - 1.0, -1.0, 1.0));
-    counts[i] += 1.0f;
+    const int i = vote_cell(p.yn, p.zn, w, inset);
+    if (i < 0) continue;
+    votes[static_cast<size_t>(i)] += point_vote(p.label);
+    counts[static_cast<size_t>(i)] += 1.0f;
   }
 }
 

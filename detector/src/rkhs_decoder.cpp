@@ -321,6 +321,15 @@ void normalised_scores(const DecodeWorkspace& ws, std::vector<float>& out) {
     out[f] = static_cast<float>((ws.scores[f] + ws.common) / ws.total);
 }
 
+int vote_cell(double yn, double zn, int w, double inset) {
+  const double fc = (yn + 0.5) * w, fr = (0.5 - zn) * w;
+  if (!(fc >= 0.0 && fc < w && fr >= 0.0 && fr < w)) return -1;
+  const int c = static_cast<int>(fc), r = static_cast<int>(fr);
+  const double uc = fc - c, ur = fr - r;
+  if (uc < inset || uc > 1.0 - inset || ur < inset || ur > 1.0 - inset) return -1;
+  return r * w + c;
+}
+
 double seen_cells_lead(const RkhsDictionary& dict, int function, const DecodeOptions& opt,
                        DecodeWorkspace& ws) {
   const int W = dict.width();
@@ -330,14 +339,9 @@ double seen_cells_lead(const RkhsDictionary& dict, int function, const DecodeOpt
   // The cells that hold a decoded point at least vote_inset_cells inside (a return nearer a border
   // may have its neighbour's colour).
   ws.seen.assign(ws.evidence.size(), 0);
-  const double inset = opt.vote_inset_cells;
   for (const auto& p : ws.prepared) {
-    const double fc = (p.yn + 0.5) * W, fr = (0.5 - p.zn) * W;
-    if (!(fc >= 0.0 && fc < W && fr >= 0.0 && fr < W)) continue;
-    const int c = static_cast<int>(fc), r = static_cast<int>(fr);
-    const double uc = fc - c, ur = fr - r;
-    if (uc < inset || uc > 1.0 - inset || ur < inset || ur > 1.0 - inset) continue;
-    ws.seen[static_cast<size_t>(r * W + c)] = 1;
+    const int i = vote_cell(p.yn, p.zn, W, opt.vote_inset_cells);
+    if (i >= 0) ws.seen[static_cast<size_t>(i)] = 1;
   }
   const auto& vary = dict.varying_cells();
   ws.varying.resize(vary.size());

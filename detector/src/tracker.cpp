@@ -363,16 +363,10 @@ void Tracker::add_evidence(Track& t, const Candidate& c, const ScanResult& resul
     const Eigen::Matrix3d m = to_track * u;
     for (const VotePoint& p : points) {
       const Eigen::Vector3d q = m * Eigen::Vector3d(p.x, p.y, p.z) + offset;
-      // The detector's cell layout: column from -y, row from +z (units of the tag size).
-      const double fc = (q.y() / t.size_m + 0.5) * W, fr = (0.5 - q.z() / t.size_m) * W;
-      if (!(fc >= 0.0 && fc < W && fr >= 0.0 && fr < W)) continue;
-      const int col = static_cast<int>(fc), r = static_cast<int>(fr);
-      const double uc = fc - col, ur = fr - r;
-      if (uc < vote_inset_ || uc > 1.0 - vote_inset_ || ur < vote_inset_ || ur > 1.0 - vote_inset_)
-        continue;
-      const auto i = static_cast<size_t>(r * W + col);
-      t.votes[i] += static_cast<float>(std::clamp(2.0 * p.label - 1.0, -1.0, 1.0));
-      t.counts[i] += 1.0f;
+      const int i = vote_cell(q.y() / t.size_m, q.z() / t.size_m, W, vote_inset_);
+      if (i < 0) continue;
+      t.votes[static_cast<size_t>(i)] += point_vote(p.label);
+      t.counts[static_cast<size_t>(i)] += 1.0f;
     }
   }
   // A candidate without its points (a ScanResult built elsewhere): its own grid's votes.

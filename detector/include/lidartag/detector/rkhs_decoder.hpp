@@ -4,6 +4,7 @@
 // (Equations are numbered as in the paper's PDF; docs/detector.md lists them.)
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <span>
@@ -194,6 +195,17 @@ DecodeResult decode_prepared(const RkhsDictionary& dict, const DecodeOptions& op
 // After a decode_prepared that scored (DecodeResult::function >= 0): the normalised score of every
 // function of its dictionary into `out` (one per function, <= 1), from ws.scores.
 void normalised_scores(const DecodeWorkspace& ws, std::vector<float>& out);
+
+// The cell of a w x w grid (row-major; column from -y, row from +z) that a point at (yn, zn) of
+// the tag frame (units of the tag size) lies at least `inset` cells inside, or -1 (outside the
+// grid, or nearer a border: it may have its neighbour's colour). The cells whose points vote: the
+// cell votes, seen_cells_lead and the tracker use this one layout.
+int vote_cell(double yn, double zn, int w, double inset);
+
+// A point's vote from its intensity label (0 black, 1 white): 2 label - 1, clamped to [-1, 1].
+inline float point_vote(double label) {
+  return static_cast<float>(std::clamp(2.0 * label - 1.0, -1.0, 1.0));
+}
 
 // After a decode_prepared against `dict`: how far `function` leads every other function on the
 // cells that hold a decoded point (its evidence minus the best other's there, summed over the
