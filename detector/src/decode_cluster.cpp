@@ -45,21 +45,6 @@ class ShiftedPoints {
   double applied_ = 0.0;
 };
 
-// Per cell of a W x W grid: the votes of the prepared points well inside it (2 label - 1,
-// clamped to [-1, 1]) and their number.
-void cell_votes(const DecodeWorkspace& dw, int w, double inset, std::vector<float>& votes,
-                std::vector<float>& counts) {
-  const auto cells = static_cast<size_t>(w) * static_cast<size_t>(w);
-  votes.assign(cells, 0.0f);
-  counts.assign(cells, 0.0f);
-  for (const auto& p : dw.prepared) {
-    const int i = vote_cell(p.yn, p.zn, w, inset);
-    if (i < 0) continue;
-    votes[static_cast<size_t>(i)] += point_vote(p.label);
-    counts[static_cast<size_t>(i)] += 1.0f;
-  }
-}
-
 }  // namespace
 
 ClusterDecode decode_cluster(std::span<const ClusterPoint> points, const RigidPose& pose,
@@ -181,28 +166,24 @@ ClusterDecode decode_cluster(std::span<const ClusterPoint> points, const RigidPo
     out.best.rejection = Rejection::kOtherFamily;
 
   // The margin counts every cell's evidence, also the kernel tails that cells no ring crosses get
-  // from their neighbours. When the cells actually seen do not lead on their own, the decision
-  // rests on those tails: with 1 point per cell (VLP-32C at 24 m, 45 degrees) they once made a
-  // wrong ID with a margin of 1.7 cells, and with the rings at an unlucky height a VLP-16 at 7 m
-  // one with 1.46 (of which the seen cells gave 0.4).
-  if (out.best.rejection == Rejection::kNone) {
-    const RkhsDictionary& dict = dictionaries[static_cast<size_t>(out.family)];
-    if (shifted.applied() != out.shift) shifted.move_to(out.shift);
-    (void)decode_prepared(dict, opt, ws.decode);
-    if (seen_cells_lead(dict, out.best.function, opt, ws.decode) < opt.min_seen_margin_cells)
-      out.best.rejection = Rejection::kAmbiguous;
-  }
+  // from their neighbours. When the cells actually seen do not lead on their own returns, the
+  // decision rests on those tails: with 1 point per cell (VLP-32C at 24 m, 45 degrees) they once
+  // made a wrong ID with a margin of 1.7 cells, with the rings at an unlucky height a VLP-16 at
+  // 7 m one with 1.46, and a VLP-32C at 20 m one with 1.90 whose only seen deciding cell held one
+  // grey return. The cell votes at the best shift serve this check and evidence over rotations.
+  const int w = dictionaries[static_cast<size_t>(out.family)].width();
+  if (shifted.applied() != out.shift) shifted.move_to(out.shift);
+  cell_votes(ws.decode.prepared, w, opt.vote_inset_cells, ws.votes, ws.vote_counts);
+  if (out.best.rejection == Rejection::kNone &&
+      seen_cells_lead(dictionaries[static_cast<size_t>(out.family)], out.best.function, ws.votes,
+                      ws.vote_counts, opt, ws.decode) < opt.min_seen_margin_cells)
+    out.best.rejection = Rejection::kAmbiguous;
 
   // Too few returns per cell for one rotation's decision to be trusted (the margin and the score
   // of a wrong code look like a right one's there): evidence for a tracker only.
-  const int w = dictionaries[static_cast<size_t>(out.family)].width();
   if (out.best.rejection == Rejection::kNone &&
       static_cast<double>(points.size()) < opt.min_returns_per_cell * w * w)
     out.best.rejection = Rejection::kSparse;
-
-  // The cell votes at the best shift, for evidence over rotations.
-  if (shifted.applied() != out.shift) shifted.move_to(out.shift);
-  cell_votes(ws.decode, w, opt.vote_inset_cells, ws.votes, ws.vote_counts);
   return out;
 }
 

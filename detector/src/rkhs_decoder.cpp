@@ -330,31 +330,41 @@ int vote_cell(double yn, double zn, int w, double inset) {
   return r * w + c;
 }
 
-double seen_cells_lead(const RkhsDictionary& dict, int function, const DecodeOptions& opt,
+void cell_votes(std::span<const DecodePoint> prepared, int w, double inset,
+                std::vector<float>& votes, std::vector<float>& counts) {
+  const auto cells = static_cast<size_t>(w) * static_cast<size_t>(w);
+  votes.assign(cells, 0.0f);
+  counts.assign(cells, 0.0f);
+  for (const auto& p : prepared) {
+    const int i = vote_cell(p.yn, p.zn, w, inset);
+    if (i < 0) continue;
+    votes[static_cast<size_t>(i)] += point_vote(p.label);
+    counts[static_cast<size_t>(i)] += 1.0f;
+  }
+}
+
+double seen_cells_lead(const RkhsDictionary& dict, int function, std::span<const float> votes,
+                       std::span<const float> counts, const DecodeOptions& opt,
                        DecodeWorkspace& ws) {
   const int W = dict.width();
   const int nf = dict.functions();
-  if (function < 0 || function >= nf || ws.evidence.size() != static_cast<size_t>(W * W))
+  const auto cells = static_cast<size_t>(W) * static_cast<size_t>(W);
+  if (function < 0 || function >= nf || nf <= 1 || votes.size() != cells || counts.size() != cells)
     return 0.0;
-  // The cells that hold a decoded point at least vote_inset_cells inside (a return nearer a border
-  // may have its neighbour's colour).
-  ws.seen.assign(ws.evidence.size(), 0);
-  for (const auto& p : ws.prepared) {
-    const int i = vote_cell(p.yn, p.zn, W, opt.vote_inset_cells);
-    if (i >= 0) ws.seen[static_cast<size_t>(i)] = 1;
-  }
+  // Each cell's mean vote; 0 where no point lies well inside. Not the kernel evidence: that also
+  // holds the neighbours' kernel tails, which can outweigh a single grey return in the cell.
   const auto& vary = dict.varying_cells();
   ws.varying.resize(vary.size());
   for (size_t k = 0; k < vary.size(); ++k) {
     const auto i = static_cast<size_t>(vary[k]);
-    ws.varying[k] = ws.seen[i] ? ws.evidence[i] : 0.0f;
+    ws.varying[k] = counts[i] > 0.0f ? votes[i] / counts[i] : 0.0f;
   }
   score_functions(dict, opt, ws);
   float rival = -1e30f;
   for (int f = 0; f < nf; ++f)
     if (f != function) rival = std::max(rival, ws.scores[static_cast<size_t>(f)]);
-  if (nf <= 1 || !(ws.payload > 0.0)) return 0.0;
-  return static_cast<double>(ws.scores[static_cast<size_t>(function)] - rival) / (2.0 * ws.payload);
+  // Two functions' scores differ by twice the mean votes of the cells where they differ.
+  return static_cast<double>(ws.scores[static_cast<size_t>(function)] - rival) / 2.0;
 }
 
 }  // namespace lidartag::detector

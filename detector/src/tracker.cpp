@@ -268,9 +268,9 @@ const FamilyEvidence* Tracker::evidence(const Candidate& c, const ScanResult& re
       e.family_index == c.family_index && e.functions == fam.functions &&
       result.scores_of(e).size() == static_cast<size_t>(fam.functions) &&
       std::isfinite(e.cells_per_score) && e.cells_per_score > 0.0f && c.grid_width == w &&
-      result.votes_of(c).size() == static_cast<size_t>(w) * static_cast<size_t>(w) &&
-      result.vote_counts_of(c).size() == result.votes_of(c).size() && c.position.allFinite() &&
-      c.undecoded_orientation.coeffs().allFinite() && c.undecoded_orientation.norm() > 0.5;
+      result.vote_points_of(c).size() == static_cast<size_t>(std::max(c.vote_point_count, 0)) &&
+      c.position.allFinite() && c.undecoded_orientation.coeffs().allFinite() &&
+      c.undecoded_orientation.norm() > 0.5;
   return ok ? &e : nullptr;
 }
 
@@ -347,21 +347,18 @@ void Tracker::add_evidence(Track& t, const Candidate& c, const ScanResult& resul
     t.own_sum += c.score;
     ++t.other_count;
   }
-  // Cell votes: the candidate's grid turned delta times clockwise ((r, c) -> (c, W-1-r) per turn).
-  // None from a cluster whose position along an unseen axis was searched by decoding: its votes
-  // would agree with the decoder by construction.
+  // Cell votes: the points decoding read, voted again in the track's mean frame (a rotation's own
+  // pose scatters by 4-12 mm and 0.4-1.4 degrees at 10 m on a VLP-16, the mean of the window by a
+  // few millimetres and tenths of a degree, and the cells crossed near their borders are the ones
+  // that tell codes apart there). None from a cluster whose position along an unseen axis was
+  // searched by decoding: its votes would agree with the decoder by construction.
   const int W = fam.dict.width();
-  const auto points = result.vote_points_of(c);
-  if (!c.shift_searched && !points.empty()) {
-    // The points decoding read, voted again in the track's mean frame: a rotation's own pose
-    // scatters by 4-12 mm and 0.4-1.4 degrees at 10 m on a VLP-16, the mean of the window by a
-    // few millimetres and tenths of a degree, and the cells crossed near their borders are the
-    // ones that tell codes apart there.
+  if (!c.shift_searched) {
     const Eigen::Matrix3d u = c.undecoded_orientation.normalized().toRotationMatrix();
     const Eigen::Matrix3d to_track = t.ref_frame.toRotationMatrix().transpose();
     const Eigen::Vector3d offset = to_track * (c.position - t.ref_position);
     const Eigen::Matrix3d m = to_track * u;
-    for (const VotePoint& p : points) {
+    for (const VotePoint& p : result.vote_points_of(c)) {
       const Eigen::Vector3d q = m * Eigen::Vector3d(p.x, p.y, p.z) + offset;
       const int i = vote_cell(q.y() / t.size_m, q.z() / t.size_m, W, vote_inset_);
       if (i < 0) continue;
@@ -369,20 +366,6 @@ void Tracker::add_evidence(Track& t, const Candidate& c, const ScanResult& resul
       t.counts[static_cast<size_t>(i)] += 1.0f;
     }
   }
-  // A candidate without its points (a ScanResult built elsewhere): its own grid's votes.
-  const auto votes = result.votes_of(c), counts = result.vote_counts_of(c);
-  for (int r = 0; r < W && !c.shift_searched && points.empty(); ++r)
-    for (int col = 0; col < W; ++col) {
-      int rr = r, cc = col;
-      for (int k = 0; k < t.delta; ++k) {
-        const int tmp = rr;
-        rr = cc;
-        cc = W - 1 - tmp;
-      }
-      const auto src = static_cast<size_t>(r * W + col), dst = static_cast<size_t>(rr * W + cc);
-      t.votes[dst] += votes[src];
-      t.counts[dst] += counts[src];
-    }
   // The decision: every function scored on the cells that tell functions apart, each cell's votes
   // averaged (a cell with fewer than full_cell_votes votes counts proportionally less); the
   // margin is in cells: the leading function beats the best other one on that many cells.

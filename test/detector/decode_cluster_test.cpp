@@ -207,7 +207,7 @@ TEST(DecodeCluster, ATagOfAFamilyNotConfiguredIsRejected) {
 
 TEST(DecodeCluster, TheCellsSeenMustCarryTheirShareOfTheMargin) {
   // The margin counts the kernel's evidence in every cell, also in cells no return fell in; the
-  // cells seen must lead by decode.min_seen_margin_cells on their own.
+  // cells seen must lead by decode.min_seen_margin_cells on their own returns' votes.
   const auto& fam = tags::builtin_family("tag16h5");
   const std::vector<RkhsDictionary> dicts = {RkhsDictionary(fam)};
   const int W = fam.total_width, a = 4 * 7 + 1;
@@ -216,24 +216,7 @@ TEST(DecodeCluster, TheCellsSeenMustCarryTheirShareOfTheMargin) {
   DecodeOptions opt;
   opt.max_points = 1000;
   opt.min_margin_bits = 0.0;
-  // Every cell seen: the cells seen give the whole margin, and the gate is against it.
-  const Placed all = place(full, facing(), {6, 1, 0});
-  const ClusterDecode d =
-      decode_cluster(all.points, all.pull_back, Eigen::Vector3d::Zero(), 1.2, dicts, {}, opt, ws);
-  ASSERT_EQ(d.best.rejection, Rejection::kNone);
-  ASSERT_EQ(d.best.function, a);
-  opt.min_seen_margin_cells = d.best.margin_bits * 0.99;
-  EXPECT_EQ(
-      decode_cluster(all.points, all.pull_back, Eigen::Vector3d::Zero(), 1.2, dicts, {}, opt, ws)
-          .best.rejection,
-      Rejection::kNone);
-  opt.min_seen_margin_cells = d.best.margin_bits * 1.01;
-  EXPECT_EQ(
-      decode_cluster(all.points, all.pull_back, Eigen::Vector3d::Zero(), 1.2, dicts, {}, opt, ws)
-          .best.rejection,
-      Rejection::kAmbiguous);
-  // No return in the cells where the nearest other code differs: only the kernel's spill from
-  // the neighbours tells the two apart there.
+  // The nearest other function: it differs in `nearest` cells.
   int b = -1, nearest = 1 << 30;
   for (int f = 0; f < dicts[0].functions(); ++f) {
     if (f == a) continue;
@@ -244,6 +227,25 @@ TEST(DecodeCluster, TheCellsSeenMustCarryTheirShareOfTheMargin) {
       b = f;
     }
   }
+  // Every cell seen, each with returns of one clean colour: the cells seen lead by `nearest`
+  // cells, and the gate is against that.
+  const Placed all = place(full, facing(), {6, 1, 0});
+  const ClusterDecode d =
+      decode_cluster(all.points, all.pull_back, Eigen::Vector3d::Zero(), 1.2, dicts, {}, opt, ws);
+  ASSERT_EQ(d.best.rejection, Rejection::kNone);
+  ASSERT_EQ(d.best.function, a);
+  opt.min_seen_margin_cells = nearest - 0.01;
+  EXPECT_EQ(
+      decode_cluster(all.points, all.pull_back, Eigen::Vector3d::Zero(), 1.2, dicts, {}, opt, ws)
+          .best.rejection,
+      Rejection::kNone);
+  opt.min_seen_margin_cells = nearest + 0.01;
+  EXPECT_EQ(
+      decode_cluster(all.points, all.pull_back, Eigen::Vector3d::Zero(), 1.2, dicts, {}, opt, ws)
+          .best.rejection,
+      Rejection::kAmbiguous);
+  // No return in the cells where the nearest other code differs: only the kernel's spill from
+  // the neighbours tells the two apart there.
   std::vector<ClusterPoint> blind;
   for (const ClusterPoint& p : full) {
     const int c = static_cast<int>((p.y / 1.2 + 0.5) * W),
@@ -262,6 +264,63 @@ TEST(DecodeCluster, TheCellsSeenMustCarryTheirShareOfTheMargin) {
       decode_cluster(tag.points, tag.pull_back, Eigen::Vector3d::Zero(), 1.2, dicts, {}, opt, ws)
           .best.rejection,
       Rejection::kAmbiguous);
+}
+
+TEST(DecodeCluster, ADecidingCellCountsByItsOwnReturnsNotByItsNeighboursTails) {
+  // Of the cells where the decoded function and the nearest other one differ, a single return
+  // near the centre of one (the VLP-32C at 20 m, 45 degrees, that read code 8 as 15 with a margin
+  // of 1.90 cells): a grey return leaning to the function's colour leads by 0.3 cell, short of
+  // decode.min_seen_margin_cells, however much its neighbours' kernel tails agree; a clean one
+  // leads by a whole cell.
+  const auto& fam = tags::builtin_family("tag16h5");
+  const std::vector<RkhsDictionary> dicts = {RkhsDictionary(fam)};
+  const int W = fam.total_width, a = 4 * 7 + 1;
+  int b = -1, nearest = 1 << 30;
+  for (int f = 0; f < dicts[0].functions(); ++f) {
+    if (f == a) continue;
+    int n = 0;
+    for (int i = 0; i < W * W; ++i) n += dicts[0].signs(a)[i] != dicts[0].signs(f)[i] ? 1 : 0;
+    if (n < nearest) {
+      nearest = n;
+      b = f;
+    }
+  }
+  std::vector<ClusterPoint> blind;
+  int seen = -1;
+  for (const ClusterPoint& p : marker_points(fam, 7, 1, 1.2, 3)) {
+    const int c = static_cast<int>((p.y / 1.2 + 0.5) * W),
+              r = static_cast<int>((0.5 - p.z / 1.2) * W);
+    const auto i = static_cast<size_t>(r * W + c);
+    if (dicts[0].signs(a)[i] == dicts[0].signs(b)[i])
+      blind.push_back(p);
+    else if (seen < 0)
+      seen = static_cast<int>(i);
+  }
+  ASSERT_GE(seen, 0);
+  const bool white = dicts[0].signs(a)[seen] > 0;
+  ClusterPoint one{};
+  one.y = static_cast<float>(((seen % W + 0.5) / W - 0.5) * 1.2);
+  one.z = static_cast<float>((0.5 - (seen / W + 0.5) / W) * 1.2);
+  DecodeOptions opt;
+  opt.max_points = 1000;
+  opt.min_margin_bits = 0.0;
+  ClusterDecodeWorkspace ws;
+  auto decode = [&](float label) {
+    std::vector<ClusterPoint> pts = blind;
+    one.intensity = 30.0f + 170.0f * (white ? label : 1.0f - label);  // levels 30 and 200
+    pts.push_back(one);
+    const Placed tag = place(pts, facing(), {6, 1, 0});
+    return decode_cluster(tag.points, tag.pull_back, Eigen::Vector3d::Zero(), 1.2, dicts, {}, opt,
+                          ws);
+  };
+  const ClusterDecode grey = decode(0.65f);
+  EXPECT_EQ(grey.best.function, a);
+  EXPECT_EQ(grey.best.rejection, Rejection::kAmbiguous);
+  const ClusterDecode clean = decode(1.0f);
+  EXPECT_EQ(clean.best.function, a);
+  EXPECT_EQ(clean.best.rejection, Rejection::kNone);
+  opt.min_seen_margin_cells = 1.01;
+  EXPECT_EQ(decode(1.0f).best.rejection, Rejection::kAmbiguous);
 }
 
 TEST(DecodeCluster, OneIntensityGivesNothingToDecode) {

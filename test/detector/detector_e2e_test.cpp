@@ -308,6 +308,27 @@ TEST(DetectorEndToEnd, FarTurnedTagIsNeverReadFromKernelTailsAlone) {
   ASSERT_FALSE(result.candidates.empty());  // it reached decoding
 }
 
+// The same limit nearer: a VLP-32C at 20 m, the tag turned 45 degrees, its centre 17 mm above the
+// sensor's height (bench_tracker --cell vlp32c:20:45 --runs 90, run 89). In the second rotation
+// the rings cross only one of the six cells where code 8 and code 15 differ well inside, with one
+// grey return; the kernel tails of its neighbours read code 8 as 15 with a margin of 1.90 cells.
+// On the cells' own returns code 15 leads by 0.3 cell: rejected as ambiguous, not misread.
+TEST(DetectorEndToEnd, ADecidingCellSeenByOneGreyReturnIsNoDecision) {
+  const sim::Simulator simulator(
+      eval::accuracy_scene(velodyne::Model::kVLP32C, 20.0, 45, 8, 1.2, 0.017436));
+  eval::SimScans scans(simulator);
+  Detector det{DetectorOptions{}};
+  ScanResult result;
+  const sim::Truth truth = scans.run(2, 5000 + 100 * 89 + 45, [&](const Scan& s, size_t k) {
+    if (k == 1) det.detect(s, result);
+  });
+  ASSERT_EQ(truth.rotations.size(), 2u);
+  const auto s = eval::score_tag(result.detections, truth.rotations[1].tags[0]);
+  EXPECT_FALSE(s.wrong_id);
+  ASSERT_EQ(result.candidates.size(), 1u);  // it reached decoding, and stays a tracker's candidate
+  EXPECT_EQ(result.candidates[0].rejection, Rejection::kAmbiguous);
+}
+
 // A tag of a family that is not configured: with only the configured dictionary its pattern still
 // has a best code there, which the margin (codes of one family) cannot rule out. Decoding against
 // the other built-in families too rejects it; without that check the same scenes are misread.

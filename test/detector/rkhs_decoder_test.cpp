@@ -298,7 +298,9 @@ TEST(RkhsDecoder, SeenCellsLeadAsksOnlyTheCellsWithReturns) {
   synth(fam, 0, 0, {}, 3, pts);
   DecodeResult r = decode_tag(pts, 1.0, dict, opt, ws);
   ASSERT_EQ(r.function, 0);
-  EXPECT_GT(seen_cells_lead(dict, 0, opt, ws), 0.0);
+  std::vector<float> votes, counts;
+  cell_votes(ws.prepared, dict.width(), opt.vote_inset_cells, votes, counts);
+  EXPECT_GT(seen_cells_lead(dict, 0, votes, counts, opt, ws), 0.0);
   // The nearest other code (rotation 0): no returns in the cells where the two differ but one,
   // and that one shows b's colour.
   int b = -1, best_distance = 1 << 30;
@@ -329,8 +331,11 @@ TEST(RkhsDecoder, SeenCellsLeadAsksOnlyTheCellsWithReturns) {
   }
   r = decode_tag(seen, 1.0, dict, opt, ws);
   ASSERT_GE(r.function, 0);
-  EXPECT_LT(seen_cells_lead(dict, 0, opt, ws), 0.0) << "a fits the seen cells worse than b";
-  EXPECT_GE(seen_cells_lead(dict, 4 * b, opt, ws), 0.0) << "nothing fits them better than b";
+  cell_votes(ws.prepared, W, opt.vote_inset_cells, votes, counts);
+  EXPECT_LT(seen_cells_lead(dict, 0, votes, counts, opt, ws), 0.0)
+      << "a fits the seen cells worse than b";
+  EXPECT_GE(seen_cells_lead(dict, 4 * b, votes, counts, opt, ws), 0.0)
+      << "nothing fits them better than b";
 }
 
 TEST(RkhsDecoder, VaryingCellsAreThePayload) {

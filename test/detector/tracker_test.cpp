@@ -37,21 +37,23 @@ struct Cand {
   int q = 0;  // quarter turns of the function that fits, in `frame`
   Eigen::Vector3d position{6.0, 0.0, 0.0};
   Eigen::Matrix3d frame = facing();  // before the quarter turns
-  std::vector<bool> observed;        // cells with votes (empty: all)
-  float votes = 5.0f;                // per observed cell
+  std::vector<bool> observed;        // cells with points (empty: all)
+  int votes = 5;                     // points per observed cell
   Rejection rejection = Rejection::kAmbiguous;
   double other_family_score = -1.0;
   bool shift_searched = false;
   bool track_only = false;
   double size = 1.2;
-  // When set: the points decoding read, one at the centre of each cell of a tag centred here (in
-  // `frame`, showing the fitting function), given in the candidate's own frame as the detector
-  // gives them; the cell votes are then those points' (one per cell they fall well inside).
+  // Where the tag showing the fitting function really is (in `frame`); unset: at `position`. The
+  // candidate's points are given in its own frame, as the detector gives them, so a tag that is
+  // not where the candidate's pose says puts its points in other cells of that frame.
   std::optional<Eigen::Vector3d> tag_at;
 };
 
 // Appends a candidate as the detector reports one: the normalised score of every function (the
-// fitting one 0.95, the others 0.6) and the cell votes of the fitting function's image.
+// fitting one 0.95, the others 0.6), and the points decoding read: `votes` at the centre of each
+// observed cell of the tag, labelled with the fitting function's image, with the cell votes the
+// detector counts from them in the candidate's frame.
 void add(ScanResult& r, const RkhsDictionary& dict, const Cand& c) {
   Candidate& d = r.candidates.emplace_back();
   const int f = 4 * c.code + c.q;
@@ -81,31 +83,29 @@ void add(ScanResult& r, const RkhsDictionary& dict, const Cand& c) {
   const int W = dict.width();
   d.grid_width = W;
   d.first_cell = static_cast<int>(r.cell_votes.size());
+  for (int i = 0; i < W * W; ++i) r.cell_evidence.push_back(dict.signs(f)[i]);
+  r.cell_votes.resize(r.cell_votes.size() + static_cast<size_t>(W * W), 0.0f);
+  r.cell_vote_counts.resize(r.cell_vote_counts.size() + static_cast<size_t>(W * W), 0.0f);
+  d.first_vote_point = static_cast<int>(r.vote_points.size());
+  const Eigen::Vector3d centre = c.tag_at.value_or(c.position);
   for (int i = 0; i < W * W; ++i) {
-    const bool seen = c.observed.empty() || c.observed[static_cast<size_t>(i)];
-    r.cell_evidence.push_back(dict.signs(f)[i]);
-    r.cell_votes.push_back(seen && !c.tag_at ? c.votes * dict.signs(f)[i] : 0.0f);
-    r.cell_vote_counts.push_back(seen && !c.tag_at ? c.votes : 0.0f);
-  }
-  if (c.tag_at) {
-    d.first_vote_point = static_cast<int>(r.vote_points.size());
-    d.vote_point_count = W * W;
-    for (int i = 0; i < W * W; ++i) {
-      const double y = ((i % W + 0.5) / W - 0.5) * c.size, z = (0.5 - (i / W + 0.5) / W) * c.size;
-      const Eigen::Vector3d p = *c.tag_at + c.frame * Eigen::Vector3d(0.0, y, z);
-      const Eigen::Vector3d q = c.frame.transpose() * (p - c.position);
-      const float label = dict.signs(f)[i] > 0 ? 1.0f : 0.0f;
+    if (!c.observed.empty() && !c.observed[static_cast<size_t>(i)]) continue;
+    const double y = ((i % W + 0.5) / W - 0.5) * c.size, z = (0.5 - (i / W + 0.5) / W) * c.size;
+    const Eigen::Vector3d p = centre + c.frame * Eigen::Vector3d(0.0, y, z);
+    const Eigen::Vector3d q = c.frame.transpose() * (p - c.position);
+    const float label = dict.signs(f)[i] > 0 ? 1.0f : 0.0f;
+    for (int k = 0; k < c.votes; ++k)
       r.vote_points.push_back(
           {static_cast<float>(q.x()), static_cast<float>(q.y()), static_cast<float>(q.z()), label});
-      // The detector's votes: the cell the point falls in, in the candidate's frame.
-      const double fc = (q.y() / c.size + 0.5) * W, fr = (0.5 - q.z() / c.size) * W;
-      if (!(fc >= 0.0 && fc < W && fr >= 0.0 && fr < W)) continue;
-      const auto cell =
-          static_cast<size_t>(d.first_cell + static_cast<int>(fr) * W + static_cast<int>(fc));
-      r.cell_votes[cell] += 2.0f * label - 1.0f;
-      r.cell_vote_counts[cell] += 1.0f;
-    }
+    // The detector's votes: the cell the point falls in, in the candidate's frame.
+    const double fc = (q.y() / c.size + 0.5) * W, fr = (0.5 - q.z() / c.size) * W;
+    if (!(fc >= 0.0 && fc < W && fr >= 0.0 && fr < W)) continue;
+    const auto cell =
+        static_cast<size_t>(d.first_cell + static_cast<int>(fr) * W + static_cast<int>(fc));
+    r.cell_votes[cell] += static_cast<float>(c.votes) * (2.0f * label - 1.0f);
+    r.cell_vote_counts[cell] += static_cast<float>(c.votes);
   }
+  d.vote_point_count = static_cast<int>(r.vote_points.size()) - d.first_vote_point;
   if (c.rejection == Rejection::kNone && !c.track_only) {
     Detection det;
     det.id = c.code;
@@ -164,8 +164,8 @@ TEST_F(TrackerTest, VotesAccumulateAndConfirmAfterMinRotations) {
   TrackerOptions o;
   o.min_rotations = 3;
   Tracker tracker(o, det_opt);
-  Cand c;          // ambiguous alone every rotation
-  c.votes = 2.0f;  // half of full_cell_votes (4) per rotation
+  Cand c;       // ambiguous alone every rotation
+  c.votes = 2;  // half of full_cell_votes (4) per rotation
   for (int k = 0; k < 4; ++k) {
     step(tracker, {c});
     ASSERT_EQ(out.seen.size(), 1u);
@@ -188,7 +188,6 @@ TEST_F(TrackerTest, VotesAccumulateAndConfirmAfterMinRotations) {
 TEST_F(TrackerTest, EachRotationsPointsAreVotedInTheTracksMeanFrame) {
   Tracker tracker({}, det_opt);
   Cand c;
-  c.tag_at = c.position;
   for (int k = 0; k < 9; ++k) step(tracker, {c});
   ASSERT_EQ(out.seen.size(), 1u);
   ASSERT_TRUE(out.seen[0].confirmed);
@@ -220,7 +219,7 @@ TEST_F(TrackerTest, CodesThatDifferOnlyOnUnobservedCellsAreNeverConfirmed) {
   c.observed = std::vector<bool>(64);  // each set below (assign() trips GCC 12 at -O3)
   for (int i = 0; i < 64; ++i)
     c.observed[static_cast<size_t>(i)] = dict.signs(f)[i] == dict.signs(rival)[i];
-  c.votes = 20.0f;
+  c.votes = 20;
   Tracker tracker({}, det_opt);
   for (int k = 0; k < 50; ++k) step(tracker, {c});
   ASSERT_EQ(out.seen.size(), 1u);

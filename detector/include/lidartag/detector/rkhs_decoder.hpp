@@ -66,12 +66,14 @@ struct DecodeOptions {
   // wrong ID; at the sensor's height 0 gave a wrong ID (VLP-16, 6 m, 45 degrees).
   double vote_inset_cells = 0.05;
   // The margin counts every cell's evidence, also what the kernel spreads into cells no ring
-  // crosses; the cells seen (vote_inset_cells) must give the decision at least this many cells of
-  // it on their own, else decode/ambiguous (a candidate for a tracker). Default 0.5: with the tag's
-  // height spread over a beam spacing (bench_tracker), a VLP-16 at 7 m read code 25 as 2 twice with
-  // margins of 1.26 and 1.46 cells, of which the seen cells gave 0.06 and 0.40; a VLP-16 at 10 m
-  // read code 4 as 0 with a margin of 1.32 that no seen cell supported (0.00). About 5 % of the
-  // right single-rotation reads there lead by less on the seen cells; the tracker carries them.
+  // crosses; on the returns that lie in the cells (vote_inset_cells), each cell its mean vote, the
+  // decision must lead every other function by at least this many cells (seen_cells_lead), else
+  // decode/ambiguous (a candidate for a tracker). Default 0.5: with the tag's height spread over a
+  // beam spacing (bench_tracker), a VLP-16 at 7 m read code 25 as 2 twice with margins of 1.26 and
+  // 1.46 cells that the seen cells barely supported; a VLP-16 at 10 m read code 4 as 0 with a
+  // margin of 1.32 that no seen cell supported; a VLP-32C at 20 m turned 45 degrees read code 8
+  // as 15 with 1.90, where one grey return (0.3 cell) was all the deciding cells held. About 5 %
+  // of the right single-rotation reads there lead by less; the tracker carries them.
   double min_seen_margin_cells = 0.5;
   // A detection of one rotation needs at least this many returns per cell of its marker (the
   // points of the pose fit over total_width^2); a cluster with fewer that decodes is rejected as
@@ -150,7 +152,6 @@ struct DecodeWorkspace {
   std::vector<float> varying;   // the evidence on the dictionary's varying cells
   std::vector<float> tables;    // per group of 8 varying cells: the sum for each sign pattern
   std::vector<float> scores;    // per function, without the cells common to all functions
-  std::vector<uint8_t> seen;    // seen_cells_lead: the cells that hold a decoded point
   // Of the last decode_prepared that scored: what the cells common to every function add, and
   // the sum of the evidence's magnitudes (a function's normalised score is (scores + common) /
   // total).
@@ -207,12 +208,19 @@ inline float point_vote(double label) {
   return static_cast<float>(std::clamp(2.0 * label - 1.0, -1.0, 1.0));
 }
 
-// After a decode_prepared against `dict`: how far `function` leads every other function on the
-// cells that hold a decoded point (its evidence minus the best other's there, summed over the
-// varying cells, in cells as DecodeResult::margin_bits). A cell no ring crosses only carries its
-// neighbours' kernel tails; a negative lead means that another code (or rotation) fits the cells
-// actually seen better, and the decision rests on guesses about the others. Overwrites ws.scores.
-double seen_cells_lead(const RkhsDictionary& dict, int function, const DecodeOptions& opt,
+// Per cell of a w x w grid: the summed votes of the prepared points that lie at least `inset`
+// cells inside it (vote_cell, point_vote), and their number.
+void cell_votes(std::span<const DecodePoint> prepared, int w, double inset,
+                std::vector<float>& votes, std::vector<float>& counts);
+
+// How far `function` leads every other function of `dict` on the cells' own returns: each cell's
+// mean vote (cell_votes; 0 for a cell without one), summed over the cells where the two differ, in
+// cells (1 = one cell seen clearly in the function's colour). A cell no ring crosses, or crosses
+// only near its border, carries only its neighbours' kernel tails in the decoder's evidence; a
+// lead near 0 means that the cells actually seen do not tell the function from another.
+// Overwrites ws.varying, ws.tables and ws.scores.
+double seen_cells_lead(const RkhsDictionary& dict, int function, std::span<const float> votes,
+                       std::span<const float> counts, const DecodeOptions& opt,
                        DecodeWorkspace& ws);
 
 // `points` are pulled back into the estimated tag frame (x normal, y right, z up, metres) with
