@@ -1,5 +1,7 @@
 #include "lidartag/daemon/lcm_log_source.hpp"
 
+#include <sys/stat.h>
+
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
@@ -37,6 +39,9 @@ bool plausible_raw_packet(const uint8_t* data, size_t size) {
   return nbytes >= 0 && static_cast<size_t>(nbytes) == size - offset - 12;
 }
 
+// The sync word that starts every LCM log event.
+constexpr uint32_t kEventMagic = 0xEDA1DA01U;
+
 }  // namespace
 
 LcmLogSource::LcmLogSource(const std::string& path, LcmLogSourceOptions options)
@@ -52,9 +57,37 @@ LcmLogSource::LcmLogSource(const std::string& path, LcmLogSourceOptions options)
 
 LcmLogSource::~LcmLogSource() = default;
 
+bool LcmLogSource::next_event_fits() {
+  // LCM allocates the data length an event header claims (calloc, up to 2 GB for a corrupt header)
+  // before it reads the data and finds the file too short. Its header is looked at first, as LCM
+  // finds it (after the sync word), and the file position is then put back for LCM.
+  FILE* f = log_->getFilePtr();
+  const long start = std::ftell(f);
+  if (start < 0) return true;
+  uint32_t magic = 0;
+  int c = 0;
+  do {
+    c = std::fgetc(f);
+    magic = (magic << 8) | static_cast<uint32_t>(c & 0xff);
+  } while (c != EOF && magic != kEventMagic);
+  bool fits = true;
+  uint8_t header[24];  // event number (8), timestamp (8), channel length (4), data length (4)
+  if (c != EOF && std::fread(header, 1, sizeof header, f) == sizeof header) {
+    const int32_t channel = read_be32(header + 16), data = read_be32(header + 20);
+    const long end = std::ftell(f) + channel + data;  // LCM refuses other lengths itself
+    if (channel > 0 && channel < 1000 && data >= 0 && end > file_size_) {
+      struct stat st {};
+      if (::fstat(::fileno(f), &st) == 0) file_size_ = static_cast<long>(st.st_size);  // growing
+      fits = end <= file_size_;
+    }
+  }
+  std::clearerr(f);
+  return std::fseek(f, start, SEEK_SET) == 0 && fits;
+}
+
 bool LcmLogSource::read_one() {
   for (;;) {
-    const lcm::LogEvent* event = log_->readNextEvent();
+    const lcm::LogEvent* event = next_event_fits() ? log_->readNextEvent() : nullptr;
     if (event == nullptr) {
       // LCM stops at a cut or corrupt event header as at the end of the file: bytes left past
       // the last whole event mean the log was truncated.

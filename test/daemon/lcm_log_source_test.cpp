@@ -3,8 +3,10 @@
 #include "lidartag/daemon/lcm_log_source.hpp"
 
 #include <gtest/gtest.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
+#include <cstdio>
 #include <filesystem>
 #include <lcm/lcm-cpp.hpp>
 #include <limits>
@@ -183,6 +185,56 @@ TEST(LcmLogSource, LogCutInsideAnEventEndsAndIsCountedAsTruncated) {
   }
   EXPECT_EQ(whole.stats().truncated, 0u);
 }
+
+// A corrupt header at the end of a log that claims ~2 GB of data: LCM would allocate that much
+// before finding the file short (and, where the allocation fails, read into a null pointer).
+std::string log_ending_in_a_huge_claim() {
+  const std::string path = make_log();
+  std::FILE* f = std::fopen(path.c_str(), "ab");
+  EXPECT_NE(f, nullptr);
+  const std::string channel = "LIDARTAG_RAW";
+  std::vector<uint8_t> h = {0xED, 0xA1, 0xDA, 0x01};                    // sync word
+  for (int i = 0; i < 16; ++i) h.push_back(i == 7 || i == 15 ? 9 : 0);  // event 9, time 9
+  for (uint32_t v : {static_cast<uint32_t>(channel.size()), 0x7ffffff0U})
+    for (int b = 3; b >= 0; --b) h.push_back(static_cast<uint8_t>(v >> (8 * b)));
+  h.insert(h.end(), channel.begin(), channel.end());
+  h.insert(h.end(), 64, 0xab);  // some of the claimed data
+  EXPECT_EQ(std::fwrite(h.data(), 1, h.size(), f), h.size());
+  std::fclose(f);
+  return path;
+}
+
+TEST(LcmLogSource, AnEventClaimingMoreThanTheFileHoldsEndsTheReplayAsTruncated) {
+  LcmLogSource source(log_ending_in_a_huge_claim(), {});
+  velodyne::RawPacket p;
+  int packets = 0;
+  while (source.next(p, 10ms) == velodyne::ReadStatus::kPacket) ++packets;
+  EXPECT_EQ(packets, 2);  // make_log's two good packets, then the end
+  EXPECT_EQ(source.stats().truncated, 1u);
+  EXPECT_EQ(source.events(), 6u);  // the huge one is not an event read
+}
+
+#if !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__) && \
+    !(defined(__has_feature) &&                                        \
+      (__has_feature(address_sanitizer) || __has_feature(thread_sanitizer)))
+// Under an address-space limit (ulimit -v, systemd's LimitAS=) the claimed ~2 GB cannot be had:
+// the replay still ends normally. (Sanitizers reserve terabytes of shadow memory: not there.)
+int replay_under_a_1_gib_limit(const std::string& path) {
+  rlimit limit{};
+  limit.rlim_cur = limit.rlim_max = 1UL << 30;
+  if (::setrlimit(RLIMIT_AS, &limit) != 0) return 3;
+  LcmLogSource source(path, {});
+  velodyne::RawPacket p;
+  while (source.next(p, 10ms) == velodyne::ReadStatus::kPacket) {
+  }
+  return source.stats().truncated == 1 ? 0 : 2;
+}
+
+TEST(LcmLogSourceDeathTest, AHugeClaimUnderAnAddressSpaceLimitEndsTheReplayNormally) {
+  const std::string path = log_ending_in_a_huge_claim();
+  EXPECT_EXIT(std::_Exit(replay_under_a_1_gib_limit(path)), ::testing::ExitedWithCode(0), "");
+}
+#endif
 
 TEST(LcmLogSource, MissingFileIsASetupError) {
   EXPECT_THROW(LcmLogSource("/nonexistent/x.lcmlog", {}), velodyne::IoError);

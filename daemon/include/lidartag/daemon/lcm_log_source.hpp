@@ -36,6 +36,8 @@ class LcmLogSource final : public velodyne::PacketSource {
 
  private:
   bool read_one();  // the next deliverable packet into message_; false at the end of the file
+  // Whether the next event's claimed lengths fit in the file (else LCM would allocate them).
+  bool next_event_fits();
 
   std::string path_;
   LcmLogSourceOptions options_;
