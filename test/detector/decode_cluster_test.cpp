@@ -205,6 +205,24 @@ TEST(DecodeCluster, ATagOfAFamilyNotConfiguredIsRejected) {
   EXPECT_EQ(hopeless.other_family_score, -1.0);
 }
 
+// The function of `dict` nearest to function `a` (fewest cells of another colour), and that
+// number of cells.
+int nearest_other(const RkhsDictionary& dict, int a, int& cells) {
+  const int W = dict.width();
+  int b = -1;
+  cells = 1 << 30;
+  for (int f = 0; f < dict.functions(); ++f) {
+    if (f == a) continue;
+    int n = 0;
+    for (int i = 0; i < W * W; ++i) n += dict.signs(a)[i] != dict.signs(f)[i] ? 1 : 0;
+    if (n < cells) {
+      cells = n;
+      b = f;
+    }
+  }
+  return b;
+}
+
 TEST(DecodeCluster, TheCellsSeenMustCarryTheirShareOfTheMargin) {
   // The margin counts the kernel's evidence in every cell, also in cells no return fell in; the
   // cells seen must lead by decode.min_seen_margin_cells on their own returns' votes.
@@ -217,16 +235,8 @@ TEST(DecodeCluster, TheCellsSeenMustCarryTheirShareOfTheMargin) {
   opt.max_points = 1000;
   opt.min_margin_bits = 0.0;
   // The nearest other function: it differs in `nearest` cells.
-  int b = -1, nearest = 1 << 30;
-  for (int f = 0; f < dicts[0].functions(); ++f) {
-    if (f == a) continue;
-    int n = 0;
-    for (int i = 0; i < W * W; ++i) n += dicts[0].signs(a)[i] != dicts[0].signs(f)[i] ? 1 : 0;
-    if (n < nearest) {
-      nearest = n;
-      b = f;
-    }
-  }
+  int nearest = 0;
+  const int b = nearest_other(dicts[0], a, nearest);
   // Every cell seen, each with returns of one clean colour: the cells seen lead by `nearest`
   // cells, and the gate is against that.
   const Placed all = place(full, facing(), {6, 1, 0});
@@ -275,16 +285,8 @@ TEST(DecodeCluster, ADecidingCellCountsByItsOwnReturnsNotByItsNeighboursTails) {
   const auto& fam = tags::builtin_family("tag16h5");
   const std::vector<RkhsDictionary> dicts = {RkhsDictionary(fam)};
   const int W = fam.total_width, a = 4 * 7 + 1;
-  int b = -1, nearest = 1 << 30;
-  for (int f = 0; f < dicts[0].functions(); ++f) {
-    if (f == a) continue;
-    int n = 0;
-    for (int i = 0; i < W * W; ++i) n += dicts[0].signs(a)[i] != dicts[0].signs(f)[i] ? 1 : 0;
-    if (n < nearest) {
-      nearest = n;
-      b = f;
-    }
-  }
+  int nearest = 0;
+  const int b = nearest_other(dicts[0], a, nearest);
   std::vector<ClusterPoint> blind;
   int seen = -1;
   for (const ClusterPoint& p : marker_points(fam, 7, 1, 1.2, 3)) {
