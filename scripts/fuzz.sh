@@ -9,10 +9,10 @@
 #
 # Usage: scripts/fuzz.sh [SECONDS] [--runs N] [--chunk N] [--jobs J] [--targets "a b ..."] [--merge]
 #   --chunk   runs each target as a series of fuzzer processes of at most N executions, each
-#             starting from the corpus the one before it left, until --runs or SECONDS: ASan's
-#             allocator grows a long-lived process (fuzz_scene: 170 MB to 1 GB over a million
-#             inputs, its rate down from 3,000 to a few hundred per second); a new process starts
-#             small and fast again.
+#             starting from the corpus the one before it left, until --runs or SECONDS. ASan's
+#             allocator grows a long-lived process: fuzz_scene went from 3,000 exec/s and 170 MB
+#             to a few hundred per second and 1 GB within 0.5-1 million inputs (docs/robustness.md);
+#             a new process starts small again. Chunks of 1,000,000 were too long for scene.
 #   --merge   minimises the campaign's new inputs into the committed corpus (review the diff:
 #             inputs cut from ../shared/captures must not be committed; the merge skips them by
 #             taking only the campaign's own corpus directory).
