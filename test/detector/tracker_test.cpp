@@ -52,8 +52,8 @@ struct Cand {
 
 // Appends a candidate as the detector reports one: the normalised score of every function (the
 // fitting one 0.95, the others 0.6), and the points decoding read: `votes` at the centre of each
-// observed cell of the tag, labelled with the fitting function's image, with the cell votes the
-// detector counts from them in the candidate's frame.
+// observed cell of the tag, labelled with the fitting function's image. (Its grid of cell votes,
+// which the tracker does not read, stays zero.)
 void add(ScanResult& r, const RkhsDictionary& dict, const Cand& c) {
   Candidate& d = r.candidates.emplace_back();
   const int f = 4 * c.code + c.q;
@@ -97,13 +97,6 @@ void add(ScanResult& r, const RkhsDictionary& dict, const Cand& c) {
     for (int k = 0; k < c.votes; ++k)
       r.vote_points.push_back(
           {static_cast<float>(q.x()), static_cast<float>(q.y()), static_cast<float>(q.z()), label});
-    // The detector's votes: the cell the point falls in, in the candidate's frame.
-    const double fc = (q.y() / c.size + 0.5) * W, fr = (0.5 - q.z() / c.size) * W;
-    if (!(fc >= 0.0 && fc < W && fr >= 0.0 && fr < W)) continue;
-    const auto cell =
-        static_cast<size_t>(d.first_cell + static_cast<int>(fr) * W + static_cast<int>(fc));
-    r.cell_votes[cell] += static_cast<float>(c.votes) * (2.0f * label - 1.0f);
-    r.cell_vote_counts[cell] += static_cast<float>(c.votes);
   }
   d.vote_point_count = static_cast<int>(r.vote_points.size()) - d.first_vote_point;
   if (c.rejection == Rejection::kNone && !c.track_only) {
