@@ -253,20 +253,24 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
     diag.coverage = bound;
     return finish(Stage::kPose, Rejection::kCoverage);
   }
-  PoseFitResult fit = fit_tag_pose(
-      b.solver, b.points, procrustes_initial_guess(outline.corners, t), std::max(t, outline.side_m),
-      std::max(opt_.pose.min_depth_epsilon_m, plane.depth_sigma), opt_.pose, b.pose);
+  const double t_fit = std::max(t, outline.side_m);
+  const double epsilon = std::max(opt_.pose.min_depth_epsilon_m, plane.depth_sigma);
+  PoseFitResult fit = fit_tag_pose(b.solver, b.points, procrustes_initial_guess(outline.corners, t),
+                                   t_fit, epsilon, opt_.pose, b.pose);
   diag.mean_cost_m = fit.cost / static_cast<double>(b.points.size());
   if (diag.mean_cost_m > opt_.pose.max_mean_cost_m)
     return finish(Stage::kPose, Rejection::kFitCost);
   diag.coverage = coverage_ratio(b.pose.subset, fit.pose, t, b.hull_in, b.hull);
   if (diag.coverage < opt_.pose.min_coverage) return finish(Stage::kPose, Rejection::kCoverage);
-  if (opt_.pose.border_refine) {
+  IntensityLevels levels;
+  if (opt_.pose.border_refine) levels = intensity_levels(b.points, b.decode.decode);
+  auto place = [&] {
+    if (!opt_.pose.border_refine) return;
     const BorderFit border =
-        place_on_border(b.points, fit.pose, t, dicts_, intensity_levels(b.points, b.decode.decode),
-                        BorderFitOptions{}, b.border);
+        place_on_border(b.points, fit.pose, t, dicts_, levels, BorderFitOptions{}, b.border);
     if (border.ok) fit.pose = border.pose;
-  }
+  };
+  place();
   clock.lap(Stage::kPose);
 
   // Sec. VI: decoding, eqs. (18)-(22), over the shifts along an axis the outline did not place.
@@ -274,6 +278,14 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
                                            decoys_, opt_.decode, b.decode);
   diag.score = dec.best.score;
   diag.margin = dec.best.margin_bits;
+  clock.lap(Stage::kDecode);
+  // A large cluster's polish, once it scores as a tag (a detection, or a candidate rejected only
+  // for its margin, its sparse returns or its boundary): most such clusters are no tag.
+  if (fit.polish_pending && dec.best.function >= 0 && dec.best.score >= opt_.decode.min_score) {
+    fit = polish_tag_pose(b.solver, b.points, fit.pose, t_fit, epsilon, opt_.pose);
+    place();
+    clock.lap(Stage::kPose);
+  }
   const TagFrame frame = tag_frame(fit.pose, outline.unseen_axis, dec.shift);
   const int points = static_cast<int>(b.points.size());
   diag.candidate =

@@ -38,7 +38,13 @@ bool fit_plane(std::vector<ClusterPoint>& points, const PlaneOptions& opt, uint3
                       float az) {
     return std::fabs(nx * (p.x - ax) + ny * (p.y - ay) + nz * (p.z - az)) <= tol;
   };
-  for (int it = 0; it < opt.iterations; ++it) {
+  // The adaptive stop: after k hypotheses, all of them drew an outlier with probability
+  // (1 - w^3)^k, w the best inlier fraction so far; stop once that is below miss_probability.
+  const double scored = static_cast<double>((n + stride - 1) / stride);
+  const double log_miss = std::log(static_cast<double>(opt.miss_probability));
+  int needed = opt.iterations;
+  for (int it = 0; it < needed; ++it) {
+    plane.hypotheses = it + 1;
     const Eigen::Vector3d a = pos(points[xorshift(s) % n]);
     const Eigen::Vector3d b = pos(points[xorshift(s) % n]);
     const Eigen::Vector3d c = pos(points[xorshift(s) % n]);
@@ -55,6 +61,12 @@ bool fit_plane(std::vector<ClusterPoint>& points, const PlaneOptions& opt, uint3
       best_count = count;
       best_n = nn;
       best_d = -nn.dot(a);
+      const double w = count / scored;
+      const double all_in = w * w * w;
+      // The hypotheses needed, in double (none inlier: -1/0), capped before the conversion.
+      const double k = all_in >= 1.0 ? 0.0 : std::ceil(log_miss / std::log1p(-all_in));
+      needed =
+          all_in > 0.0 ? static_cast<int>(std::min<double>(opt.iterations, k)) : opt.iterations;
     }
   }
   if (best_count < 3) return false;

@@ -60,17 +60,6 @@ Eigen::Matrix3d right_jacobian(const Eigen::Vector3d& w) {
          (th - std::sin(th)) / (th2 * th) * W * W;
 }
 
-// eq. (7) and its derivative in lambda.
-inline double l1(double lambda, double a, double& d) {
-  const double m = std::abs(lambda);
-  if (m <= a) {
-    d = 0.0;
-    return 0.0;
-  }
-  d = lambda > 0 ? 1.0 : -1.0;
-  return m - a;
-}
-
 }  // namespace
 
 std::string_view pose_algorithm_name(PoseAlgorithm a) {
@@ -110,10 +99,13 @@ RigidPose procrustes_initial_guess(const std::array<Eigen::Vector3d, 4>& corners
 
 double fitting_cost(std::span<const ClusterPoint> points, const RigidPose& pose, double t,
                     double epsilon) {
-  double c = 0.0, d = 0.0;
+  // eq. (7) per coordinate, without branches (the solver needs it for every point).
+  const double half = t / 2;
+  double c = 0.0;
   for (const auto& p : points) {
     const Eigen::Vector3d q = pose.apply(Eigen::Vector3d(p.x, p.y, p.z));
-    c += l1(q.x(), epsilon, d) + l1(q.y(), t / 2, d) + l1(q.z(), t / 2, d);
+    c += std::max(std::abs(q.x()) - epsilon, 0.0) + std::max(std::abs(q.y()) - half, 0.0) +
+         std::max(std::abs(q.z()) - half, 0.0);
   }
   return c;
 }
@@ -308,19 +300,32 @@ void select_pose_points(std::span<const ClusterPoint> points, int max_points,
     if (!subset[i].edge) weights[i] = interior_weight;
 }
 
+namespace {
+
+// The polish: opt.polish_evaluations evaluations within 2 cm and 0.02 rad of its start.
+PoseOptions polish_options(const PoseOptions& opt) {
+  PoseOptions polish = opt;
+  polish.max_evaluations = opt.polish_evaluations;
+  polish.translation_bound_m = 0.02;
+  polish.rotation_bound_rad = 0.02;
+  return polish;
+}
+
+}  // namespace
+
 PoseFitResult fit_tag_pose(PoseSolver& solver, std::span<const ClusterPoint> points,
                            const RigidPose& initial, double t_fit, double epsilon,
                            const PoseOptions& opt, TagPoseWorkspace& ws) {
   select_pose_points(points, opt.max_points, ws.subset, ws.weights);
+  const bool subsampled = ws.subset.size() < points.size();
+  const bool polished = subsampled && opt.polish_evaluations > 0;
+  const bool now = polished && (opt.polish_max_points == 0 ||
+                                points.size() <= static_cast<size_t>(opt.polish_max_points));
+  // A subsample's own cost at its optimum is biased low: the retry decides on every point's.
   auto fit_from = [&](const RigidPose& start) {
     PoseFitResult fit = solver.fit(ws.subset, t_fit, epsilon, start, opt, ws.weights);
-    if (ws.subset.size() < points.size() && opt.polish_evaluations > 0) {
-      PoseOptions polish = opt;
-      polish.max_evaluations = opt.polish_evaluations;
-      polish.translation_bound_m = 0.02;
-      polish.rotation_bound_rad = 0.02;
-      fit = solver.fit(points, t_fit, epsilon, fit.pose, polish);
-    }
+    if (subsampled && (opt.retry_mean_cost_m > 0.0 || !now))
+      fit.cost = fitting_cost(points, fit.pose, t_fit, epsilon);
     return fit;
   };
   PoseFitResult fit = fit_from(initial);
@@ -333,7 +338,17 @@ PoseFitResult fit_tag_pose(PoseSolver& solver, std::span<const ClusterPoint> poi
     const PoseFitResult other = fit_from({turn * initial.R, turn * initial.p});
     if (other.cost < fit.cost) fit = other;
   }
+  // Only the better guess is polished (the subsample's depth term is noisier), and a cluster of
+  // more than polish_max_points only when the caller asks for it (polish_tag_pose).
+  if (now) return polish_tag_pose(solver, points, fit.pose, t_fit, epsilon, opt);
+  fit.polish_pending = polished;
   return fit;
+}
+
+PoseFitResult polish_tag_pose(PoseSolver& solver, std::span<const ClusterPoint> points,
+                              const RigidPose& start, double t_fit, double epsilon,
+                              const PoseOptions& opt) {
+  return solver.fit(points, t_fit, epsilon, start, polish_options(opt));
 }
 
 double coverage_ratio(std::span<const ClusterPoint> points, const RigidPose& pose, double t,

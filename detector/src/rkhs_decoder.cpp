@@ -4,6 +4,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cmath>
 
@@ -55,6 +56,16 @@ float median(std::vector<float>& v) {
   return *mid;
 }
 
+// The element at index k of the sorted values a histogram of whole numbers 0-255 counts.
+float histogram_element(const std::array<uint32_t, 256>& counts, size_t k) {
+  size_t seen = 0;
+  for (size_t v = 0; v < counts.size(); ++v) {
+    seen += counts[v];
+    if (seen > k) return static_cast<float>(v);
+  }
+  return 255.0f;
+}
+
 }  // namespace
 
 IntensityLevels intensity_levels(std::span<const ClusterPoint> points, DecodeWorkspace& ws) {
@@ -63,8 +74,32 @@ IntensityLevels intensity_levels(std::span<const ClusterPoint> points, DecodeWor
   // Split around the mean, the median of each side is the black and the white level (robust to a
   // few specular or dark returns).
   double mean = 0.0;
-  for (const auto& p : points) mean += p.intensity;
+  bool bytes = true;  // every intensity a whole number in [0, 255], as a Velodyne reports them
+  for (const auto& p : points) {
+    mean += p.intensity;
+    bytes = bytes && p.intensity >= 0.0f && p.intensity <= 255.0f &&
+            static_cast<float>(static_cast<int>(p.intensity)) == p.intensity;
+  }
   mean /= static_cast<double>(points.size());
+  if (bytes) {
+    // The same medians from a histogram of each side: no sorting.
+    std::array<uint32_t, 256> below{}, above{};
+    size_t n_below = 0;
+    for (const auto& p : points) {
+      const auto v = static_cast<size_t>(p.intensity);
+      if (p.intensity < mean) {
+        ++below[v];
+        ++n_below;
+      } else {
+        ++above[v];
+      }
+    }
+    if (n_below == 0) return lv;
+    lv.black = histogram_element(below, n_below / 2);
+    lv.white = histogram_element(above, (points.size() - n_below) / 2);
+    lv.valid = true;
+    return lv;
+  }
   ws.sorted.clear();
   for (const auto& p : points)
     if (p.intensity < mean) ws.sorted.push_back(p.intensity);
@@ -112,6 +147,45 @@ namespace {
 // W x W template, the white-minus-black kernel sums of the prepared points make every code's inner
 // product a signed sum over cells. Fills `evidence` (W x W, row-major) and returns the sum of its
 // magnitudes.
+// e^x in float to about 1e-7 relative, without branches or calls, so that a loop over many
+// arguments is vectorised: x = n ln 2 + r with |r| <= ln 2 / 2 (ln 2 in two parts, so that r is
+// exact), e^r by its Taylor series to degree 7 (remainder below 1e-8), 2^n in the exponent bits.
+// Arguments are clamped to [-87, 88], where the result stays a normal float (NaN to -87: the
+// integer conversion below must not see it).
+inline float exp_float(float x) {
+  x = std::min(88.0f, std::max(-87.0f, x));
+  const float n = (x * 1.44269504f + 12582912.0f) - 12582912.0f;  // round(x / ln 2)
+  const float r = (x - n * 0.693359375f) + n * 2.12194440e-4f;
+  float e = 1.0f / 5040.0f;  // Horner: 1 + r + r^2 / 2 + ... + r^7 / 7!
+  e = e * r + 1.0f / 720.0f;
+  e = e * r + 1.0f / 120.0f;
+  e = e * r + 1.0f / 24.0f;
+  e = e * r + 1.0f / 6.0f;
+  e = e * r + 0.5f;
+  e = e * r + 1.0f;
+  e = e * r + 1.0f;
+  return e * std::bit_cast<float>((static_cast<int>(n) + 127) << 23);
+}
+
+// Where point p's kernel reaches: the sample columns c0-c1 and rows r0-r1 (fc, fr its position in
+// sample steps); false when it reaches no sample.
+struct Reach {
+  double fc, fr;
+  int c0, c1, r0, r1;
+};
+inline bool reach_of(const DecodePoint& p, int N, int reach, Reach& out) {
+  // Sample j sits at (j + 0.5) / N - 0.5 across (y) and 0.5 - (j + 0.5) / N down (z).
+  out.fc = (p.yn + 0.5) * N - 0.5;
+  out.fr = (0.5 - p.zn) * N - 0.5;
+  if (!(std::fabs(out.fc) <= 4.0 * N && std::fabs(out.fr) <= 4.0 * N)) return false;  // far off
+  const int ic = floor_int(out.fc), ir = floor_int(out.fr);
+  out.c0 = std::max(0, ic - reach);
+  out.c1 = std::min(N - 1, ic + reach + 1);
+  out.r0 = std::max(0, ir - reach);
+  out.r1 = std::min(N - 1, ir + reach + 1);
+  return out.c0 <= out.c1 && out.r0 <= out.r1;
+}
+
 double accumulate_evidence(int W, const DecodeOptions& opt, DecodeWorkspace& ws,
                            std::vector<float>& evidence) {
   const int S = std::max(opt.samples_per_cell, 1);
@@ -133,50 +207,57 @@ double accumulate_evidence(int W, const DecodeOptions& opt, DecodeWorkspace& ws,
   const double ratio_step = std::exp(-2 * a);
   ws.ex.resize(static_cast<size_t>(2 * reach + 2));
   ws.ez.resize(static_cast<size_t>(2 * reach + 2));
+  // Per point four exponentials: eq. (19) along the normal and eq. (21), against a white and a
+  // black template point, times the spatial kernel of the first sample in reach; and the first
+  // ratio along each axis. Their arguments first, then all of them in one vectorised loop. Single
+  // precision: the weights need no more than the float evidence they add to.
+  const size_t n = ws.prepared.size();
+  ws.exps.resize(4 * n);
+  float *arg_w = ws.exps.data(), *arg_b = arg_w + n, *arg_c = arg_b + n, *arg_r = arg_c + n;
+  Reach q{};
+  for (size_t i = 0; i < n; ++i) {
+    const DecodePoint& p = ws.prepared[i];
+    if (!reach_of(p, N, reach, q)) {
+      arg_w[i] = arg_b[i] = arg_c[i] = arg_r[i] = 0.0f;
+      continue;
+    }
+    // eq. (22), the 3-D lifting remark: the normal coordinate carries the intensity.
+    const double label = p.label, xl = p.xn + lift * label;
+    const double first = -a * ((q.c0 - q.fc) * (q.c0 - q.fc) + (q.r0 - q.fr) * (q.r0 - q.fr));
+    arg_w[i] = static_cast<float>(first - (xl - lift) * (xl - lift) * inv2s2 -
+                                  (label - 1) * (label - 1) * inv2li);
+    arg_b[i] = static_cast<float>(first - xl * xl * inv2s2 - label * label * inv2li);
+    arg_c[i] = static_cast<float>(-a * (2 * (q.c0 - q.fc) + 1));
+    arg_r[i] = static_cast<float>(-a * (2 * (q.r0 - q.fr) + 1));
+  }
+  for (size_t i = 0; i < 4 * n; ++i) ws.exps[i] = exp_float(ws.exps[i]);
   // Per cell along one axis, the sum of the factors of its samples in reach; returns the cells.
-  auto cell_factors = [&](int j0, int j1, double f, std::vector<double>& out) {
-    double g = 1.0, ratio = std::exp(static_cast<float>(-a * (2 * (j0 - f) + 1)));
-    size_t n = 0;
+  auto cell_factors = [&](int j0, int j1, double ratio, std::vector<double>& out) {
+    double g = 1.0;
+    size_t m = 0;
     int left = (j0 / S + 1) * S - j0;  // samples of the first cell in reach
     out[0] = 0.0;
     for (int j = j0; j <= j1; ++j) {
-      out[n] += g;
+      out[m] += g;
       g *= ratio;
       ratio *= ratio_step;
       if (--left == 0 && j < j1) {
-        out[++n] = 0.0;
+        out[++m] = 0.0;
         left = S;
       }
     }
-    return n + 1;
+    return m + 1;
   };
-  for (const auto& p : ws.prepared) {
-    const double label = p.label, yn = p.yn, zn = p.zn;
-    // eq. (22), the 3-D lifting remark: the normal coordinate carries the intensity.
-    const double xl = p.xn + lift * label;
-    // Sample j sits at (j + 0.5) / N - 0.5 across (y) and 0.5 - (j + 0.5) / N down (z).
-    const double fc = (yn + 0.5) * N - 0.5, fr = (0.5 - zn) * N - 0.5;
-    if (!(std::fabs(fc) <= 4.0 * N && std::fabs(fr) <= 4.0 * N)) continue;  // far off the tag
-    const int ic = floor_int(fc), ir = floor_int(fr);
-    const int c0 = std::max(0, ic - reach), c1 = std::min(N - 1, ic + reach + 1);
-    const int r0 = std::max(0, ir - reach), r1 = std::min(N - 1, ir + reach + 1);
-    if (c0 > c1 || r0 > r1) continue;
-    // eq. (19) along the normal and eq. (21), against a white and a black
-    // template point, times the spatial kernel of the first sample in reach. Single precision
-    // exponentials: the weights need no more than the float evidence they add to.
-    const double first = -a * ((c0 - fc) * (c0 - fc) + (r0 - fr) * (r0 - fr));
-    const double kw = std::exp(static_cast<float>(first - (xl - lift) * (xl - lift) * inv2s2 -
-                                                  (label - 1) * (label - 1) * inv2li));
-    const double kb =
-        std::exp(static_cast<float>(first - xl * xl * inv2s2 - label * label * inv2li));
+  for (size_t i = 0; i < n; ++i) {
+    if (!reach_of(ws.prepared[i], N, reach, q)) continue;
     // The kernel is separable: a cell's sum over its S x S samples is the product of the sums of
     // its sample rows and columns.
-    const size_t ncol = cell_factors(c0, c1, fc, ws.ex);
-    const size_t nrow = cell_factors(r0, r1, fr, ws.ez);
-    const double k = kw - kb;
+    const size_t ncol = cell_factors(q.c0, q.c1, arg_c[i], ws.ex);
+    const size_t nrow = cell_factors(q.r0, q.r1, arg_r[i], ws.ez);
+    const double k = static_cast<double>(arg_w[i]) - static_cast<double>(arg_b[i]);
     for (size_t r = 0; r < nrow; ++r) {
       const double kr = k * ws.ez[r];
-      double* out = ws.acc.data() + static_cast<size_t>((r0 / S) * W + c0 / S) + r * cells_w;
+      double* out = ws.acc.data() + static_cast<size_t>((q.r0 / S) * W + q.c0 / S) + r * cells_w;
       for (size_t c = 0; c < ncol; ++c) out[c] += kr * ws.ex[c];
     }
   }

@@ -64,15 +64,15 @@ TEST(Config, EveryDetectorOptionIsMapped) {
   EXPECT_EQ(field_count<detector::FeatureOptions>(), 6u);
   EXPECT_EQ(field_count<detector::ClusterOptions>(), 2u);
   EXPECT_EQ(field_count<detector::ValidationOptions>(), 11u);
-  EXPECT_EQ(field_count<detector::PlaneOptions>(), 4u);
+  EXPECT_EQ(field_count<detector::PlaneOptions>(), 5u);
   EXPECT_EQ(field_count<detector::CornerOptions>(), 8u);
-  EXPECT_EQ(field_count<detector::PoseOptions>(), 13u);
+  EXPECT_EQ(field_count<detector::PoseOptions>(), 14u);
   EXPECT_EQ(field_count<detector::DecodeOptions>(), 14u);
   std::set<std::string> keys;
   leaf_keys(YAML::Load(print_config(DaemonOptions{})), "", keys);
   size_t detector_keys = 0;
   for (const auto& k : keys) detector_keys += k.rfind("detector.", 0) == 0 ? 1u : 0u;
-  EXPECT_EQ(detector_keys, 3u + 6u + 2u + 11u + 4u + 8u + 13u + 14u);
+  EXPECT_EQ(detector_keys, 3u + 6u + 2u + 11u + 5u + 8u + 14u + 14u);
 }
 
 TEST(Config, PrintedConfigParsesBackToTheSameOptions) {

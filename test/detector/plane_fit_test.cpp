@@ -52,6 +52,30 @@ TEST(PlaneFit, RejectsWhenOutliersExceedKappa) {
   EXPECT_TRUE(fit_plane(again, outdoor, 7, pl));
 }
 
+// The adaptive stop: a clear plane needs few hypotheses, one with many outliers all of them, and
+// the plane found is the one that many more hypotheses give.
+TEST(PlaneFit, AClearPlaneStopsDrawingHypothesesEarlyWithTheSamePlane) {
+  PlaneOptions more;
+  more.miss_probability = 1e-30f;
+  for (double outliers : {0.0, 0.02, 0.1}) {
+    auto pts = noisy_plane(400, outliers, 5);
+    auto again = pts;
+    Plane adaptive, full;
+    ASSERT_TRUE(fit_plane(pts, PlaneOptions{}, 7, adaptive));
+    ASSERT_TRUE(fit_plane(again, more, 7, full));
+    EXPECT_GE(full.hypotheses, adaptive.hypotheses);
+    // 1e-9 at the inlier fraction found: 6 hypotheses at 99 %, 16 at 90 %.
+    EXPECT_LE(adaptive.hypotheses, outliers < 0.05 ? 8 : 20) << outliers;
+    EXPECT_GT(adaptive.normal.dot(full.normal), 0.99999) << outliers;
+    EXPECT_NEAR((adaptive.centroid - full.centroid).norm(), 0.0, 1e-4) << outliers;
+    EXPECT_EQ(adaptive.inliers, full.inliers) << outliers;
+  }
+  auto many = noisy_plane(400, 0.35, 6);  // 65 % inliers: 1e-9 needs more than 40
+  Plane pl;
+  fit_plane(many, PlaneOptions{}, 7, pl);
+  EXPECT_EQ(pl.hypotheses, PlaneOptions{}.iterations);
+}
+
 TEST(PlaneFit, TooFewPointsFail) {
   std::vector<ClusterPoint> two(2);
   Plane pl;

@@ -202,6 +202,7 @@ void visit_options(V& v, DetectorOptions& o) {
     s.field("inlier_m", o.plane.inlier_m, above(0.0f), "m");
     s.field("max_outlier_ratio", o.plane.max_outlier_ratio, half_open(0.0f, 1.0f), "");
     s.field("iterations", o.plane.iterations, at_least(1), "hypotheses");
+    s.field("miss_probability", o.plane.miss_probability, open(0.0f, 1.0f), "");
     s.field("score_points", o.plane.score_points, at_least(0), "points");
   });
   v.section("corners", [&](V& s) {
@@ -226,6 +227,7 @@ void visit_options(V& v, DetectorOptions& o) {
     s.field("min_coverage", o.pose.min_coverage, closed(0.0, 1.0), "t^2");
     s.field("max_points", o.pose.max_points, at_least(8), "points");
     s.field("polish_evaluations", o.pose.polish_evaluations, at_least(0), "evaluations");
+    s.field("polish_max_points", o.pose.polish_max_points, at_least(0), "points");
     s.field("border_refine", o.pose.border_refine, Any{}, "");
     s.field("retry_mean_cost_m", o.pose.retry_mean_cost_m, at_least(0.0), "m");
   });

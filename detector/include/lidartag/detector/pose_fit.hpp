@@ -58,6 +58,12 @@ struct PoseOptions {
   // Then this many evaluations on every point, from the subsample's optimum within 2 cm and
   // 0.02 rad (the subsample's depth term is noisier). Default 20; 0 skips it.
   int polish_evaluations = 20;
+  // A cluster of more points than this is decoded on the subsample's fit and polished (on every
+  // point) only when it scores as a tag: most clusters this large are no tag (a 1.2 m board at
+  // 3-4 m of a VLP-32C returns 1,400-1,900 points; the polish's cost grows with the points), and
+  // a tag this close decodes with a wide margin. Default 1024. 0: every cluster is polished
+  // before decoding.
+  int polish_max_points = 1024;
   // Place the tag in its plane on the black square's outline (square_fit.hpp) rather than on the
   // board's. Default true.
   bool border_refine = true;
@@ -94,6 +100,9 @@ struct PoseFitResult {
   double cost = 0.0;
   int evaluations = 0;
   bool solver_ok = false;  // NLopt returned a success code
+  // fit_tag_pose left the polish of a cluster of more than PoseOptions::polish_max_points points
+  // to its caller (polish_tag_pose).
+  bool polish_pending = false;
 };
 
 // Minimises eq. (8) over SE(3) near `initial` with NLopt. One instance per thread; the
@@ -135,14 +144,22 @@ struct TagPoseWorkspace {
 };
 
 // eq. (9) for one cluster from the initial guess `initial` (eq. (10)): minimises eq. (8) with a
-// template of size t_fit and depth slack epsilon on the points of select_pose_points (ws.subset),
-// then, when that was a subsample, polishes with opt.polish_evaluations evaluations on every
-// point within 2 cm and 0.02 rad (the subsample's depth term is noisier). The cost is that of
-// the last fit (on every point when polished). A fit that stays above opt.retry_mean_cost_m per
-// point is done again from `initial` turned 45 degrees about the normal; the cheaper is returned.
+// template of size t_fit and depth slack epsilon on the points of select_pose_points
+// (ws.subset). A fit whose cost over every point stays above opt.retry_mean_cost_m per point is
+// done again from `initial` turned 45 degrees about the normal, and the cheaper kept. When the
+// subset was a subsample, only that fit is then polished, with opt.polish_evaluations
+// evaluations on every point within 2 cm and 0.02 rad (the subsample's depth term is noisier),
+// unless there are more than opt.polish_max_points points: then the polish is left to the caller
+// (PoseFitResult::polish_pending). The cost returned is eq. (8) over every point.
 PoseFitResult fit_tag_pose(PoseSolver& solver, std::span<const ClusterPoint> points,
                            const RigidPose& initial, double t_fit, double epsilon,
                            const PoseOptions& opt, TagPoseWorkspace& ws);
+
+// The polish on every point from `start`: opt.polish_evaluations evaluations within 2 cm and
+// 0.02 rad.
+PoseFitResult polish_tag_pose(PoseSolver& solver, std::span<const ClusterPoint> points,
+                              const RigidPose& start, double t_fit, double epsilon,
+                              const PoseOptions& opt);
 
 // Fraction of t^2 covered by the convex hull of the pulled-back points in the tag's y-z plane
 // (surveyor's formula).

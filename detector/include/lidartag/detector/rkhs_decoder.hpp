@@ -148,6 +148,7 @@ struct DecodeWorkspace {
   std::vector<double> acc;            // per cell: white minus black kernel sums
   std::vector<float> evidence;  // per cell: the same in float, what the functions are scored on
   std::vector<double> ex, ez;   // per point: kernel factors of the sample columns and rows
+  std::vector<float> exps;      // per point: its four kernel exponentials (their arguments first)
   std::vector<float> sorted;    // intensity medians
   std::vector<float> varying;   // the evidence on the dictionary's varying cells
   std::vector<float> tables;    // per group of 8 varying cells: the sum for each sign pattern
