@@ -346,6 +346,27 @@ TEST(Detector, CandidatesCarryThePoseAndTheEvidenceOfEveryCode) {
   }
 }
 
+// A cluster of more than pose.polish_max_points points is decoded on the subsample's fit and
+// polished on every point only once it scores as a tag: the detections are those of the polish
+// on every point before decoding (pose.polish_max_points 0), to a fraction of a millimetre.
+TEST(Detector, ALargeClusterIsPolishedOnEveryPointOnceItScoresAsATag) {
+  const TwoTags s;
+  DetectorOptions every = s.options, few = s.options;
+  every.pose.polish_max_points = 0;
+  few.pose.polish_max_points = 100;  // below both tags' point counts
+  const ScanResult a = detect_once(s.scan, every), b = detect_once(s.scan, few);
+  ASSERT_EQ(a.detections.size(), 2u);
+  ASSERT_EQ(b.detections.size(), a.detections.size());
+  for (size_t i = 0; i < a.detections.size(); ++i) {
+    const Detection &x = a.detections[i], &y = b.detections[i];
+    EXPECT_GT(y.points, 100);
+    EXPECT_EQ(y.id, x.id);
+    EXPECT_EQ(y.family_index, x.family_index);
+    EXPECT_LT((y.position - x.position).norm(), 5e-4) << i;
+    EXPECT_LT(y.orientation.angularDistance(x.orientation), 0.1 * std::numbers::pi / 180.0) << i;
+  }
+}
+
 TEST(Detector, ClustersBelowTheBoundaryBoundButAboveTheTracksAreTrackOnlyCandidates) {
   const TwoTags s;
   const ScanResult res = detect_once(s.scan, s.options);

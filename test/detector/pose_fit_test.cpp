@@ -346,6 +346,32 @@ TEST(PoseFit, TagPoseFitsTheSubsampleThenPolishesOnEveryPoint) {
   EXPECT_GT(sub.evaluations, 0);
 }
 
+// More points than polish_max_points: the polish is left to the caller (polish_tag_pose), the
+// cost is still eq. (8) over every point.
+TEST(PoseFit, ALargeClustersPolishIsLeftToTheCaller) {
+  const Eigen::Matrix3d R = truth_rotation();
+  const Eigen::Vector3d c(5, -1, 0.3);
+  std::mt19937 rng(5);
+  const auto pts = tag_cloud(R, c, 1.2, 0.005, 13);
+  const RigidPose init = perturbed_start(R, c, 0.03, 0.02, rng);
+  PoseSolver solver(PoseAlgorithm::kMMA);
+  TagPoseWorkspace ws;
+  PoseOptions opt;
+  opt.polish_max_points = static_cast<int>(pts.size()) - 1;
+  const PoseFitResult pending = fit_tag_pose(solver, pts, init, 1.2, 0.01, opt, ws);
+  EXPECT_TRUE(pending.polish_pending);
+  EXPECT_NEAR(pending.cost, fitting_cost(pts, pending.pose, 1.2, 0.01), 1e-9 * (1 + pending.cost));
+  const PoseFitResult done = polish_tag_pose(solver, pts, pending.pose, 1.2, 0.01, opt);
+  EXPECT_FALSE(done.polish_pending);
+  EXPECT_LE(done.evaluations, opt.polish_evaluations);
+  EXPECT_LE(done.cost, pending.cost + 1e-9);
+  // With room for every point the polish is done in the fit.
+  opt.polish_max_points = static_cast<int>(pts.size());
+  EXPECT_FALSE(fit_tag_pose(solver, pts, init, 1.2, 0.01, opt, ws).polish_pending);
+  opt.polish_max_points = 0;
+  EXPECT_FALSE(fit_tag_pose(solver, pts, init, 1.2, 0.01, opt, ws).polish_pending);
+}
+
 TEST(PoseFit, AFitStartedFromCornersTurned45DegreesIsTriedAgainFromTheSquaresOtherGuess) {
   // A diamond-mounted tag seen by a few rings: corners found at the middle of its sides give a
   // guess turned 45 degrees in its plane, a local minimum (the template's corners poke out past
