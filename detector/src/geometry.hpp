@@ -3,13 +3,39 @@
 
 #include <Eigen/Core>
 #include <algorithm>
+#include <array>
 #include <vector>
 
 namespace lidartag::detector::geometry {
 
-// Convex hull (Andrew's monotone chain), counter-clockwise, into `hull`. `pts` is reordered.
+// Convex hull (Andrew's monotone chain), counter-clockwise, into `hull`. `pts` is reordered, and
+// points inside the hull are removed from it.
 inline void convex_hull(std::vector<Eigen::Vector2d>& pts, std::vector<Eigen::Vector2d>& hull) {
   hull.clear();
+  if (pts.size() < 3) {
+    hull = pts;
+    return;
+  }
+  auto cross = [](const Eigen::Vector2d& o, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+    return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
+  };
+  // Akl-Toussaint: a point strictly inside the quadrilateral of the extreme points in x and y
+  // (counter-clockwise: least x, least y, most x, most y) is no vertex of the hull. Dropping
+  // those before the sort leaves the hull as it was; a degenerate quadrilateral drops nothing.
+  {
+    std::array<Eigen::Vector2d, 4> q = {pts[0], pts[0], pts[0], pts[0]};
+    for (const auto& p : pts) {
+      if (p.x() < q[0].x()) q[0] = p;
+      if (p.y() < q[1].y()) q[1] = p;
+      if (p.x() > q[2].x()) q[2] = p;
+      if (p.y() > q[3].y()) q[3] = p;
+    }
+    auto inside = [&](const Eigen::Vector2d& p) {
+      return cross(q[0], q[1], p) > 0 && cross(q[1], q[2], p) > 0 && cross(q[2], q[3], p) > 0 &&
+             cross(q[3], q[0], p) > 0;
+    };
+    pts.erase(std::remove_if(pts.begin(), pts.end(), inside), pts.end());
+  }
   const size_t n = pts.size();
   if (n < 3) {
     hull = pts;
@@ -18,9 +44,6 @@ inline void convex_hull(std::vector<Eigen::Vector2d>& pts, std::vector<Eigen::Ve
   std::sort(pts.begin(), pts.end(), [](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
     return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y());
   });
-  auto cross = [](const Eigen::Vector2d& o, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
-    return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
-  };
   hull.resize(2 * n);
   size_t k = 0;
   for (size_t i = 0; i < n; ++i) {

@@ -99,15 +99,17 @@ RigidPose procrustes_initial_guess(const std::array<Eigen::Vector3d, 4>& corners
 
 double fitting_cost(std::span<const ClusterPoint> points, const RigidPose& pose, double t,
                     double epsilon) {
-  // eq. (7) per coordinate, without branches (the solver needs it for every point).
+  // eq. (7) per coordinate, without branches, into four partial sums (one long chain of
+  // dependent additions would bound the loop by their latency).
   const double half = t / 2;
-  double c = 0.0;
-  for (const auto& p : points) {
+  std::array<double, 4> c{};
+  for (size_t i = 0; i < points.size(); ++i) {
+    const auto& p = points[i];
     const Eigen::Vector3d q = pose.apply(Eigen::Vector3d(p.x, p.y, p.z));
-    c += std::max(std::abs(q.x()) - epsilon, 0.0) + std::max(std::abs(q.y()) - half, 0.0) +
-         std::max(std::abs(q.z()) - half, 0.0);
+    c[i % 4] += std::max(std::abs(q.x()) - epsilon, 0.0) + std::max(std::abs(q.y()) - half, 0.0) +
+                std::max(std::abs(q.z()) - half, 0.0);
   }
-  return c;
+  return (c[0] + c[1]) + (c[2] + c[3]);
 }
 
 // Points per block of the cost loop: a fixed trip count that the compiler vectorises.

@@ -213,14 +213,17 @@ double accumulate_evidence(int W, const DecodeOptions& opt, DecodeWorkspace& ws,
   // precision: the weights need no more than the float evidence they add to.
   const size_t n = ws.prepared.size();
   ws.exps.resize(4 * n);
+  ws.reach.resize(n);
   float *arg_w = ws.exps.data(), *arg_b = arg_w + n, *arg_c = arg_b + n, *arg_r = arg_c + n;
   Reach q{};
   for (size_t i = 0; i < n; ++i) {
     const DecodePoint& p = ws.prepared[i];
     if (!reach_of(p, N, reach, q)) {
       arg_w[i] = arg_b[i] = arg_c[i] = arg_r[i] = 0.0f;
+      ws.reach[i] = {-1, -1, -1, -1};
       continue;
     }
+    ws.reach[i] = {q.c0, q.c1, q.r0, q.r1};
     // eq. (22), the 3-D lifting remark: the normal coordinate carries the intensity.
     const double label = p.label, xl = p.xn + lift * label;
     const double first = -a * ((q.c0 - q.fc) * (q.c0 - q.fc) + (q.r0 - q.fr) * (q.r0 - q.fr));
@@ -249,15 +252,16 @@ double accumulate_evidence(int W, const DecodeOptions& opt, DecodeWorkspace& ws,
     return m + 1;
   };
   for (size_t i = 0; i < n; ++i) {
-    if (!reach_of(ws.prepared[i], N, reach, q)) continue;
+    const auto [c0, c1, r0, r1] = ws.reach[i];
+    if (c0 < 0) continue;
     // The kernel is separable: a cell's sum over its S x S samples is the product of the sums of
     // its sample rows and columns.
-    const size_t ncol = cell_factors(q.c0, q.c1, arg_c[i], ws.ex);
-    const size_t nrow = cell_factors(q.r0, q.r1, arg_r[i], ws.ez);
+    const size_t ncol = cell_factors(c0, c1, arg_c[i], ws.ex);
+    const size_t nrow = cell_factors(r0, r1, arg_r[i], ws.ez);
     const double k = static_cast<double>(arg_w[i]) - static_cast<double>(arg_b[i]);
     for (size_t r = 0; r < nrow; ++r) {
       const double kr = k * ws.ez[r];
-      double* out = ws.acc.data() + static_cast<size_t>((q.r0 / S) * W + q.c0 / S) + r * cells_w;
+      double* out = ws.acc.data() + static_cast<size_t>((r0 / S) * W + c0 / S) + r * cells_w;
       for (size_t c = 0; c < ncol; ++c) out[c] += kr * ws.ex[c];
     }
   }
@@ -289,10 +293,30 @@ void score_functions(const RkhsDictionary& dict, const DecodeOptions& opt, Decod
   const int nf = dict.functions();
   ws.scores.resize(static_cast<size_t>(nf));
   auto score_range = [&](int f0, int f1) {
-    for (int f = f0; f < f1; ++f) {
+    const float* t = ws.tables.data();
+    int f = f0;
+    // Four functions at a time: four independent chains of additions instead of one (each
+    // function's sum in the same order as alone).
+    for (; f + 4 <= f1; f += 4) {
+      const uint8_t *i0 = dict.chunks(f), *i1 = dict.chunks(f + 1), *i2 = dict.chunks(f + 2),
+                    *i3 = dict.chunks(f + 3);
+      float s0 = 0.0f, s1 = 0.0f, s2 = 0.0f, s3 = 0.0f;
+      for (size_t g = 0; g < groups; ++g) {
+        s0 += t[g * 256 + i0[g]];
+        s1 += t[g * 256 + i1[g]];
+        s2 += t[g * 256 + i2[g]];
+        s3 += t[g * 256 + i3[g]];
+      }
+      float* out = ws.scores.data() + f;
+      out[0] = s0;
+      out[1] = s1;
+      out[2] = s2;
+      out[3] = s3;
+    }
+    for (; f < f1; ++f) {
       const uint8_t* idx = dict.chunks(f);
       float sum = 0.0f;
-      for (size_t g = 0; g < groups; ++g) sum += ws.tables[g * 256 + idx[g]];
+      for (size_t g = 0; g < groups; ++g) sum += t[g * 256 + idx[g]];
       ws.scores[static_cast<size_t>(f)] = sum;
     }
   };

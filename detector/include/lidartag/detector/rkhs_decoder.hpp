@@ -149,6 +149,8 @@ struct DecodeWorkspace {
   std::vector<float> evidence;  // per cell: the same in float, what the functions are scored on
   std::vector<double> ex, ez;   // per point: kernel factors of the sample columns and rows
   std::vector<float> exps;      // per point: its four kernel exponentials (their arguments first)
+  // per point: the sample columns c0-c1 and rows r0-r1 its kernel reaches (-1: none)
+  std::vector<std::array<int, 4>> reach;
   std::vector<float> sorted;    // intensity medians
   std::vector<float> varying;   // the evidence on the dictionary's varying cells
   std::vector<float> tables;    // per group of 8 varying cells: the sum for each sign pattern
