@@ -16,6 +16,9 @@
 #   --merge   minimises the campaign's new inputs into the committed corpus (review the diff:
 #             inputs cut from ../shared/captures must not be committed; the merge skips them by
 #             taking only the campaign's own corpus directory).
+# A timeout (10 s of wall-clock time) whose input then runs within the limit alone, at normal
+# priority, was starvation by other work on the machine, not a slow input: it is kept as
+# starved-<name> beside the corpus, listed at the end, and the campaign goes on.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds=600 runs="" chunk="" jobs=$(nproc) targets="" targets_given="" merge=0
