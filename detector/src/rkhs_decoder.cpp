@@ -143,10 +143,6 @@ DecodeResult decode_tag(std::span<const ClusterPoint> points, const IntensityLev
 
 namespace {
 
-// eq. (18) against a template function is a sum over its sample points; per cell of a
-// W x W template, the white-minus-black kernel sums of the prepared points make every code's inner
-// product a signed sum over cells. Fills `evidence` (W x W, row-major) and returns the sum of its
-// magnitudes.
 // e^x in float to about 1e-7 relative, without branches or calls, so that a loop over many
 // arguments is vectorised: x = n ln 2 + r with |r| <= ln 2 / 2 (ln 2 in two parts, so that r is
 // exact), e^r by its Taylor series to degree 7 (remainder below 1e-8), 2^n in the exponent bits.
@@ -186,6 +182,10 @@ inline bool reach_of(const DecodePoint& p, int N, int reach, Reach& out) {
   return out.c0 <= out.c1 && out.r0 <= out.r1;
 }
 
+// eq. (18) against a template function is a sum over its sample points; per cell of a
+// W x W template, the white-minus-black kernel sums of the prepared points make every code's inner
+// product a signed sum over cells. Fills `evidence` (W x W, row-major) and returns the sum of its
+// magnitudes.
 double accumulate_evidence(int W, const DecodeOptions& opt, DecodeWorkspace& ws,
                            std::vector<float>& evidence) {
   const int S = std::max(opt.samples_per_cell, 1);
