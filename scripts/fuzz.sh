@@ -7,12 +7,17 @@
 # Prints a Markdown table (executions, exec/s, coverage, features, corpus, crashes) to paste into
 # docs/robustness.md, and writes it to build-fuzz/campaign/summary.md.
 #
-# Usage: scripts/fuzz.sh [SECONDS] [--runs N] [--chunk N] [--jobs J] [--targets "a b ..."] [--merge]
+# Usage: scripts/fuzz.sh [SECONDS] [--runs N] [--chunk N] [--jobs J] [--targets "a b ..."] [--resume]
+#                        [--merge]
 #   --chunk   runs each target as a series of fuzzer processes of at most N executions, each
 #             starting from the corpus the one before it left, until --runs or SECONDS. ASan's
 #             allocator grows a long-lived process: fuzz_scene went from 3,000 exec/s and 170 MB
 #             to a few hundred per second and 1 GB within 0.5-1 million inputs (docs/robustness.md);
 #             a new process starts small again. Chunks of 1,000,000 were too long for scene.
+#   --resume  continues each target's last campaign (build-fuzz/campaign/<target>/): its executions
+#             and time count towards --runs and the table, its log is kept and appended to. A
+#             campaign too long for one sitting (the YAML targets run a few hundred inputs per
+#             second) is run as several, like --chunk's processes with a gap between them.
 #   --merge   minimises the campaign's new inputs into the committed corpus (review the diff:
 #             inputs cut from ../shared/captures must not be committed; the merge skips them by
 #             taking only the campaign's own corpus directory).
@@ -21,7 +26,7 @@
 # starved-<name> beside the corpus, listed at the end, and the campaign goes on.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-seconds=600 runs="" chunk="" jobs=$(nproc) targets="" targets_given="" merge=0
+seconds=600 runs="" chunk="" jobs=$(nproc) targets="" targets_given="" merge=0 resume=0
 while (($#)); do
   case $1 in
     --runs) runs=$2; shift 2 ;;
@@ -29,8 +34,9 @@ while (($#)); do
     --jobs) jobs=$2; shift 2 ;;
     --targets) targets=$2 targets_given=1; shift 2 ;;
     --merge) merge=1; shift ;;
+    --resume) resume=1; shift ;;
     [0-9]*) seconds=$1; shift ;;
-    *) echo "usage: scripts/fuzz.sh [SECONDS] [--runs N] [--chunk N] [--jobs J] [--targets LIST] [--merge]" >&2
+    *) echo "usage: scripts/fuzz.sh [SECONDS] [--runs N] [--chunk N] [--jobs J] [--targets LIST] [--resume] [--merge]" >&2
        exit 2 ;;
   esac
 done
@@ -58,8 +64,14 @@ run_one() {
   local extra=()
   [ -d "$build/shared-seeds/$corpus" ] && extra+=("$build/shared-seeds/$corpus")
   # One process, or (--chunk) a series of them, each for what is left of the runs and the time.
-  local begin=$SECONDS done_runs=0 n left
-  : > "$dir/log.txt"
+  local begin=$SECONDS done_runs=0 before_runs=0 before_time=0 n left
+  if ((resume)) && [ -f "$dir/total" ]; then
+    read -r before_runs before_time < "$dir/total"
+    done_runs=$before_runs
+    echo "fuzz.sh: resuming after $before_runs executions in $before_time s" >> "$dir/log.txt"
+  else
+    : > "$dir/log.txt"
+  fi
   while :; do
     local limits=(-max_total_time=$((seconds - (SECONDS - begin))))
     if [ -n "$runs" ]; then
@@ -69,11 +81,19 @@ run_one() {
       [ -n "$chunk" ] && ((chunk < left)) && n=$chunk
       limits+=(-runs="$n")
     fi
-    ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+    local mark
+    mark=$(wc -l < "$dir/log.txt")
+    # malloc_context_size=0: no allocation stack recorded per malloc (a third more inputs per
+    # second on the YAML targets); a finding's report then lacks where its memory was allocated,
+    # which replaying the input with the printed command gives.
+    ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:malloc_context_size=0 \
+      UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
       nice -n 19 "$build/bin/fuzz_$t" "${args[@]}" "${limits[@]}" "$dir/corpus" \
       "test/fuzz/corpus/$corpus" "${extra[@]}" >> "$dir/log.txt" 2>&1 || true
-    n=$(sed -n 's/^stat::number_of_executed_units: *//p' "$dir/log.txt" | tail -1)
+    # This process's count only (one that died without final stats adds nothing).
+    n=$(tail -n +$((mark + 1)) "$dir/log.txt" | sed -n 's/^stat::number_of_executed_units: *//p')
     done_runs=$((done_runs + ${n:-0}))
+    echo "$done_runs $((before_time + SECONDS - begin))" > "$dir/total"
     # libFuzzer's -timeout is wall-clock time: a process at nice 19 starved by other work (a build,
     # the test command) stops on an input that is not slow. A timeout input that runs within the
     # limit alone, at normal priority, is set aside as starved-* and the campaign goes on.
@@ -91,10 +111,10 @@ run_one() {
     [ -n "$chunk" ] || ((starved)) || break
     ((SECONDS - begin < seconds)) || break
   done
-  echo "$done_runs $((SECONDS - begin))" > "$dir/total"
+  echo "$done_runs $((before_time + SECONDS - begin))" > "$dir/total"
 }
 export -f run_one
-export build campaign seconds runs chunk
+export build campaign seconds runs chunk resume
 
 start=$(date +%s)
 echo "fuzzing $(echo $targets | wc -w) targets, ${runs:+$runs runs or }$seconds s each, $jobs at a time"
@@ -121,7 +141,7 @@ summary=$campaign/summary.md
 cat $summary
 echo
 echo "$(($(date +%s) - start)) s; machine: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //'), load $(cut -d' ' -f1-3 /proc/loadavg)"
-echo "command: scripts/fuzz.sh $seconds${runs:+ --runs $runs}${chunk:+ --chunk $chunk} --jobs $jobs${targets_given:+ --targets \"$targets\"}"
+echo "command: scripts/fuzz.sh $seconds${runs:+ --runs $runs}${chunk:+ --chunk $chunk} --jobs $jobs${targets_given:+ --targets \"$targets\"}$( ((resume)) && echo " --resume")"
 for t in $targets; do
   for a in "$campaign/$t"/starved-*; do
     [ -e "$a" ] && echo "starved (ran within the limit alone; not counted): $a"
