@@ -7,39 +7,53 @@
 # Prints a Markdown table (executions, exec/s, coverage, features, corpus, crashes) to paste into
 # docs/robustness.md, and writes it to build-fuzz/campaign/summary.md.
 #
-# Usage: scripts/fuzz.sh [SECONDS] [--runs N] [--chunk N] [--jobs J] [--targets "a b ..."] [--resume]
-#                        [--merge]
+# Usage: scripts/fuzz.sh [SECONDS] [--runs N] [--chunk N | --fork N] [--jobs J] [--targets "a b ..."]
+#                        [--resume] [--merge]
 #   --chunk   runs each target as a series of fuzzer processes of at most N executions, each
 #             starting from the corpus the one before it left, until --runs or SECONDS. ASan's
 #             allocator grows a long-lived process: fuzz_scene went from 3,000 exec/s and 170 MB
 #             to a few hundred per second and 1 GB within 0.5-1 million inputs (docs/robustness.md);
 #             a new process starts small again. Chunks of 1,000,000 were too long for scene.
+#   --fork    runs each target on N cores in libFuzzer's fork mode: short fuzzing jobs, each a
+#             fresh process (so ASan's growth stays bounded, as with --chunk), N at a time, their
+#             findings merged into one corpus; a crash, leak, timeout or out-of-memory stops it.
+#             --jobs then defaults to the number of cores divided by N (at least 1).
 #   --resume  continues each target's last campaign (build-fuzz/campaign/<target>/): its executions
 #             and time count towards --runs and the table, its log is kept and appended to. A
 #             campaign too long for one sitting (the YAML targets run a few hundred inputs per
 #             second) is run as several, like --chunk's processes with a gap between them.
-#   --merge   minimises the campaign's new inputs into the committed corpus (review the diff:
-#             inputs cut from ../shared/captures must not be committed; the merge skips them by
-#             taking only the campaign's own corpus directory).
+#   --merge   minimises the campaign's new inputs into the committed corpus, in its merged/
+#             subdirectory (the rest is what fuzz_make_seeds writes, checked by the ctest
+#             fuzz_seeds_current); review the diff: inputs cut from ../shared/captures must not be
+#             committed, and the merge skips them by taking only the campaign's own corpus directory.
 # A timeout (10 s of wall-clock time) whose input then runs within the limit alone, at normal
 # priority, was starvation by other work on the machine, not a slow input: it is kept as
 # starved-<name> beside the corpus, listed at the end, and the campaign goes on.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-seconds=600 runs="" chunk="" jobs=$(nproc) targets="" targets_given="" merge=0 resume=0
+seconds=600 runs="" chunk="" fork="" jobs="" targets="" targets_given="" merge=0 resume=0
 while (($#)); do
   case $1 in
     --runs) runs=$2; shift 2 ;;
     --chunk) chunk=$2; shift 2 ;;
+    --fork) fork=$2; shift 2 ;;
     --jobs) jobs=$2; shift 2 ;;
     --targets) targets=$2 targets_given=1; shift 2 ;;
     --merge) merge=1; shift ;;
     --resume) resume=1; shift ;;
     [0-9]*) seconds=$1; shift ;;
-    *) echo "usage: scripts/fuzz.sh [SECONDS] [--runs N] [--chunk N] [--jobs J] [--targets LIST] [--resume] [--merge]" >&2
+    *) echo "usage: scripts/fuzz.sh [SECONDS] [--runs N] [--chunk N | --fork N] [--jobs J] [--targets LIST] [--resume] [--merge]" >&2
        exit 2 ;;
   esac
 done
+if [ -n "$fork" ]; then
+  if [ -n "$chunk" ] || ! [[ $fork =~ ^[1-9][0-9]*$ ]]; then
+    echo "scripts/fuzz.sh: --fork takes a number of cores and does not go with --chunk" >&2
+    exit 2
+  fi
+  [ -n "$jobs" ] || jobs=$(( $(nproc) / fork > 0 ? $(nproc) / fork : 1 ))
+fi
+[ -n "$jobs" ] || jobs=$(nproc)
 build=build-fuzz
 cmake -S . -B $build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++-14 \
   -DLIDARTAG_FUZZ=ON >/dev/null
@@ -60,6 +74,7 @@ run_one() {
   mkdir -p "$dir/corpus"
   rm -f "$dir"/crash-* "$dir"/leak-* "$dir"/timeout-* "$dir"/oom-* "$dir"/starved-*
   local args=(-timeout=10 -rss_limit_mb=2048 -print_final_stats=1 -artifact_prefix="$dir/")
+  [ -n "$fork" ] && args+=(-fork="$fork" -ignore_crashes=0 -ignore_timeouts=0 -ignore_ooms=0)
   [ -n "$dict" ] && [ "$dict" != - ] && args+=(-dict="$dict")
   local extra=()
   [ -d "$build/shared-seeds/$corpus" ] && extra+=("$build/shared-seeds/$corpus")
@@ -90,8 +105,13 @@ run_one() {
       UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
       nice -n 19 "$build/bin/fuzz_$t" "${args[@]}" "${limits[@]}" "$dir/corpus" \
       "test/fuzz/corpus/$corpus" "${extra[@]}" >> "$dir/log.txt" 2>&1 || true
-    # This process's count only (one that died without final stats adds nothing).
-    n=$(tail -n +$((mark + 1)) "$dir/log.txt" | sed -n 's/^stat::number_of_executed_units: *//p')
+    # This process's count only (one that died without final stats adds nothing). Fork mode's
+    # parent prints no final stats: its count is that of its last progress line ("#N: cov: ...").
+    if [ -n "$fork" ]; then
+      n=$(tail -n +$((mark + 1)) "$dir/log.txt" | sed -n 's/^#\([0-9]*\): cov: .*/\1/p' | tail -1)
+    else
+      n=$(tail -n +$((mark + 1)) "$dir/log.txt" | sed -n 's/^stat::number_of_executed_units: *//p')
+    fi
     done_runs=$((done_runs + ${n:-0}))
     echo "$done_runs $((before_time + SECONDS - begin))" > "$dir/total"
     # libFuzzer's -timeout is wall-clock time: a process at nice 19 starved by other work (a build,
@@ -114,10 +134,10 @@ run_one() {
   echo "$done_runs $((before_time + SECONDS - begin))" > "$dir/total"
 }
 export -f run_one
-export build campaign seconds runs chunk resume
+export build campaign seconds runs chunk fork resume
 
 start=$(date +%s)
-echo "fuzzing $(echo $targets | wc -w) targets, ${runs:+$runs runs or }$seconds s each, $jobs at a time"
+echo "fuzzing $(echo $targets | wc -w) targets, ${runs:+$runs runs or }$seconds s each, $jobs at a time${fork:+, each on $fork cores}"
 printf '%s\n' $targets | xargs -P "$jobs" -I{} bash -c 'run_one {}'
 
 summary=$campaign/summary.md
@@ -132,7 +152,7 @@ summary=$campaign/summary.md
     last=$(grep -E '^#[0-9]+' "$log" | tail -1)
     cov=$(echo "$last" | sed -n 's/.* cov: \([0-9]*\).*/\1/p')
     ft=$(echo "$last" | sed -n 's/.* ft: \([0-9]*\).*/\1/p')
-    corp=$(echo "$last" | sed -n 's/.* corp: \([0-9]*\)\/.*/\1/p')
+    corp=$(echo "$last" | sed -n 's/.* corp: \([0-9]*\).*/\1/p')
     crashes=$(ls "$campaign/$t" | grep -cE '^(crash|leak|timeout|oom)-' || true)
     printf '| %s | %s | %s | %s | %s | %s | %s |\n' "$t" "${execs:-?}" "${rate:-?}" "${cov:-?}" \
       "${ft:-?}" "${corp:-?}" "$crashes"
@@ -141,7 +161,7 @@ summary=$campaign/summary.md
 cat $summary
 echo
 echo "$(($(date +%s) - start)) s; machine: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //'), load $(cut -d' ' -f1-3 /proc/loadavg)"
-echo "command: scripts/fuzz.sh $seconds${runs:+ --runs $runs}${chunk:+ --chunk $chunk} --jobs $jobs${targets_given:+ --targets \"$targets\"}$( ((resume)) && echo " --resume")"
+echo "command: scripts/fuzz.sh $seconds${runs:+ --runs $runs}${chunk:+ --chunk $chunk}${fork:+ --fork $fork} --jobs $jobs${targets_given:+ --targets \"$targets\"}$( ((resume)) && echo " --resume")"
 for t in $targets; do
   for a in "$campaign/$t"/starved-*; do
     [ -e "$a" ] && echo "starved (ran within the limit alone; not counted): $a"
@@ -156,11 +176,26 @@ for t in $targets; do
   done
 done
 if ((merge)); then
+  added=0
   for t in $targets; do
     corpus=$(awk -v t="$t" '$1 == t {print $3}' $build/fuzz-targets.txt)
-    "$build/bin/fuzz_$t" -merge=1 "test/fuzz/corpus/$corpus" "$campaign/$t/corpus" \
+    # libFuzzer merges into its first directory, whose inputs (read recursively) are what the
+    # campaign's must add to; a copy of the committed corpus takes them, and what is new goes
+    # to merged/.
+    dest=test/fuzz/corpus/$corpus tmp=$(mktemp -d)
+    cp -r "$dest/." "$tmp/"
+    "$build/bin/fuzz_$t" -merge=1 "$tmp" "$campaign/$t/corpus" \
       > "$campaign/$t/merge.txt" 2>&1 || echo "merge of $t failed: $campaign/$t/merge.txt"
+    mkdir -p "$dest/merged"
+    for f in "$tmp"/*; do
+      if [ -f "$f" ] && [ ! -e "$dest/${f##*/}" ]; then
+        mv "$f" "$dest/merged/"
+        added=$((added + 1))
+      fi
+    done
+    rmdir "$dest/merged" 2>/dev/null || true
+    rm -rf "$tmp"
   done
-  echo "merged into test/fuzz/corpus/: $(git status --short test/fuzz/corpus | wc -l) new files"
+  echo "merged into test/fuzz/corpus/<corpus>/merged/: $added new files"
 fi
 exit $failed

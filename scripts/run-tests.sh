@@ -60,7 +60,7 @@ if [ "${1:-}" != "--no-sanitizers" ]; then
       LSAN_OPTIONS="suppressions=$PWD/test/tools/lsan.supp" timeout 900 "build-asan/bin/$t"
   done
 
-  echo "== libFuzzer targets (clang-14, ASan + UBSan): every corpus once, every target 5 s =="
+  echo "== libFuzzer targets (clang-14, ASan + UBSan): every corpus once, every target 5 s, seeds current =="
   cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
     -DCMAKE_CXX_COMPILER=clang++-14 -DLIDARTAG_FUZZ=ON
   cmake --build build-fuzz -j "$jobs"
