@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "io/pcap_builder.hpp"
+#include "io/veloview_xml.hpp"
 #include "lidartag/daemon/config.hpp"
 #include "lidartag/detector/tag_family.hpp"
 #include "lidartag/driver/calibration.hpp"
@@ -327,6 +328,11 @@ void calibration_seeds(const fs::path& out) {
                       (style == 0 ? "_flow.yaml" : "_block.yaml")),
                  text);
     }
+    // The same calibration as VeloView's db.xml (the loader tells the formats apart by content).
+    std::string xml = test::veloview_xml(c);
+    xml.insert(xml.begin(), static_cast<char>(m));
+    write_file(out / "calibration" / (std::string(velodyne::model_spec(models[m]).name) + ".xml"),
+               xml);
   }
 }
 

@@ -1,7 +1,6 @@
 #include "lidartag/driver/io/calibration_file.hpp"
 
 #include <gtest/gtest.h>
-#include <tinyxml2.h>
 #include <unistd.h>
 
 #include <cmath>
@@ -13,6 +12,7 @@
 #include <random>
 #include <sstream>
 
+#include "io/veloview_xml.hpp"
 #include "lidartag/driver/decoder.hpp"
 
 namespace lidartag::velodyne {
@@ -75,69 +75,6 @@ Calibration padded(Calibration c, int total) {
   return c;
 }
 
-// A VeloView db.xml of `c` as VeloView writes it (a boost::serialization archive: angles in
-// degrees, lengths in centimetres, with the elements a reader must skip), written with tinyxml2.
-std::string xml_of(const Calibration& c, int count = -1) {
-  const auto n = static_cast<int>(c.lasers.size());
-  tinyxml2::XMLPrinter out;
-  out.PushHeader(false, true);
-  out.PushUnknown("DOCTYPE boost_serialization");
-  out.OpenElement("boost_serialization");
-  out.PushAttribute("signature", "serialization::archive");
-  out.PushAttribute("version", "4");
-  out.OpenElement("DB");
-  out.PushAttribute("class_id", "0");
-  auto value = [&](const char* name, double v) {
-    out.OpenElement(name, true);
-    out.PushText(v);
-    out.CloseElement(true);
-  };
-  auto list = [&](const char* name, int items, double v) {
-    out.OpenElement(name);
-    value("count", items);
-    value("item_version", 0);
-    for (int i = 0; i < items; ++i) value("item", v);
-    out.CloseElement();
-  };
-  value("distLSB_", c.distance_unit_m * 100.0);
-  out.OpenElement("position_");
-  out.OpenElement("xyz");
-  value("count", 3);
-  for (int k = 0; k < 3; ++k) value("item", 0);
-  out.CloseElement();
-  out.CloseElement();
-  list("enabled_", n, 1);
-  list("intensity_", n, 1);
-  list("minIntensity_", n, 0);
-  list("maxIntensity_", n, 255);
-  out.OpenElement("points_");
-  out.PushAttribute("class_id", "7");
-  value("count", count < 0 ? n : count);
-  value("item_version", 1);
-  for (int i = 0; i < n; ++i) {
-    const LaserCorrection& l = c.lasers[static_cast<size_t>(i)];
-    out.OpenElement("item");
-    out.OpenElement("px");
-    out.PushAttribute("class_id_reference", "9");
-    value("id_", i);
-    value("rotCorrection_", l.azimuth_offset_deg);
-    value("vertCorrection_", l.elevation_deg);
-    value("distCorrection_", l.distance_offset_m * 100.0);
-    value("distCorrectionX_", 0);
-    value("distCorrectionY_", 0);
-    value("vertOffsetCorrection_", l.vertical_offset_m * 100.0);
-    value("horizOffsetCorrection_", l.horizontal_offset_m * 100.0);
-    value("focalDistance_", 0);
-    value("focalSlope_", 0);
-    out.CloseElement();
-    out.CloseElement();
-  }
-  out.CloseElement();
-  out.CloseElement();
-  out.CloseElement();
-  return out.CStr();
-}
-
 void expect_same(const Calibration& a, const Calibration& b) {
   EXPECT_EQ(a.model, b.model);
   EXPECT_DOUBLE_EQ(a.distance_unit_m, b.distance_unit_m);
@@ -168,7 +105,7 @@ TEST_F(CalibrationFile, VeloViewXmlFilesOfTheBuiltinTablesLoadBackEqual) {
     // Offsets of every kind, so that the centimetre conversion is exercised.
     builtin.lasers[1].horizontal_offset_m = 0.0259;
     builtin.lasers[2].distance_offset_m = 1.3670362;
-    const std::string text = xml_of(builtin);
+    const std::string text = test::veloview_xml(builtin);
     EXPECT_EQ(calibration_format(write(text, ".xml")), CalibrationFormat::kVeloViewXml);
     expect_same(load_calibration_file(path_, model), builtin);
     // The format comes from the contents, not the name.
@@ -192,8 +129,8 @@ TEST_F(CalibrationFile, SixtyFourEntryFilesOfThirtyTwoLaserSensorsLoad) {
     text.replace(text.find("num_lasers: 32"), 14, "");
     expect_same(load_calibration_file(write(text), model), builtin);
     // VeloView: 64 points, 32 zero-filled, count 64 (or 32).
-    expect_same(load_calibration_file(write(xml_of(file), ".xml"), model), builtin);
-    expect_same(load_calibration_file(write(xml_of(file, 32), ".xml"), model), builtin);
+    expect_same(load_calibration_file(write(test::veloview_xml(file), ".xml"), model), builtin);
+    expect_same(load_calibration_file(write(test::veloview_xml(file, 32), ".xml"), model), builtin);
   }
   // The same for a 16-laser file padded to 32 entries.
   const Calibration vlp16 = Calibration::builtin(Model::kVLP16);
@@ -209,7 +146,7 @@ TEST_F(CalibrationFile, ANonZeroEntryBeyondTheModelsLasersIsNamed) {
     bad.lasers[45].azimuth_offset_deg = 2.0;
     bad.lasers[40].vertical_offset_m = 0.25;
     bad.lasers[40].elevation_deg = 3.0;
-    const auto e = error_for(xml ? xml_of(bad) : yaml_of(bad), Model::kVLP32C);
+    const auto e = error_for(xml ? test::veloview_xml(bad) : yaml_of(bad), Model::kVLP32C);
     // In file order: the YAML writer lists vert_offset_correction last, the XML writer lists
     // vertCorrection_ before vertOffsetCorrection_.
     EXPECT_EQ(e.key(), xml ? "points_[40].vertCorrection_" : "lasers[40].vert_correction");
@@ -229,7 +166,7 @@ TEST_F(CalibrationFile, ANonZeroEntryBeyondTheModelsLasersIsNamed) {
   std::string text = yaml_of(file);
   text.replace(text.find("num_lasers: 64"), 14, "num_lasers: 48");
   EXPECT_EQ(error_for(text, Model::kVLP32C).key(), "num_lasers");
-  EXPECT_EQ(error_for(xml_of(file, 40), Model::kVLP32C).key(), "points_.count");
+  EXPECT_EQ(error_for(test::veloview_xml(file, 40), Model::kVLP32C).key(), "points_.count");
 }
 
 // The text of `xml` with the first `from` after `after` replaced by `to`.
@@ -248,7 +185,7 @@ std::string renamed(const std::string& xml, const std::string& after, const std:
 }
 
 TEST_F(CalibrationFile, BadVeloViewFilesNameTheKey) {
-  const std::string good = xml_of(Calibration::builtin(Model::kVLP16));
+  const std::string good = test::veloview_xml(Calibration::builtin(Model::kVLP16));
   ASSERT_NO_THROW(load_calibration_file(write(good, ".xml"), Model::kVLP16));
   struct Case {
     std::string text, key, words;
@@ -293,7 +230,7 @@ TEST_F(CalibrationFile, BadVeloViewFilesNameTheKey) {
 TEST_F(CalibrationFile, WhiteSpaceAroundXmlNumbersIsAccepted) {
   // VeloView's own files hold values such as "<vertCorrection_>0.000 </vertCorrection_>".
   Calibration c = Calibration::builtin(Model::kVLP16);
-  std::string text = xml_of(c);
+  std::string text = test::veloview_xml(c);
   text = edited(text, "<id_>5</id_>", "</vertCorrection_>", " \n\t</vertCorrection_>");
   text = edited(text, "<id_>6</id_>", "<rotCorrection_>", "<rotCorrection_> +");
   expect_same(load_calibration_file(write(text, ".xml"), Model::kVLP16), c);
@@ -460,7 +397,7 @@ TEST_F(CalibrationFile, RandomlyDamagedFilesLoadSaneOrFailWithCalibrationError) 
   for (const bool xml : {false, true}) {
     SCOPED_TRACE(xml ? "xml" : "yaml");
     const Calibration builtin = Calibration::builtin(Model::kVLP16);
-    const std::string good = xml ? xml_of(builtin) : yaml_of(builtin);
+    const std::string good = xml ? test::veloview_xml(builtin) : yaml_of(builtin);
     std::mt19937 rng(21);
     int loaded = 0, refused = 0;
     for (int k = 0; k < 300; ++k) {
