@@ -268,6 +268,15 @@ void pcd_seeds(const fs::path& out) {
   const fs::path binary = dir / "demo_2_columns.pcd";
   velodyne::write_pcd(binary.string(), small_scan(2));
   (void)velodyne::write_pcd((dir / "demo_1_column.pcd").string(), small_scan(1));
+  // LZF-compressed (the sizes and the decompression are an attack surface of their own), and
+  // organised with NaN cells.
+  (void)velodyne::write_pcd((dir / "demo_2_columns_compressed.pcd").string(), small_scan(2),
+                            {.format = velodyne::PcdFormat::kBinaryCompressed});
+  (void)velodyne::write_pcd((dir / "demo_1_column_organised_compressed.pcd").string(),
+                            small_scan(1),
+                            {.format = velodyne::PcdFormat::kBinaryCompressed, .organized = true});
+  (void)velodyne::write_pcd((dir / "demo_1_column_organised.pcd").string(), small_scan(1),
+                            {.organized = true});
   const velodyne::PcdCloud cloud = velodyne::read_pcd(binary.string());
   std::vector<std::string> types;
   std::vector<int> sizes;
