@@ -8,6 +8,8 @@
 //                                          part); run by hand when a format changes
 //   fuzz_make_seeds shared CAPTURES OUT    windows of real captures (../shared/captures) as extra
 //                                          seeds at run time; never committed
+#include <yaml-cpp/yaml.h>
+
 #include <algorithm>
 #include <cstdint>
 #include <cstdio>
@@ -347,6 +349,32 @@ void calibration_seeds(const fs::path& out) {
 
 // ---- Configuration, --set, scenes, families. ----
 
+// Every value of a printed configuration as a --set line ("a.b[0].c=value"), in its order; a list
+// of scalars is one value ("detector.families=[tag16h5]").
+void set_lines(const YAML::Node& node, const std::string& path, std::vector<std::string>& lines) {
+  const auto scalar = [](const YAML::Node& n) { return n.IsScalar(); };
+  if (node.IsMap()) {
+    for (const auto& kv : node) {
+      const std::string key = kv.first.Scalar();
+      set_lines(kv.second, path.empty() ? key : path + "." + key, lines);
+    }
+  } else if (node.IsSequence() && !std::all_of(node.begin(), node.end(), scalar)) {
+    for (size_t i = 0; i < node.size(); ++i)
+      set_lines(node[i], path + "[" + std::to_string(i) + "]", lines);
+  } else {
+    YAML::Emitter value;
+    if (node.IsSequence()) value << YAML::Flow;
+    value << node;
+    lines.push_back(path + "=" + value.c_str());
+  }
+}
+
+std::vector<std::string> default_set_lines() {
+  std::vector<std::string> lines;
+  set_lines(YAML::Load(daemon::print_config(daemon::DaemonOptions{})), "", lines);
+  return lines;
+}
+
 void config_seeds(const fs::path& out) {
   write_file(out / "config" / "lidartagd.yaml", read_text(kSource + "/config/lidartagd.yaml"));
   write_file(out / "config" / "demo.yaml", read_text(kSource + "/config/demo.yaml"));
@@ -391,6 +419,14 @@ void config_seeds(const fs::path& out) {
     text.pop_back();
     write_file(out / "config_set" / ("set_" + std::to_string(k++)), text);
   }
+  // Each section's every value set to its default: every key's --set path, accepted.
+  std::map<std::string, std::string> sections;
+  for (const std::string& line : default_set_lines()) {
+    const std::string section = line.substr(0, line.find_first_of(".[="));
+    sections[section] += line + "\n";
+  }
+  for (const auto& [section, text] : sections)
+    write_file(out / "config_set" / ("defaults_" + section), text);
 }
 
 void scene_seeds(const fs::path& out) {
@@ -527,6 +563,11 @@ void dictionaries(const fs::path& dict_dir) {
     config.insert(w);
   for (const auto& f : tags::builtin_family_names()) config.insert(f);
   write_dict(dict_dir / "config.dict", "lidartagd configuration keys and values", config);
+  // --set lines: every key's path ("health.max_rpm="), and the words of the file's values.
+  std::set<std::string> set = config;
+  for (const std::string& line : default_set_lines())
+    set.insert(line.substr(0, line.find('=') + 1));
+  write_dict(dict_dir / "config_set.dict", "lidartagd --set keys and values", set);
   std::set<std::string> scene;
   for (const auto& entry : fs::directory_iterator(kSource + "/pcaps"))
     if (entry.path().extension() == ".yaml") add_keys(scene, read_text(entry.path().string()));
