@@ -303,7 +303,7 @@ void pcd_seeds(const fs::path& out) {
   write_file(dir / "demo_double_ascii.pcd", ascii_pcd(cloud, other_types, other_sizes, 1));
 }
 
-// ---- Calibration files (ros-drivers YAML) of the built-in tables. ----
+// ---- Calibration files (ros-drivers YAML, VeloView db.xml) of the built-in tables. ----
 
 void calibration_seeds(const fs::path& out) {
   const auto models = velodyne::all_models();
