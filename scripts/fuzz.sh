@@ -5,7 +5,8 @@
 # captures in ../shared/captures when present, and what earlier campaigns found
 # (build-fuzz/campaign/<target>/corpus/); crashing inputs are written beside that corpus.
 # Prints a Markdown table (executions, exec/s, coverage, features, corpus, crashes) to paste into
-# docs/robustness.md, and writes it to build-fuzz/campaign/summary.md.
+# docs/robustness.md, and writes it to build-fuzz/campaign/summary.md; coverage (edges reached),
+# features and corpus come from one pass over the target's final corpus and seeds (-runs=0).
 #
 # Usage: scripts/fuzz.sh [SECONDS] [--runs N] [--chunk N | --fork N] [--jobs J] [--targets "a b ..."]
 #                        [--resume] [--merge]
