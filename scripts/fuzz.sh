@@ -135,8 +135,8 @@ run_one() {
   echo "$done_runs $((before_time + SECONDS - begin))" > "$dir/total"
   # The table's coverage: one pass over the campaign's corpus and its seeds (-runs=0), whose
   # "INITED cov:" counts the code's edges reached. Fork mode's own "cov:" is no such count: it
-  # starts equal to its seeds' features ("cov: 1584 ft: 1584" for calibration's 14 seeds, more
-  # than the target's 4,653 edges after a --resume on a corpus of 365), so it differs by start.
+  # starts equal to the seeds' features ("cov: 1584 ft: 1584" for calibration's 14 seeds), so it
+  # depends on the start (calibration resumed on a grown corpus reported more than its 4,653 edges).
   ASAN_OPTIONS=detect_leaks=0:malloc_context_size=0 nice -n 19 "$build/bin/fuzz_$t" -runs=0 \
     "$dir/corpus" "test/fuzz/corpus/$corpus" "${extra[@]}" > "$dir/coverage.txt" 2>&1 || true
 }
