@@ -158,8 +158,8 @@ summary=$campaign/summary.md
     rate=$( ((${took:-0} > 0)) && echo $((execs / took)) || echo "?")
     last=$(grep -E '^#[0-9]+' "$log" | tail -1)
     # The corpus pass's figures when there is one (see run_one), else the last progress line's.
-    grep -q 'INITED cov:' "$campaign/$t/coverage.txt" 2>/dev/null &&
-      last=$(grep -m1 'INITED cov:' "$campaign/$t/coverage.txt")
+    inited=$(grep -m1 'INITED cov:' "$campaign/$t/coverage.txt" 2>/dev/null || true)
+    [ -n "$inited" ] && last=$inited
     cov=$(echo "$last" | sed -n 's/.* cov: \([0-9]*\).*/\1/p')
     ft=$(echo "$last" | sed -n 's/.* ft: \([0-9]*\).*/\1/p')
     corp=$(echo "$last" | sed -n 's/.* corp: \([0-9]*\).*/\1/p')
