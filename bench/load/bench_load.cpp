@@ -193,6 +193,7 @@ struct Scenario {
   double loss = 0, reorder = 0, duplicate = 0;
   double restart_after_s = 0;
   bool second_sensor = false;   // another sensor (127.0.0.2, outdoor capture) on the same port
+  uint64_t probe_junk = 0;      // 1206-byte junk datagrams before the sensor (SenderOptions)
   bool expect_tags = true;      // the capture holds tags
   double min_tag_fraction = 0;  // of published rotations (clean scenarios)
 };
@@ -214,9 +215,14 @@ std::vector<Scenario> scenarios(const std::string& suite) {
       {"two_sensors", "VLP-32C at 1x from .1 and another sensor from .2 on the same port", "vlp32c",
        t, 1},
       {"vls128_1x", "VLS-128 (simulated) at its rate", "vls128", t, 1},
+      {"junk_before_sensor",
+       "VLP-32C at 1x after 64 zero datagrams of the probe's size (one with a VLP-16 byte)",
+       "vlp32c", t, 1},
   };
   v[0].min_tag_fraction = 0.8;
   v[7].second_sensor = true;
+  v[9].probe_junk = 64;  // once: every packet undecodable, or decoded as a VLP-16, "healthy"
+  v[9].min_tag_fraction = 0.8;
   if (s) return v;
   v.push_back({"vls128_10x", "VLS-128 at 10x its rate", "vls128", t, 10});
   v.push_back({"vls128_max", "VLS-128 as fast as the sender goes", "vls128", t, 0});
@@ -247,6 +253,9 @@ struct Result {
   UdpMib kernel;  // deltas
   std::optional<status_t> status;
   uint64_t detection_messages = 0, with_tags = 0, tags_late = 0;
+  // Status messages that said healthy although data packets had arrived since the one before and
+  // none of them was decoded (a blind sensor reported as well).
+  uint64_t healthy_blind = 0;
   double rss_min = 1e9, rss_max = 0, rss_end = 0, cpu_percent = 0;
   int exit_status = -1;
   std::vector<std::string> failures;
@@ -340,6 +349,7 @@ Result run(const Scenario& sc, const Options& o) {
   so.duplicate = sc.duplicate;
   so.restart_after_s = sc.restart_after_s;
   so.restart_silence_s = 2.0;
+  so.probe_junk = sc.probe_junk;
   std::thread second_thread;
   if (second) {
     second_thread = std::thread([&] {
@@ -382,7 +392,12 @@ Result run(const Scenario& sc, const Options& o) {
     try {
       if (e->channel == "LIDARTAG_STATUS") {
         status_t s;
-        if (s.decode(e->data, 0, e->datalen) == e->datalen) r.status = s;
+        if (s.decode(e->data, 0, e->datalen) != e->datalen) continue;
+        if (r.status && s.healthy && s.packets_data > r.status->packets_data + 100 &&
+            s.packets_decoded == r.status->packets_decoded) {
+          ++r.healthy_blind;
+        }
+        r.status = s;
       } else if (e->channel == "LIDARTAG_DETECTIONS") {
         tag_detections_t d;
         if (d.decode(e->data, 0, e->datalen) != e->datalen) continue;
@@ -466,6 +481,9 @@ void check_exact_counters(Result& r, const S& s, const std::function<void(std::s
 void check(Result& r, const Options& o) {
   auto fail = [&](const std::string& m) { r.failures.push_back(m); };
   if (r.exit_status != 0) fail("exit status " + std::to_string(r.exit_status));
+  if (r.healthy_blind > 0)
+    fail(std::to_string(r.healthy_blind) +
+         " status messages said healthy while data packets arrived and none was decoded");
   if (!r.status) {
     fail("no status message");
     return;

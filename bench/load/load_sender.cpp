@@ -199,6 +199,13 @@ SenderCounts send(const Capture& capture, const SenderOptions& o, const std::ato
     if (raw_send(junk.data() + offset, size, address(o.destination, port))) ++n.junk_wrong_port;
   };
 
+  // Junk of the probe's size before the sensor speaks (counted with the junk to the data port).
+  std::vector<uint8_t> probe_junk(v::kDataPacketSize, 0);
+  for (uint64_t i = 0; i < o.probe_junk; ++i) {
+    probe_junk[v::kProductIdOffset] = i == 0 ? 0x22 : 0x00;
+    if (raw_send(probe_junk.data(), probe_junk.size(), data_to)) ++n.junk_sensor_port;
+  }
+
   const auto start = Clock::now();
   const auto end =
       start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(o.seconds));

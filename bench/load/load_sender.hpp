@@ -17,13 +17,16 @@ struct SenderOptions {
   std::string destination = "127.0.0.1";
   uint16_t data_port = 2368;  // where the daemon listens (the capture's own ports are mapped)
   uint16_t position_port = 8308;
-  double rate = 1.0;               // multiple of the capture's pace; 0 = as fast as possible
-  double seconds = 10.0;           // sending time (the capture loops seamlessly)
-  double loss = 0.0;               // probability that a data packet is not sent
-  double reorder = 0.0;            // probability that a data packet is sent after the next one
-  double duplicate = 0.0;          // probability that a data packet is sent twice
-  double junk_ratio = 0.0;         // junk datagrams per capture packet sent
-  double junk_to_sensor = 0.1;     // fraction of the junk sent to the data port (never 1206 bytes)
+  double rate = 1.0;            // multiple of the capture's pace; 0 = as fast as possible
+  double seconds = 10.0;        // sending time (the capture loops seamlessly)
+  double loss = 0.0;            // probability that a data packet is not sent
+  double reorder = 0.0;         // probability that a data packet is sent after the next one
+  double duplicate = 0.0;       // probability that a data packet is sent twice
+  double junk_ratio = 0.0;      // junk datagrams per capture packet sent
+  double junk_to_sensor = 0.1;  // fraction of the junk sent to the data port (never 1206 bytes)
+  // Datagrams of a data packet's size (1206 bytes: the model probe's) sent to the data port
+  // before the sensor's first packet: zeros, the first with a VLP-16 product byte (0x22).
+  uint64_t probe_junk = 0;
   double restart_after_s = 0.0;    // > 0: after this long the sensor restarts: silence, then the
   double restart_silence_s = 2.0;  //   capture from its start with its original (earlier) clock
   uint32_t seed = 1;

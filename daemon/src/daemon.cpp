@@ -7,6 +7,7 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <ctime>
 #include <thread>
@@ -28,8 +29,44 @@ sigset_t handled_signals() {
   sigaddset(&set, SIGPIPE);
   sigaddset(&set, SIGUSR1);
   sigaddset(&set, SIGUSR2);
+  // SIGQUIT stops like SIGTERM (with the final status, no core); SIGALRM is ignored (noted).
+  sigaddset(&set, SIGQUIT);
+  sigaddset(&set, SIGALRM);
   return set;
 }
+
+// At most one action and log line per signal kind a second: a flood of signals (any local
+// process of the same user can send them) must not fill the disk with logs and status messages.
+class SignalLimiter {
+ public:
+  // True when `sig` may act now; else counted (the next line that acts says how many were
+  // skipped, via skipped()).
+  bool allow(int sig, std::chrono::steady_clock::time_point now) {
+    Entry& e = entries_[static_cast<size_t>(sig) % entries_.size()];
+    if (now < e.next) {
+      ++e.skipped;
+      return false;
+    }
+    e.next = now + std::chrono::seconds(1);
+    last_skipped_ = e.skipped;
+    e.skipped = 0;
+    return true;
+  }
+  // What allow() skipped of the signal it last allowed, for its log line.
+  std::string skipped() const {
+    return last_skipped_ == 0
+               ? std::string()
+               : fmt::format(" ({} more in the last second, not acted on)", last_skipped_);
+  }
+
+ private:
+  struct Entry {
+    std::chrono::steady_clock::time_point next{};
+    uint64_t skipped = 0;
+  };
+  std::array<Entry, 65> entries_{};
+  uint64_t last_skipped_ = 0;
+};
 
 }  // namespace
 
@@ -74,6 +111,12 @@ bool Daemon::progressing() const {
   const int64_t now = steady_ns();
   return std::all_of(pipelines_.begin(), pipelines_.end(),
                      [&](const auto& p) { return p->progressing(now); });
+}
+
+size_t Daemon::sources_cut_short() const {
+  return static_cast<size_t>(std::count_if(pipelines_.begin(), pipelines_.end(), [](const auto& p) {
+    return !p->source_error().empty();
+  }));
 }
 
 std::string Daemon::summary() const {
@@ -134,6 +177,7 @@ int Daemon::run() {
   const sigset_t signals = handled_signals();
   int stop_signal = 0;
   bool sigpipe_noted = false;
+  SignalLimiter limiter;
 
   for (;;) {
     const auto now = Clock::now();
@@ -168,8 +212,10 @@ int Daemon::run() {
     const auto wait_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(wait).count();
     timespec ts{static_cast<time_t>(wait_ns / 1000000000), static_cast<long>(wait_ns % 1000000000)};
     const int sig = sigtimedwait(&signals, nullptr, &ts);
+    const bool repeatable = sig == SIGHUP || sig == SIGUSR1 || sig == SIGUSR2 || sig == SIGALRM;
+    if (repeatable && !limiter.allow(sig, Clock::now())) continue;
     if (sig == SIGHUP) {
-      spdlog::info("SIGHUP: reopening the log");
+      spdlog::info("SIGHUP: reopening the log{}", limiter.skipped());
       if (logging_ != nullptr) {
         try {
           logging_->reopen();
@@ -177,7 +223,7 @@ int Daemon::run() {
           spdlog::error("cannot reopen the log: {}", e.what());
         }
       }
-    } else if (sig == SIGINT || sig == SIGTERM) {
+    } else if (sig == SIGINT || sig == SIGTERM || sig == SIGQUIT) {
       stop_signal = sig;
       break;
     } else if (sig == SIGPIPE) {
@@ -191,15 +237,17 @@ int Daemon::run() {
       sigpipe_noted = true;
     } else if (sig == SIGUSR1) {
       publish_status(false);
-      spdlog::info("SIGUSR1: status: {}", summary());
-    } else if (sig == SIGUSR2) {
-      spdlog::info("SIGUSR2: ignored (no action is bound to it)");
+      spdlog::info("SIGUSR1: status: {}{}", summary(), limiter.skipped());
+    } else if (sig == SIGUSR2 || sig == SIGALRM) {
+      spdlog::info("{}: ignored (no action is bound to it){}",
+                   sig == SIGUSR2 ? "SIGUSR2" : "SIGALRM", limiter.skipped());
     }
   }
 
   if (stop_signal != 0) {
     spdlog::info("{}: stopping", stop_signal == SIGINT    ? "SIGINT"
                                  : stop_signal == SIGTERM ? "SIGTERM"
+                                 : stop_signal == SIGQUIT ? "SIGQUIT"
                                                           : "SIGPIPE (standard output closed)");
   } else {
     spdlog::info("every source ended: stopping");

@@ -14,11 +14,11 @@ double seconds(int64_t ns) {
 }
 
 // Most severe first: the state reported is the first problem's.
-constexpr std::array<HealthState, 11> kSeverity = {
-    HealthState::kError,           HealthState::kStalled,        HealthState::kPublishFailing,
-    HealthState::kModelMismatch,   HealthState::kSeveralSources, HealthState::kSilent,
-    HealthState::kRateImplausible, HealthState::kFallingBehind,  HealthState::kPacketLoss,
-    HealthState::kWaiting,         HealthState::kHealthy};
+constexpr std::array<HealthState, 12> kSeverity = {
+    HealthState::kError,          HealthState::kStalled,         HealthState::kNotDecoding,
+    HealthState::kPublishFailing, HealthState::kModelMismatch,   HealthState::kSeveralSources,
+    HealthState::kSilent,         HealthState::kRateImplausible, HealthState::kFallingBehind,
+    HealthState::kPacketLoss,     HealthState::kWaiting,         HealthState::kHealthy};
 
 size_t rank(HealthState s) {
   return static_cast<size_t>(std::find(kSeverity.begin(), kSeverity.end(), s) - kSeverity.begin());
@@ -52,6 +52,8 @@ std::string_view health_state_name(HealthState state) {
       return "error";
     case HealthState::kEnded:
       return "ended";
+    case HealthState::kNotDecoding:
+      return "not decoding";
   }
   return "unknown";
 }
@@ -82,6 +84,17 @@ void HealthMonitor::judge_window(const HealthSample& from, const HealthSample& t
   }
   const uint64_t decoded = to.decoded - from.decoded;
   const uint64_t rotations = to.rotations - from.rotations;
+  const uint64_t arrived = to.data_packets - from.data_packets;
+  if (arrived > 0 && decoded == 0) {
+    // Progress, not flags: packets that arrive and are not decoded are a blind sensor, whatever
+    // else holds (junk before the sensor, another sensor model, a wrong port).
+    window_problems_.push_back(
+        {HealthState::kNotDecoding,
+         fmt::format("{} data packets on port {} in the last {:.1f} s, none decoded ({} "
+                     "malformed in all){}{}",
+                     arrived, to.data_port, dt, to.malformed, to.model_note.empty() ? "" : ": ",
+                     to.model_note)});
+  }
   if (decoded > 0) {
     // Rotations per second of the sensor's own time (a replay runs at any speed; a loop seam
     // sets the clock back: no verdict on that window).
@@ -136,9 +149,21 @@ void HealthMonitor::judge_window(const HealthSample& from, const HealthSample& t
 // The final status: "the source ended", then what went wrong over the whole run (a replay of
 // another model's packets must not end looking like a clean one).
 std::string HealthMonitor::ended_reason(const HealthSample& s) const {
-  std::string reason = "the source ended";
+  std::string reason = s.stopped ? "stopped" : "the source ended";
   const auto add = [&](const std::string& problem) { reason += "; " + problem; };
-  if (s.data_packets > 0 && s.decoded == 0) {
+  if (!s.source_error.empty()) add(s.source_error);
+  if (s.data_packets == 0) {
+    // Say what came instead, so that a replay of the wrong file, port or a corrupt one does not
+    // end looking like a quiet sensor.
+    std::string instead;
+    const auto note = [&](uint64_t n, const char* what) {
+      if (n > 0) instead += fmt::format("{}{} {}", instead.empty() ? ": " : ", ", n, what);
+    };
+    note(s.malformed, "malformed or cut short");
+    note(s.ignored, "on other ports or not IPv4/UDP");
+    note(s.foreign, "from other senders");
+    add(fmt::format("no data packet on port {}{}", s.data_port, instead));
+  } else if (s.decoded == 0) {
     add(
         fmt::format("none of its {} data packets could be decoded (another sensor model, or not "
                     "Velodyne data?)",

@@ -8,6 +8,7 @@
 // libstdc++'s string); the project's own code below is still checked by every other warning.
 #pragma GCC diagnostic ignored "-Wnull-dereference"
 #include <CLI/CLI.hpp>
+#include <csignal>
 #include <cstdio>
 #include <exception>
 #include <optional>
@@ -87,13 +88,20 @@ int data_loss_status(const lidartag::daemon::Daemon& daemon, int status) {
                   failures + bus.published(), bus.last_error());
   }
   const auto* recorder = daemon.recorder();
-  const bool lost = failures > 0 || (recorder != nullptr && recorder->failed());
+  const bool lost =
+      failures > 0 || (recorder != nullptr && recorder->failed()) || daemon.sources_cut_short() > 0;
   return status == 0 && lost ? kExitDataLost : status;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
+  // First of all, so that a signal in the first milliseconds (before the configuration is read)
+  // is handled by the run loop rather than killing the process; every thread inherits the mask.
+  lidartag::daemon::block_signals();
+  // A file-size limit (RLIMIT_FSIZE) makes writes past it fail with EFBIG, handled as any write
+  // error (the recording cut back to its last whole packet, exit status 3), instead of killing.
+  std::signal(SIGXFSZ, SIG_IGN);
   Args a;
   CLI::App app{
       "lidartagd: LiDARTag detection daemon. Receives Velodyne packets (live UDP, interface "
@@ -133,10 +141,11 @@ int main(int argc, char** argv) {
       "Exit status: 0 normal end (a signal, or every replay ended), 1 setup or runtime error "
       "(a file, port, calibration or LCM URL that cannot be used; checked before READY=1), 2 bad "
       "configuration or command line, 3 the run ended but data was lost (LCM messages not "
-      "delivered, an incomplete --record file).\n"
-      "Signals: SIGINT/SIGTERM stop cleanly (final status logged and published), SIGHUP reopens "
-      "the log file, SIGUSR1 logs and publishes the status now, SIGUSR2 is ignored, SIGPIPE does "
-      "not kill it.");
+      "delivered, an incomplete --record file, a replay cut short by a corrupt record).\n"
+      "Signals: SIGINT/SIGTERM/SIGQUIT stop cleanly (final status logged and published), SIGHUP "
+      "reopens the log file, SIGUSR1 logs and publishes the status now, SIGUSR2 and SIGALRM are "
+      "ignored (each acted on and logged at most once a second), SIGPIPE and SIGXFSZ do not "
+      "kill it.");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -156,8 +165,6 @@ int main(int argc, char** argv) {
     return 0;
   }
 
-  // Before any thread starts, so that every thread inherits the mask.
-  lidartag::daemon::block_signals();
   try {
     // Before READY=1 and before any thread: every file, port and URL the daemon will open.
     lidartag::daemon::check_setup(options);

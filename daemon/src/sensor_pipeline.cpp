@@ -151,6 +151,7 @@ struct SensorPipeline::Snapshot {
   std::string model_note;         // CaptureReader::model_mismatch(), once packets contradict it
   std::vector<uint32_t> senders;  // seen within health.window_s
   std::string error;
+  std::string source_error;  // why the source ended before its end (set once it ended)
 };
 
 // The rotation counters, changed together under counts_mutex_ so that every status sees
@@ -301,6 +302,11 @@ std::string SensorPipeline::error() const {
   return snapshot_->error;
 }
 
+std::string SensorPipeline::source_error() const {
+  std::lock_guard lock(snapshot_mutex_);
+  return snapshot_->source_error;
+}
+
 void SensorPipeline::fail(const std::string& what) {
   spdlog::error("sensor {}: {}", sensor_.name, what);
   std::lock_guard lock(snapshot_mutex_);
@@ -375,6 +381,7 @@ void SensorPipeline::take_snapshot(const Scan* last) {
   s.counts.model_mismatch = counts.model_mismatch;
   s.counts.position_ok = counts.position_ok;
   s.counts.position_errors = counts.position_errors;
+  s.counts.position_checksum = counts.position_checksum;
   s.counts.gprmc_valid = counts.gprmc_valid;
   s.counts.pps = counts.pps;
   if (mine.data_packets != mine.seen_data) s.last_data_ns = now;
@@ -464,6 +471,11 @@ void SensorPipeline::receive() {
     fail(e.what());
   }
   take_snapshot(nullptr);
+  {
+    std::string why = reader_->source_error();
+    std::lock_guard lock(snapshot_mutex_);
+    snapshot_->source_error = std::move(why);
+  }
   stopped_.store(stopping_.load());  // else the source itself ended
   receiver_done_.store(true, std::memory_order_release);
   buffer_.close();
@@ -595,6 +607,7 @@ SensorStatus SensorPipeline::status(int64_t now_ns) {
   h.now_ns = now_ns;
   h.started_ns = started_ns_.load();
   h.ended = finished();
+  h.stopped = stopped_.load();
   h.stall = stall(now_ns);
   h.data_port = sensor_.source.data_port;
   {
@@ -620,7 +633,8 @@ SensorStatus SensorPipeline::status(int64_t now_ns) {
     st.packets_reordered =
         std::max(s.batcher.reordered, s.batcher.late_packets - s.batcher.duplicates);
     st.packets_malformed = s.source.truncated + s.source.malformed + decode_errors +
-                           s.counts.undecodable + s.counts.position_errors;
+                           s.counts.undecodable + s.counts.position_errors +
+                           s.counts.position_checksum;
     st.packets_foreign = s.source.foreign_source;
     st.packets_inconsistent = s.batcher.inconsistent;
     st.packets_model_mismatch = s.counts.model_mismatch;
@@ -631,6 +645,10 @@ SensorStatus SensorPipeline::status(int64_t now_ns) {
     h.data_packets = s.data_packets;
     h.last_data_ns = s.last_data_ns;
     h.decoded = s.counts.decoded;
+    h.malformed = st.packets_malformed;
+    h.ignored = s.source.ignored;
+    h.foreign = s.source.foreign_source;
+    if (h.ended) h.source_error = s.source_error;
     h.missing = s.batcher.missing_packets;
     h.model_mismatch = s.counts.model_mismatch;
     h.rpm = s.rpm;
@@ -659,7 +677,6 @@ SensorStatus SensorPipeline::status(int64_t now_ns) {
   // Any LCM failure of the bus (the status messages too) means publishing fails now.
   h.publish_failures = std::max<uint64_t>(bus_.failures(), st.publish_failures);
   st.health = health_.update(h);
-  if (st.health.state == HealthState::kEnded && stopped_.load()) st.health.reason = "stopped";
   st.progressing = progressing(now_ns);
   st.buffer_occupancy = buffer_.waiting();
   st.buffer_depth = buffer_.depth();

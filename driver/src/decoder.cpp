@@ -712,12 +712,30 @@ LIDARTAG_AVX2_CLONE void Decoder::write_batch(const ColumnBatch& b, const PointS
 
 // ---------------------------------------------------------------------------------------------
 
+bool looks_like_data_packet(std::span<const uint8_t> payload) {
+  if (payload.size() != kDataPacketSize) return false;
+  // Every model fills at least the first 8 blocks (a VLS-128 in dual mode leaves the last 4).
+  for (size_t b = 0; b < 8; ++b)
+    if (bank_of_flag(read_u16(payload.data() + b * kBlockSize)) < 0) return false;
+  return true;
+}
+
 void ModelCheck::add(std::span<const uint8_t> payload) {
   PacketHeader h;
   if (!read_header(payload, h)) return;
+  if (!looks_like_data_packet(payload)) {
+    ++rejected_;
+    return;
+  }
   ++packets_;
-  if (!product_model_) product_model_ = model_from_product_id(h.product_id);
-  if (!mode_) mode_ = return_mode_from_byte(h.return_mode).value_or(ReturnMode::kStrongest);
+  if (++product_votes_[h.product_id] > product_votes_[leading_product_]) {
+    leading_product_ = h.product_id;
+  }
+  if (const auto mode = return_mode_from_byte(h.return_mode)) {
+    mode_ = *mode;
+  } else if (!mode_) {
+    mode_ = ReturnMode::kStrongest;
+  }
   for (size_t b = 0; b < 4; ++b)
     if (bank_of_flag(read_u16(payload.data() + b * kBlockSize)) > 0) has_bank_flags_ = true;
   if (last_usec_) {
@@ -725,6 +743,11 @@ void ModelCheck::add(std::span<const uint8_t> payload) {
     if (step > 0 && step < 5000) steps_[step_count_++ % steps_.size()] = step;
   }
   last_usec_ = h.usec_since_hour;
+}
+
+std::optional<Model> ModelCheck::product_model() const {
+  if (2 * static_cast<size_t>(product_votes_[leading_product_]) <= packets_) return std::nullopt;
+  return model_from_product_id(leading_product_);
 }
 
 double ModelCheck::packet_period_us() const {
@@ -760,7 +783,8 @@ std::optional<Model> ModelCheck::timing_model() const {
     if ((s.blocks_per_firing > 1) != has_bank_flags_) return false;
     return std::abs(period - s.packet_period_us(mode)) < 0.03 * s.packet_period_us(mode);
   };
-  if (product_model_ && fits(*product_model_)) return product_model_;
+  const std::optional<Model> product = product_model();
+  if (product && fits(*product)) return product;
   for (Model m : all_models())
     if (fits(m)) return m;
   return std::nullopt;
@@ -768,16 +792,17 @@ std::optional<Model> ModelCheck::timing_model() const {
 
 std::string ModelCheck::mismatch() const {
   const auto timing = timing_model();
+  const auto product = product_model();
   const std::string period = std::to_string(std::lround(packet_period_us()));
-  if (!product_model_) {
+  if (!product) {
     if (!timing) return {};
     return "product byte names no known model; packet timing (" + period + " us) fits " +
            std::string(model_spec(*timing).name);
   }
-  if (!timing || timing == product_model_) return {};
-  return "product byte says " + std::string(model_spec(*product_model_).name) +
-         " but packet timing (" + period + " us per packet) and layout fit " +
-         std::string(model_spec(*timing).name) + "; pass the model explicitly to decode it as such";
+  if (!timing || timing == product) return {};
+  return "product byte says " + std::string(model_spec(*product).name) + " but packet timing (" +
+         period + " us per packet) and layout fit " + std::string(model_spec(*timing).name) +
+         "; pass the model explicitly to decode it as such";
 }
 
 }  // namespace lidartag::velodyne

@@ -38,6 +38,19 @@ std::string_view pps_status_name(PpsStatus s) {
   return "invalid";
 }
 
+bool nmea_checksum_ok(std::string_view sentence) {
+  const size_t star = sentence.rfind('*');
+  if (sentence.empty() || sentence[0] != '$' || star == std::string_view::npos ||
+      star + 3 != sentence.size()) {
+    return false;
+  }
+  uint8_t sum = 0;
+  for (size_t i = 1; i < star; ++i) sum = static_cast<uint8_t>(sum ^ sentence[i]);
+  unsigned sent = 0;
+  const auto r = std::from_chars(sentence.data() + star + 1, sentence.data() + star + 3, sent, 16);
+  return r.ec == std::errc() && r.ptr == sentence.data() + star + 3 && sent == sum;
+}
+
 bool parse_gprmc_time(std::string_view sentence, int64_t& utc_ns, bool& valid_fix) {
   // $GPRMC,hhmmss.ss,A,llll.ll,a,yyyyy.yy,a,x.x,x.x,ddmmyy,...
   if (sentence.size() < 7 || sentence[0] != '$' || sentence.substr(3, 3) != "RMC") return false;
@@ -89,13 +102,16 @@ PositionStatus parse_position_packet(std::span<const uint8_t> payload, PositionP
   out.nmea[n] = '\0';
   int64_t utc_ns = 0;
   bool valid = false;
-  if (parse_gprmc_time(out.sentence(), utc_ns, valid) && valid) {
+  const bool rmc = parse_gprmc_time(out.sentence(), utc_ns, valid);
+  // A sentence that fails its checksum (corrupt, or forged by hand) is no time source.
+  const bool checked = !rmc || nmea_checksum_ok(out.sentence());
+  if (rmc && checked && valid) {
     out.has_gprmc = true;
     out.gps_fix_ns = utc_ns;
   }
   if (pps > 3) return PositionStatus::kBadPps;
   out.pps = static_cast<PpsStatus>(pps);
-  return PositionStatus::kOk;
+  return checked ? PositionStatus::kOk : PositionStatus::kBadChecksum;
 }
 
 }  // namespace lidartag::velodyne

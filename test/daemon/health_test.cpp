@@ -260,6 +260,61 @@ TEST(Health, TheFinalStatusNamesWhatWentWrongOverTheWholeRun) {
   EXPECT_EQ(h.reason, "the source ended");
 }
 
+TEST(Health, PacketsThatArriveButNeverDecodeAreNotHealthy) {
+  // Junk before the sensor once stopped all decoding while every flag said healthy: packets
+  // arrive, the sender is one, nothing is silent or lost. Progress decides.
+  HealthMonitor m({});
+  Sensor sensor;
+  judge(m, sensor, 2);
+  Health h;
+  for (int i = 0; i < 2; ++i) {
+    sensor.s.now_ns += 2 * kSecond;
+    sensor.s.last_data_ns = sensor.s.now_ns;
+    sensor.s.data_packets += 3014;
+    sensor.s.malformed += 3014;
+    h = m.update(sensor.s);
+  }
+  EXPECT_EQ(h.state, HealthState::kNotDecoding) << h.reason;
+  EXPECT_FALSE(h.healthy());
+  EXPECT_NE(h.reason.find("3014 data packets on port 2368 in the last 2.0 s, none decoded"),
+            std::string::npos)
+      << h.reason;
+  // Decoding again: healthy once a window has passed.
+  judge(m, sensor, 2);
+  EXPECT_EQ(m.update(sensor.run(2.0)).state, HealthState::kHealthy);
+}
+
+TEST(Health, AStoppedRunStillNamesWhatWentWrong) {
+  HealthMonitor m({});
+  Sensor sensor;
+  sensor.s.ended = true;
+  sensor.s.stopped = true;
+  EXPECT_EQ(m.update(sensor.s).reason, "stopped");
+  sensor.s.decoded = 0;
+  const Health h = m.update(sensor.s);
+  EXPECT_EQ(h.state, HealthState::kEnded);
+  EXPECT_EQ(h.reason.rfind("stopped; none of its 1507 data packets could be decoded", 0), 0u)
+      << h.reason;
+}
+
+TEST(Health, AReplayWithoutDataPacketsSaysWhatCameInstead) {
+  HealthMonitor m({});
+  HealthSample s;
+  s.ended = true;
+  s.data_port = 2368;
+  s.malformed = 5;
+  s.ignored = 7;
+  EXPECT_EQ(m.update(s).reason,
+            "the source ended; no data packet on port 2368: 5 malformed or cut short, 7 on other "
+            "ports or not IPv4/UDP");
+  s.source_error = "capture 'x.pcap' is unreadable after record 99 (bad header)";
+  EXPECT_EQ(m.update(s).reason.rfind("the source ended; capture 'x.pcap' is unreadable after "
+                                     "record 99 (bad header); no data packet",
+                                     0),
+            0u)
+      << m.update(s).reason;
+}
+
 TEST(Health, AnEndedSourceIsEndedOrItsError) {
   HealthMonitor m({});
   Sensor sensor;

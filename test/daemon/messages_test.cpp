@@ -389,6 +389,7 @@ TEST(Messages, StatusStatesMatchTheLcmConstants) {
   EXPECT_EQ(static_cast<int>(HealthState::kStalled), int{st::STATE_STALLED});
   EXPECT_EQ(static_cast<int>(HealthState::kError), int{st::STATE_ERROR});
   EXPECT_EQ(static_cast<int>(HealthState::kEnded), int{st::STATE_ENDED});
+  EXPECT_EQ(static_cast<int>(HealthState::kNotDecoding), int{st::STATE_NOT_DECODING});
 }
 
 TEST(Messages, RawPacketKeepsBytesPortAndTime) {

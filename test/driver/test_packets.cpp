@@ -90,7 +90,7 @@ TEST(DecodeErrors, RandomBytesNeverCrashAndNeverYieldNaN) {
 
 TEST(PositionPacket, ParsesCounterPpsAndGprmc) {
   std::array<uint8_t, kPositionPacketSize> buf{};
-  const std::string nmea = "$GPRMC,101530.25,A,4916.45,N,12311.12,W,000.5,054.7,191194,020.3,E*68";
+  const std::string nmea = "$GPRMC,101530.25,A,4916.45,N,12311.12,W,000.5,054.7,191194,020.3,E*44";
   encode_position_packet(930'250'000u, PpsStatus::kLocked, nmea, buf);
   PositionPacket pos;
   ASSERT_EQ(parse_position_packet(buf, pos), PositionStatus::kOk);
@@ -111,7 +111,7 @@ TEST(PositionPacket, BadInputIsReportedNotTrusted) {
   EXPECT_FALSE(pos.has_gprmc);
   // A void fix ('V') is not used as time; control bytes are neutralised.
   encode_position_packet(1, PpsStatus::kLocked,
-                         "$GPRMC,101530,V,4916.45,N,12311.12,W,000.5,054.7,191194,,*68", buf);
+                         "$GPRMC,101530,V,4916.45,N,12311.12,W,000.5,054.7,191194,,*10", buf);
   ASSERT_EQ(parse_position_packet(buf, pos), PositionStatus::kOk);
   EXPECT_FALSE(pos.has_gprmc);
   buf[kNmeaOffset + 3] = 0x07;
@@ -137,10 +137,10 @@ TEST(SensorClock, UsesGpsTimeWhenPpsIsLocked) {
   SensorClock clock;
   std::array<uint8_t, kPositionPacketSize> buf{};
   encode_position_packet(930'250'000u, PpsStatus::kLocked,
-                         "$GPRMC,101530,A,4916.45,N,12311.12,W,000.5,054.7,191194,020.3,E*68", buf);
+                         "$GPRMC,101530,A,4916.45,N,12311.12,W,000.5,054.7,191194,020.3,E*6D", buf);
   PositionPacket pos;
   ASSERT_EQ(parse_position_packet(buf, pos), PositionStatus::kOk);
-  clock.update(pos);
+  clock.update(pos, 1'700'000'000'000'000'000LL);
   EXPECT_EQ(clock.source(), TimeSource::kGps);
   const int64_t hour_1994 = 785'240'130'000'000'000LL - (15 * 60 + 30) * 1'000'000'000LL;
   // The host clock is ignored (it is years off).
@@ -148,8 +148,83 @@ TEST(SensorClock, UsesGpsTimeWhenPpsIsLocked) {
   // Without lock, the host clock stays in charge.
   SensorClock host;
   pos.pps = PpsStatus::kSynchronizing;
-  host.update(pos);
+  host.update(pos, 1'700'000'000'000'000'000LL);
   EXPECT_EQ(host.source(), TimeSource::kHost);
+}
+
+// A position packet with a locked fix at `fix_s` (seconds since the epoch, whole hour + 930 s).
+PositionPacket fix_at(int64_t fix_s) {
+  PositionPacket p;
+  p.pps = PpsStatus::kLocked;
+  p.has_gprmc = true;
+  p.gps_fix_ns = fix_s * 1'000'000'000LL;
+  p.usec_since_hour = static_cast<uint32_t>((fix_s % 3600) * 1'000'000);
+  return p;
+}
+
+TEST(PositionPacket, AWrongOrMissingChecksumIsNoTime) {
+  // Anyone on the network can send a position packet: an RMC sentence is trusted only with its
+  // checksum right (forged ones once moved utime to 2004 or 2079 while the status said GPS).
+  std::array<uint8_t, kPositionPacketSize> buf{};
+  PositionPacket pos;
+  for (const char* nmea : {"$GPRMC,101530,A,4916.45,N,12311.12,W,000.5,054.7,191194,020.3,E*6C",
+                           "$GPRMC,101530,A,4916.45,N,12311.12,W,000.5,054.7,191194,020.3,E"}) {
+    SCOPED_TRACE(nmea);
+    encode_position_packet(930'000'000u, PpsStatus::kLocked, nmea, buf);
+    EXPECT_EQ(parse_position_packet(buf, pos), PositionStatus::kBadChecksum);
+    EXPECT_FALSE(pos.has_gprmc);
+    SensorClock clock;
+    clock.update(pos, 1'700'000'000'000'000'000LL);
+    EXPECT_EQ(clock.source(), TimeSource::kHost);
+  }
+  EXPECT_TRUE(
+      nmea_checksum_ok("$GPRMC,101530,A,4916.45,N,12311.12,W,000.5,054.7,191194,020.3,E*6d"));
+}
+
+TEST(SensorClock, AStaleGpsReferenceFallsBackToTheHost) {
+  // Position packets stop: 40 minutes later a kept reference stamped packets an hour early.
+  const int64_t t = 1'700'000'000;
+  SensorClock clock;
+  clock.update(fix_at(t), t * 1'000'000'000LL);
+  ASSERT_EQ(clock.source(), TimeSource::kGps);
+  clock.expire((t + 5) * 1'000'000'000LL);
+  EXPECT_EQ(clock.source(), TimeSource::kGps);
+  const int64_t later = (t + 40 * 60) * 1'000'000'000LL;
+  clock.expire(later);
+  EXPECT_EQ(clock.source(), TimeSource::kHost);
+  EXPECT_EQ(clock.stale(), 1u);
+  const auto usec = static_cast<uint32_t>(((t + 40 * 60) % 3600) * 1'000'000);
+  EXPECT_EQ(clock.join(usec, later), later);
+}
+
+TEST(SensorClock, AFixFromTheLastWeekRolloverIsMovedToItsEra) {
+  const int64_t t = 1'700'000'000;               // 2023-11-14
+  const int64_t era_s = 1024LL * 7 * 24 * 3600;  // 2004 for 2023
+  SensorClock clock;
+  clock.update(fix_at(t - era_s), t * 1'000'000'000LL);
+  EXPECT_EQ(clock.source(), TimeSource::kGps);
+  EXPECT_EQ(clock.era_corrections(), 1u);
+  const auto usec = static_cast<uint32_t>((t % 3600) * 1'000'000);
+  EXPECT_EQ(clock.join(usec, 0), t * 1'000'000'000LL);
+}
+
+TEST(SensorClock, AJumpIsAdoptedOnlyWhenFixesConfirmIt) {
+  const int64_t t = 1'700'000'000, ns = 1'000'000'000;
+  SensorClock clock;
+  clock.update(fix_at(t), t * ns);
+  // A forged fix an hour and a half later (checksum right), one second on: not adopted.
+  clock.update(fix_at(t + 5400), (t + 1) * ns);
+  EXPECT_EQ(clock.rejected_fixes(), 1u);
+  const auto usec = static_cast<uint32_t>(((t + 1) % 3600) * 1'000'000);
+  EXPECT_EQ(clock.join(usec, 0), (t + 1) * ns);
+  // The real receiver goes on: adopted, and the forgery did not count towards a new time.
+  clock.update(fix_at(t + 2), (t + 2) * ns);
+  EXPECT_EQ(clock.rejected_fixes(), 1u);
+  // The GPS time really moves (a receiver reset): three fixes in a row agree, then it is used.
+  for (int i = 3; i <= 5; ++i) clock.update(fix_at(t + 600 + i), (t + i) * ns);
+  EXPECT_EQ(clock.rejected_fixes(), 3u);
+  const auto usec5 = static_cast<uint32_t>(((t + 605) % 3600) * 1'000'000);
+  EXPECT_EQ(clock.join(usec5, 0), (t + 605) * ns);
 }
 
 TEST(ModelCheck, DetectsTheModelFromTheProductByteAndTiming) {

@@ -4,7 +4,9 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <cstring>
 #include <filesystem>
+#include <optional>
 #include <thread>
 #include <vector>
 
@@ -308,6 +310,153 @@ TEST(CaptureReader, AnotherModelMidStreamIsNoticedAndDecodedAsThatModel) {
   EXPECT_GT(reader.counts().model_mismatch, 0u);
   EXPECT_NE(reader.model_mismatch().find("vlp32c -> vlp16"), std::string::npos)
       << reader.model_mismatch();
+}
+
+// What a VLP-32C stream of 1507 packets (1 s) gave when read alone, and with something before it.
+struct Outcome {
+  std::optional<Model> model;
+  uint64_t decoded = 0;
+  size_t complete = 0;
+  CaptureCounts counts;
+};
+
+Outcome read_stream(std::vector<testing::StreamPacket> stream) {
+  auto owned = std::make_unique<StreamSource>(std::move(stream));
+  owned->ended = true;
+  CaptureReader reader(std::move(owned), {});
+  Outcome o;
+  while (const Scan* scan = reader.next()) o.complete += scan->complete ? 1 : 0;
+  o.model = reader.model();
+  o.decoded = reader.counts().decoded;
+  o.counts = reader.counts();
+  return o;
+}
+
+// `n` datagrams of the probe's size before `stream`, 100 us apart, ending 1 ms before it.
+std::vector<testing::StreamPacket> after_junk(const std::vector<testing::StreamPacket>& stream,
+                                              size_t n, const char* kind) {
+  std::vector<testing::StreamPacket> out;
+  uint32_t seed = 12345;
+  for (size_t i = 0; i < n; ++i) {
+    testing::StreamPacket p{
+        std::vector<uint8_t>(kDataPacketSize, 0),
+        stream.front().time_ns - 1'000'000 - static_cast<int64_t>(n - i) * 100'000};
+    if (std::string(kind) == "vlp16 byte") p.bytes[kProductIdOffset] = 0x22;
+    if (std::string(kind) == "random") {
+      for (auto& b : p.bytes) {
+        seed = seed * 1664525u + 1013904223u;
+        b = static_cast<uint8_t>(seed >> 24);
+      }
+    }
+    out.push_back(std::move(p));
+  }
+  out.insert(out.end(), stream.begin(), stream.end());
+  return out;
+}
+
+TEST(CaptureReader, JunkBeforeTheSensorDecidesNothing) {
+  // Zero-filled datagrams of the probe's size once made the probe decide "unknown" for good
+  // (32 of them: every later packet undecodable), one with a VLP-16 product byte locked the
+  // reader to VLP-16. Junk is not laid out as data packets: it neither votes nor times.
+  const auto sensor =
+      testing::make_stream(model_spec(Model::kVLP32C), ReturnMode::kStrongest, 1507);
+  const Outcome alone = read_stream(sensor);
+  ASSERT_EQ(alone.model, Model::kVLP32C);
+  ASSERT_EQ(alone.decoded, 1507u);
+  for (const char* kind : {"zeros", "vlp16 byte", "random"}) {
+    for (const size_t n :
+         {size_t{1}, size_t{31}, size_t{32}, size_t{33}, size_t{200}, size_t{3000}}) {
+      SCOPED_TRACE(std::string(kind) + " x " + std::to_string(n));
+      const Outcome o = read_stream(after_junk(sensor, n, kind));
+      EXPECT_EQ(o.model, Model::kVLP32C);
+      EXPECT_EQ(o.decoded, 1507u);
+      EXPECT_EQ(o.complete, alone.complete);
+      EXPECT_EQ(o.counts.data_packets, 1507u + n);
+      uint64_t errors = 0;
+      for (uint64_t e : o.counts.decode_errors) errors += e;
+      EXPECT_EQ(errors + o.counts.undecodable, n);  // every junk datagram counted, once
+    }
+  }
+}
+
+TEST(CaptureReader, APacketLaidOutRightButWithAnotherProductByteDoesNotDecide) {
+  // A valid-looking VLP-16 packet (a spoof, or another sensor's one packet) before a VLP-32C:
+  // the product byte is the one most packets carry.
+  auto sensor = testing::make_stream(model_spec(Model::kVLP32C), ReturnMode::kStrongest, 1507);
+  auto spoof = testing::make_stream(model_spec(Model::kVLP16), ReturnMode::kStrongest, 3);
+  for (auto& p : spoof) p.time_ns = sensor.front().time_ns - 5'000'000 + p.time_ns % 1'000'000;
+  spoof.insert(spoof.end(), sensor.begin(), sensor.end());
+  const Outcome o = read_stream(spoof);
+  EXPECT_EQ(o.model, Model::kVLP32C);
+  EXPECT_GE(o.decoded, 1507u);
+}
+
+TEST(CaptureReader, AProbeNoModelFitsStartsOverOnTheNextPackets) {
+  // 100 packets laid out as data packets whose byte names no model and whose timing fits none
+  // (3 ms apart), then a VLP-32C: the first probe fails, the next one finds the sensor.
+  const auto sensor =
+      testing::make_stream(model_spec(Model::kVLP32C), ReturnMode::kStrongest, 1507);
+  auto odd = testing::make_stream(model_spec(Model::kVLP32C), ReturnMode::kStrongest, 100);
+  for (size_t i = 0; i < odd.size(); ++i) {
+    auto& p = odd[i];
+    p.bytes[kProductIdOffset] = 0x00;
+    const auto usec = static_cast<uint32_t>(i * 3000);
+    std::memcpy(p.bytes.data() + kTimestampOffset, &usec, sizeof usec);
+    p.time_ns = sensor.front().time_ns - 400'000'000 + static_cast<int64_t>(i) * 3'000'000;
+  }
+  odd.insert(odd.end(), sensor.begin(), sensor.end());
+  const Outcome o = read_stream(odd);
+  EXPECT_EQ(o.model, Model::kVLP32C);
+  EXPECT_GE(o.counts.failed_probes, 1u);
+  EXPECT_GE(o.decoded, 1507u);
+  EXPECT_GE(o.complete, 8u);
+}
+
+TEST(CaptureReader, AWrongFirstDecisionChangesWithEvidence) {
+  // The first 40 packets carry a VLP-16 product byte in a VLP-32C's layout and timing (the byte
+  // decides, as for real VLP-16s with an HDL-32E byte); then the sensor's own packets say
+  // VLP-32C in byte and timing. The decision follows the evidence, once, with a reason.
+  auto stream = testing::make_stream(model_spec(Model::kVLP32C), ReturnMode::kStrongest, 3014);
+  for (size_t i = 0; i < 40; ++i) stream[i].bytes[kProductIdOffset] = 0x22;
+  auto owned = std::make_unique<StreamSource>(stream);
+  owned->ended = true;
+  CaptureReader reader(std::move(owned), {});
+  size_t complete32 = 0;
+  while (const Scan* scan = reader.next())
+    complete32 += (scan->complete && scan->rings == 32) ? 1 : 0;
+  EXPECT_EQ(reader.model(), Model::kVLP32C);
+  EXPECT_EQ(reader.counts().model_changes, 1u);
+  EXPECT_NE(reader.model_mismatch().find("vlp16 -> vlp32c"), std::string::npos)
+      << reader.model_mismatch();
+  EXPECT_GE(complete32, 15u);
+}
+
+TEST(CaptureReader, CountersGoOnAcrossAModelChange) {
+  // A VLP-16 stream with packets lost, then a VLP-32C: the batcher of the new model starts from
+  // zero, the reader's counts must not (a status once saw missing packets fall 53 -> 0).
+  auto first = testing::make_stream(model_spec(Model::kVLP16), ReturnMode::kStrongest, 2262);
+  std::vector<testing::StreamPacket> lossy;
+  for (size_t i = 0; i < first.size(); ++i)
+    if (i % 10 != 5) lossy.push_back(first[i]);
+  testing::StreamOptions later;
+  later.start_ns = first.back().time_ns + 100'000'000;
+  const auto second =
+      testing::make_stream(model_spec(Model::kVLP32C), ReturnMode::kStrongest, 3014, later);
+  lossy.insert(lossy.end(), second.begin(), second.end());
+  auto owned = std::make_unique<StreamSource>(lossy);
+  owned->ended = true;
+  CaptureReader reader(std::move(owned), {});
+  uint64_t max_missing = 0, max_rotations = 0;
+  bool fell = false;
+  while (reader.next()) {
+    const BatcherStats b = reader.batcher_stats();
+    fell = fell || b.missing_packets < max_missing || b.rotations < max_rotations;
+    max_missing = std::max(max_missing, b.missing_packets);
+    max_rotations = std::max(max_rotations, b.rotations);
+  }
+  EXPECT_EQ(reader.model(), Model::kVLP32C);
+  EXPECT_FALSE(fell);
+  EXPECT_GE(reader.batcher_stats().missing_packets, 200u);  // the VLP-16's 226 lost packets
 }
 
 TEST(CaptureReader, AConfiguredModelThePacketsContradictIsReported) {

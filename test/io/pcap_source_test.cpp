@@ -387,6 +387,55 @@ TEST(PcapSource, ZeroLengthAndHugeLengthRecordsAreCounted) {
   EXPECT_EQ(stats.malformed + stats.truncated, 1u);
 }
 
+TEST(PcapSource, ClassicRecordsFrom2038OnKeepTheirTime) {
+  // Classic pcap's seconds are unsigned 32-bit (good to 2106); libpcap hands them over signed,
+  // and a capture dated 2039 once replayed nothing (every record "impossible").
+  const Bytes frame = test::ethernet(test::ipv4_udp(test::payload_bytes(1206, 3), 2368));
+  const int64_t y2038 = 2'147'483'648LL * 1'000'000'000;  // 2038-01-19T03:14:08Z
+  const int64_t y2039 = 2'177'452'800LL * 1'000'000'000;  // 2039-01-01
+  for (const bool nano : {false, true}) {
+    SCOPED_TRACE(nano ? "nanoseconds" : "microseconds");
+    SourceStats stats;
+    const auto packets = read_file(
+        "y2038.pcap",
+        test::classic_pcap(kLinktypeEthernet,
+                           {{frame, y2038 - 1'000'000'000}, {frame, y2038}, {frame, y2039 + 5000}},
+                           nano),
+        &stats);
+    ASSERT_EQ(packets.size(), 3u);
+    EXPECT_EQ(packets[0].time_ns, y2038 - 1'000'000'000);
+    EXPECT_EQ(packets[1].time_ns, y2038);
+    EXPECT_EQ(packets[2].time_ns, y2039 + 5000);
+    EXPECT_EQ(stats.malformed, 0u);
+  }
+}
+
+TEST(PcapSource, ARecordThatStopsTheReplayBeforeTheEndIsAnError) {
+  // A corrupt record length in the middle (libpcap cannot read on): the replay must not end
+  // looking whole. The source names the record and the bytes left unread.
+  const Bytes frame = test::ethernet(test::ipv4_udp(test::payload_bytes(1206, 4), 2368));
+  std::vector<Record> records;
+  for (int i = 0; i < 10; ++i) records.push_back({frame, kT0 + i * 1000});
+  Bytes file = test::classic_pcap(kLinktypeEthernet, records);
+  const size_t fourth = 24 + 3 * (16 + frame.size());
+  for (size_t i = 0; i < 4; ++i) file[fourth + 8 + i] = i == 2 ? 0x10 : 0x00;  // caplen 1 MiB
+  TempFile tmp("cut.pcap");
+  test::write_file(tmp.path(), file);
+  PcapSource source(tmp.path());
+  EXPECT_EQ(read_all(source).size(), 3u);
+  EXPECT_NE(source.error().find("unreadable after record 3"), std::string::npos) << source.error();
+  EXPECT_NE(source.error().find("bytes not read"), std::string::npos) << source.error();
+  // A file that ends inside its last record (a recording stopped mid-write) was read whole.
+  Bytes cut = test::classic_pcap(kLinktypeEthernet, records);
+  cut.resize(cut.size() - 500);
+  TempFile tmp2("end.pcap");
+  test::write_file(tmp2.path(), cut);
+  PcapSource ends(tmp2.path());
+  EXPECT_EQ(read_all(ends).size(), 9u);
+  EXPECT_EQ(ends.stats().truncated, 1u);
+  EXPECT_EQ(ends.error(), "");
+}
+
 TEST(PcapSource, LoopRestartsWithMonotonicTime) {
   const Bytes payload = test::payload_bytes(1206, 12);
   const Bytes frame = test::ethernet(test::ipv4_udp(payload, 2368));

@@ -36,7 +36,9 @@ const Calibration* CaptureReader::calibration() const {
 }
 
 BatcherStats CaptureReader::batcher_stats() const {
-  return batcher_ ? batcher_->stats() : BatcherStats{};
+  BatcherStats s = retired_;
+  if (batcher_) s += batcher_->stats();
+  return s;
 }
 
 std::string CaptureReader::model_mismatch() const {
@@ -65,11 +67,14 @@ void CaptureReader::watch_model(std::span<const uint8_t> payload) {
   if (epoch_.packets() < kModelEpochPackets) return;
   // The product byte's model if the timing fits it, else the model the timing fits.
   const std::optional<Model> fits = epoch_.timing_model();
+  const std::optional<Model> product = epoch_.product_model();
   const double period_us = epoch_.packet_period_us();
   epoch_ = ModelCheck{};
   // Compared with what the first packets (or the configuration) said: a capture whose product
-  // byte contradicts its timing from the start is ModelCheck's complaint, not a change.
-  if (!fits || *fits == *model_ || fits == expected_) {
+  // byte contradicts its timing from the start is ModelCheck's complaint, not a change, as long
+  // as the packets still carry the product byte decided on. Packets whose byte and timing both
+  // name another model are evidence against the decision, however it was made.
+  if (!fits || *fits == *model_ || (fits == expected_ && product == model_)) {
     mismatched_epochs_ = 0;
     return;
   }
@@ -83,6 +88,7 @@ void CaptureReader::watch_model(std::span<const uint8_t> payload) {
   }
   stream_mismatch_ = "model changed mid-stream: " + now + " -> " + seen +
                      " (product byte and packet timing); decoding as " + seen;
+  ++counts_.model_changes;
   switch_to_ = *fits;
   expected_ = *fits;
 }
@@ -90,24 +96,33 @@ void CaptureReader::watch_model(std::span<const uint8_t> payload) {
 void CaptureReader::switch_model(Model model) {
   model_ = model;
   decoder_ = std::make_unique<Decoder>(Calibration::builtin(model), options_.decoder);
+  // The counters go on across the change (a status must never see them fall).
+  if (batcher_) retired_ += batcher_->stats();
   batcher_.reset();  // the next packet makes one for the new model; scans are reshaped by it
   mismatched_epochs_ = 0;
 }
 
 void CaptureReader::decide() {
-  decided_ = true;
   model_ = options_.model;
   if (!model_) model_ = check_.product_model();
   if (!model_) model_ = check_.timing_model();
-  expected_ = options_.model ? options_.model : check_.timing_model();
-  if (model_) {
-    Calibration calibration = options_.calibration_file.empty()
-                                  ? Calibration::builtin(*model_)
-                                  : load_calibration_file(options_.calibration_file, *model_);
-    decoder_ = std::make_unique<Decoder>(std::move(calibration), options_.decoder);
-  }
-  // What was held back while probing is decoded next, in arrival order (by read()).
+  // What was held back while probing is handled next, in arrival order (by read()).
   held_next_ = 0;
+  draining_ = true;
+  if (!model_) {
+    // No model fits what was probed (another sensor, or packets that only look like Velodyne
+    // data): those packets go on undecoded and the probe starts over on the next ones, so that
+    // the sensor is decoded as soon as it speaks, whatever came before it.
+    ++counts_.failed_probes;
+    check_ = ModelCheck{};
+    return;
+  }
+  decided_ = true;
+  expected_ = options_.model ? options_.model : check_.timing_model();
+  Calibration calibration = options_.calibration_file.empty()
+                                ? Calibration::builtin(*model_)
+                                : load_calibration_file(options_.calibration_file, *model_);
+  decoder_ = std::make_unique<Decoder>(std::move(calibration), options_.decoder);
 }
 
 bool CaptureReader::take(const RawPacket& p, Scan& scan) {
@@ -142,7 +157,10 @@ bool CaptureReader::handle(std::span<const uint8_t> payload, int64_t time_ns, ui
   if (port == options_.source.position_port) {
     ++counts_.position_packets;
     PositionPacket position;
-    if (parse_position_packet(payload, position) != PositionStatus::kOk) {
+    const PositionStatus parsed = parse_position_packet(payload, position);
+    if (parsed == PositionStatus::kBadChecksum) {
+      ++counts_.position_checksum;  // parsed, but its time is not trusted
+    } else if (parsed != PositionStatus::kOk) {
       ++counts_.position_errors;
       return false;
     }
@@ -150,11 +168,12 @@ bool CaptureReader::handle(std::span<const uint8_t> payload, int64_t time_ns, ui
     counts_.pps = position.pps;
     counts_.last_nmea = std::string(position.sentence());
     if (position.has_gprmc) ++counts_.gprmc_valid;
-    clock_.update(position);
+    clock_.update(position, time_ns);
     return false;
   }
   if (port != options_.source.data_port) return false;
   ++counts_.data_packets;
+  clock_.expire(time_ns);
   if (!decoder_) {
     ++counts_.undecodable;
     return false;
@@ -189,13 +208,14 @@ CaptureReader::ReadResult CaptureReader::read(Scan& scan, std::chrono::milliseco
       switch_to_.reset();
     }
     // Packets held back while the model was probed, one at a time: each may end a rotation.
-    if (decided_ && held_next_ < held_.size()) {
+    if (draining_ && held_next_ < held_.size()) {
       const Held& h = held_[held_next_++];
       const bool done = handle(h.payload, h.time_ns, h.port, scan);
       if (held_next_ == held_.size()) {
         held_.clear();
-        held_.shrink_to_fit();
+        if (decided_) held_.shrink_to_fit();  // else the next probe reuses the room
         held_next_ = 0;
+        draining_ = false;
       }
       if (done) return ReadResult::kRotation;
       continue;
@@ -216,7 +236,7 @@ CaptureReader::ReadResult CaptureReader::read(Scan& scan, std::chrono::milliseco
     if (status == ReadStatus::kPacket) {
       if (take(packet, scan)) return ReadResult::kRotation;
     } else if (status == ReadStatus::kEnd || status == ReadStatus::kError) {
-      if (!decided_) decide();
+      if (!decided_ && !draining_) decide();
       source_ended_ = true;
       continue;
     } else if (batcher_ && batcher_->in_progress()) {

@@ -1,8 +1,10 @@
 #include "lidartag/driver/io/pcap_source.hpp"
 
 #include <pcap/pcap.h>
+#include <sys/stat.h>
 
 #include <cmath>
+#include <cstdio>
 #include <thread>
 
 namespace lidartag::velodyne {
@@ -14,6 +16,20 @@ pcap_t* as_pcap(void* p) {
 
 // One microsecond: the smallest step between two passes of a looped file.
 constexpr int64_t kMinLoopGapNs = 1000;
+
+// Classic pcap by the file's magic number (either byte order, micro- or nanoseconds), read
+// through libpcap's own stream: pcapng starts with 0x0A0D0D0A.
+bool is_classic_pcap(pcap_t* pcap) {
+  FILE* file = pcap_file(pcap);
+  if (file == nullptr) return false;
+  const long at = std::ftell(file);
+  uint32_t magic = 0;
+  const bool read = at >= 0 && std::fseek(file, 0, SEEK_SET) == 0 &&
+                    std::fread(&magic, sizeof magic, 1, file) == 1;
+  if (at >= 0) std::fseek(file, at, SEEK_SET);
+  return read &&
+         (magic == 0xa1b2c3d4 || magic == 0xd4c3b2a1 || magic == 0xa1b23c4d || magic == 0x4d3cb2a1);
+}
 
 }  // namespace
 
@@ -56,6 +72,7 @@ void PcapSource::open() {
   }
   pcap_ = pcap;
   link_type_ = dlt;
+  classic_ = is_classic_pcap(pcap);
 }
 
 void PcapSource::close() {
@@ -72,16 +89,21 @@ bool PcapSource::read_packet() {
     if (rc == PCAP_ERROR_BREAK) return false;  // clean end of file
     if (rc != 1) {
       // A record header that promises more than the file holds, or a corrupt one: libpcap cannot
-      // resynchronise, so this pass ends here.
+      // resynchronise, so this pass ends here, and the source says so (a replay cut short must
+      // not end looking like a whole one).
       last_error_ = pcap_geterr(as_pcap(pcap_));
       if (last_error_.find("truncated") != std::string::npos) {
         ++stats_.truncated;
       } else {
         ++stats_.malformed;
       }
+      if (end_error_.empty()) end_error_ = cut_short_text();
       return false;
     }
     ++records_;
+    // Classic pcap's seconds are unsigned 32-bit (good to 2106), but libpcap reads them signed:
+    // a record from 2038 on comes out negative.
+    if (classic_ && header->ts.tv_sec < 0) header->ts.tv_sec += 4'294'967'296LL;
     // A corrupt pcapng timestamp (64-bit ticks) can be 2^64 seconds: the product would overflow.
     if (header->ts.tv_sec < 0 || header->ts.tv_sec >= kMaxReceiveTimeNs / 1'000'000'000 ||
         header->ts.tv_usec < 0 || header->ts.tv_usec >= 1'000'000'000) {
@@ -115,6 +137,22 @@ bool PcapSource::read_packet() {
     pending_packet_.destination_port = udp.destination_port;
     return true;
   }
+}
+
+std::string PcapSource::cut_short_text() const {
+  // Bytes left after the record that stopped libpcap: none when the file ends inside its last
+  // record (a recording cut short: one packet lost, counted as truncated, the replay whole).
+  FILE* file = pcap_file(as_pcap(pcap_));
+  struct stat st {};
+  if (file == nullptr || ::fstat(::fileno(file), &st) != 0 || !S_ISREG(st.st_mode)) {
+    return "capture '" + path_ + "' is unreadable after record " + std::to_string(records_) + " (" +
+           last_error_ + "): the replay stopped there";
+  }
+  const long at = std::ftell(file);
+  if (at < 0 || at >= st.st_size) return {};
+  return "capture '" + path_ + "' is unreadable after record " + std::to_string(records_) + " (" +
+         last_error_ + "): the replay stopped there, " + std::to_string(st.st_size - at) +
+         " of its " + std::to_string(st.st_size) + " bytes not read";
 }
 
 bool PcapSource::restart() {

@@ -46,6 +46,8 @@ class Daemon {
   // For main's exit status (daemon-setup): messages not delivered, an incomplete --record file.
   const LcmBus& bus() const { return *bus_; }
   const PcapRecorder* recorder() const { return recorder_.get(); }
+  // Sources that ended before their end (a replay cut short by a corrupt record): data lost.
+  size_t sources_cut_short() const;
 
  private:
   void publish_status(bool final);

@@ -28,6 +28,7 @@ enum class HealthState : uint8_t {
   kError = 10,           // the pipeline stopped on an error
   kEnded = 11,  // the source ended (replay done, or stopped) and everything was published; the
                 // reason adds what went wrong over the whole run
+  kNotDecoding = 12,  // data packets arrive but none was decoded over a whole window
 };
 std::string_view health_state_name(HealthState state);
 
@@ -35,13 +36,19 @@ std::string_view health_state_name(HealthState state);
 struct HealthSample {
   int64_t now_ns = 0;
   int64_t started_ns = 0;
-  bool ended = false;  // the source ended and every rotation was published
-  std::string error;   // why the pipeline stopped, if it did
-  std::string stall;   // why the pipeline makes no progress (see SensorPipeline); empty if it does
+  bool ended = false;    // the source ended and every rotation was published
+  bool stopped = false;  // ended because the daemon was stopped (a signal), not by the source
+  // Why the source ended before its end (a replay cut short by a corrupt record); else empty.
+  std::string source_error;
+  std::string error;  // why the pipeline stopped, if it did
+  std::string stall;  // why the pipeline makes no progress (see SensorPipeline); empty if it does
   uint16_t data_port = 0;
   uint64_t data_packets = 0;    // data packets received
   int64_t last_data_ns = 0;     // when the last one was; 0: none yet
   uint64_t decoded = 0;         // data packets decoded
+  uint64_t malformed = 0;       // status_t's packets_malformed
+  uint64_t ignored = 0;         // other traffic: other ports, not IPv4/UDP
+  uint64_t foreign = 0;         // to the sensor's ports from another sender, ignored
   uint64_t missing = 0;         // data packets missing from the stream (sequence gaps)
   uint64_t model_mismatch = 0;  // data packets contradicting the model in use
   uint64_t inconsistent = 0;    // data packets whose azimuth contradicts the stream (dropped)

@@ -89,6 +89,8 @@ class SensorPipeline {
   // Set when the pipeline stopped on an error (e.g. the calibration does not fit the model
   // decided from the packets); empty otherwise.
   std::string error() const;
+  // Why the source ended before its end (a replay cut short by a corrupt record); else empty.
+  std::string source_error() const;
 
  private:
   struct Snapshot;

@@ -61,6 +61,7 @@ class TapSource final : public velodyne::PacketSource {
   // Waits at most 100 ms per call, so that stop() is noticed quickly; kEnd once stopped.
   velodyne::ReadStatus next(velodyne::RawPacket& out, std::chrono::milliseconds timeout) override;
   velodyne::SourceStats stats() const override;  // the inner source's (its thread only)
+  std::string error() const override { return inner_->error(); }  // its thread only
 
   void stop() { stop_.store(true, std::memory_order_relaxed); }
   // Any thread.

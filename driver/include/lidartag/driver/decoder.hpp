@@ -172,27 +172,38 @@ struct PacketHeader {
 // Model autodetection checked against structure and timing: accumulates the packets' timestamp
 // steps and block flags, and tells which model they fit, so that a capture whose product byte
 // contradicts its timing is noticed (the real VLP-16 captures with product byte 0x21 exist).
+// Only payloads laid out as data packets count (1206 bytes, the flags of the first 8 blocks, which
+// every model fills, among kBankFlags):
+// junk of the probe's size (zeros, random bytes) neither votes nor adds timing, and no single
+// packet decides: the product byte is the one most packets carry.
 class ModelCheck {
  public:
   void add(std::span<const uint8_t> payload);
-  // Needs a few packets; empty while undecided.
-  std::optional<Model> product_model() const { return product_model_; }
+  // The model named by the product byte of more than half of the packets counted; empty while
+  // none is (or the byte names no known model).
+  std::optional<Model> product_model() const;
   std::optional<Model> timing_model() const;
   // The packet period on the sensor's clock (microseconds; 0 until known), robust to loss.
   double packet_period_us() const;
   std::optional<ReturnMode> return_mode() const { return mode_; }
   // Human-readable mismatch, empty when the product byte fits the timing.
   std::string mismatch() const;
-  size_t packets() const { return packets_; }
+  size_t packets() const { return packets_; }    // payloads counted (laid out as data packets)
+  size_t rejected() const { return rejected_; }  // payloads of 1206 bytes that were not
 
  private:
-  std::optional<Model> product_model_;
+  std::array<uint32_t, 256> product_votes_{};  // packets counted per product byte
+  uint8_t leading_product_ = 0;                // the byte with the most votes
   std::optional<ReturnMode> mode_;
   std::array<uint32_t, 64> steps_{};
   size_t step_count_ = 0;
   size_t packets_ = 0;
+  size_t rejected_ = 0;
   bool has_bank_flags_ = false;
   std::optional<uint32_t> last_usec_;
 };
+
+// True when `payload` is laid out as a data packet: 1206 bytes, the first 8 block flags known.
+[[nodiscard]] bool looks_like_data_packet(std::span<const uint8_t> payload);
 
 }  // namespace lidartag::velodyne

@@ -58,11 +58,16 @@ struct PositionPacket {
   std::string_view sentence() const { return {nmea.data(), std::strlen(nmea.data())}; }
 };
 
-enum class PositionStatus : uint8_t { kOk, kWrongSize, kBadPps };
+// kBadChecksum: a $GPRMC whose NMEA checksum (*hh, mandatory for RMC) is missing or wrong; its
+// time is not used (has_gprmc false).
+enum class PositionStatus : uint8_t { kOk, kWrongSize, kBadPps, kBadChecksum };
 
 // Pure parse; never throws, never reads outside `payload`.
 [[nodiscard]] PositionStatus parse_position_packet(std::span<const uint8_t> payload,
                                                    PositionPacket& out);
+
+// True when `sentence` ends in "*hh" and hh is the XOR of the characters between '$' and '*'.
+bool nmea_checksum_ok(std::string_view sentence);
 
 // UTC seconds since the epoch of a GPRMC time (hhmmss.ss) and date (ddmmyy); false if malformed.
 bool parse_gprmc_time(std::string_view sentence, int64_t& utc_ns, bool& valid_fix);

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cstdint>
 #include <span>
+#include <string>
 
 namespace lidartag::velodyne {
 
@@ -41,6 +42,9 @@ class PacketSource {
   // Next packet, or kTimeout after `timeout`, kEnd at the end of a finite source.
   virtual ReadStatus next(RawPacket& out, std::chrono::milliseconds timeout) = 0;
   virtual SourceStats stats() const = 0;
+  // Why the source ended before its end (a corrupt record that cuts a replay short, a read
+  // error), naming what was not read; empty while nothing was lost that way.
+  virtual std::string error() const { return {}; }
 };
 
 }  // namespace lidartag::velodyne

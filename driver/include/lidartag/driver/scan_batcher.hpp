@@ -47,6 +47,23 @@ struct BatcherStats {
   // Time or azimuth contradicts the stream (spoofed, another sensor, garbage): dropped without
   // cutting or ending the rotation.
   uint64_t inconsistent = 0;
+
+  // Field by field: the counts of two batchers of one stream (a model change makes a new one).
+  BatcherStats& operator+=(const BatcherStats& o) {
+    rotations += o.rotations;
+    complete += o.complete;
+    incomplete += o.incomplete;
+    missing_packets += o.missing_packets;
+    azimuth_jumps += o.azimuth_jumps;
+    fov_gaps += o.fov_gaps;
+    overflows += o.overflows;
+    mode_changes += o.mode_changes;
+    duplicates += o.duplicates;
+    reordered += o.reordered;
+    late_packets += o.late_packets;
+    inconsistent += o.inconsistent;
+    return *this;
+  }
 };
 
 class ScanBatcher {

@@ -36,8 +36,10 @@ struct CaptureReaderOptions {
   DecoderOptions decoder;
   BatcherOptions batcher;
   // Data packets examined before the model is decided when it is not given (held back, then
-  // decoded in order). ModelCheck needs about ten for the timing. At most max(1024, 4 x this)
-  // packets are held; traffic that never completes the probe goes on undecoded past that.
+  // decoded in order). Only payloads laid out as data packets count (see ModelCheck); ModelCheck
+  // needs about ten for the timing. At most max(1024, 4 x this) packets are held; traffic that
+  // never completes the probe goes on undecoded past that. A probe that no model fits lets its
+  // packets go on undecoded and starts over: nothing before the sensor decides its model.
   size_t probe_packets = 32;
 };
 
@@ -51,9 +53,14 @@ struct CaptureCounts {
   // Data packets whose product byte and timing contradict the model in use (another model
   // mid-stream, or an explicitly configured wrong model), judged per 64 packets.
   uint64_t model_mismatch = 0;
-  uint64_t position_ok = 0;                     // position packets parsed
-  uint64_t position_errors = 0;                 // wrong size or bad PPS byte
-  uint64_t gprmc_valid = 0;                     // position packets with a valid GPRMC fix
+  uint64_t model_changes = 0;  // models switched to mid-stream (model detected, not configured)
+  // Probes after which no model fitted the packets held (their packets went on undecoded and
+  // the probe started over).
+  uint64_t failed_probes = 0;
+  uint64_t position_ok = 0;        // position packets parsed
+  uint64_t position_errors = 0;    // wrong size or bad PPS byte
+  uint64_t position_checksum = 0;  // of position_ok: NMEA checksum missing or wrong (time unused)
+  uint64_t gprmc_valid = 0;        // position packets with a valid GPRMC fix
   PpsStatus pps = PpsStatus::kAbsent;           // of the last parsed position packet
   std::string last_nmea;                        // the last NMEA sentence seen
   int64_t first_time_ns = 0, last_time_ns = 0;  // receive times of the first and last packet
@@ -99,6 +106,8 @@ class CaptureReader {
   std::string model_mismatch() const;
   const CaptureCounts& counts() const { return counts_; }
   SourceStats source_stats() const { return source_->stats(); }
+  // Why the source ended before its end (PacketSource::error()); empty if it did not.
+  std::string source_error() const { return source_->error(); }
   BatcherStats batcher_stats() const;
   const SensorClock& clock() const { return clock_; }
   const Calibration* calibration() const;
@@ -125,6 +134,7 @@ class CaptureReader {
   CaptureReaderOptions options_;
   std::unique_ptr<Decoder> decoder_;
   std::unique_ptr<ScanBatcher> batcher_;
+  BatcherStats retired_;                   // of the batchers of models switched away from
   std::unique_ptr<PacketColumns> packet_;  // parsed: the batcher decodes it into the scan
   SensorClock clock_;
   ModelCheck check_;
@@ -132,6 +142,7 @@ class CaptureReader {
   std::optional<Model> model_;
   std::optional<ReturnMode> mode_;
   bool decided_ = false;
+  bool draining_ = false;  // the held packets are being handled (after a probe, failed or not)
   bool source_ended_ = false;
   bool finished_ = false;
   // Model watch: a ModelCheck per 64 data packets; two running that contradict the model in use

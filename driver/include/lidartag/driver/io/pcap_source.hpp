@@ -68,6 +68,11 @@ class PcapSource final : public PacketSource {
   // (also after a record that cuts the file short or a corrupt record header, counted).
   ReadStatus next(RawPacket& out, std::chrono::milliseconds timeout) override;
   SourceStats stats() const override { return stats_; }
+  // The first record that cut a pass short (libpcap cannot read past a corrupt record header),
+  // with what was left unread; empty when every pass read its file to the end (a file that ends
+  // inside its last record, as a recording stopped mid-write does, counts as read: that record
+  // is counted in SourceStats::truncated).
+  std::string error() const override { return end_error_; }
 
   int link_type() const { return link_type_; }       // libpcap DLT_ value
   uint64_t records() const { return records_; }      // capture records read, all passes
@@ -83,6 +88,7 @@ class PcapSource final : public PacketSource {
   // Reads records until one is deliverable; false at the end of this pass.
   bool read_packet();
   bool restart();
+  std::string cut_short_text() const;
 
   std::string path_;
   PcapSourceOptions options_;
@@ -92,6 +98,8 @@ class PcapSource final : public PacketSource {
   uint64_t records_ = 0, fragments_ = 0, passes_ = 0;
   uint64_t delivered_this_pass_ = 0;
   std::string last_error_;
+  std::string end_error_;
+  bool classic_ = false;  // classic pcap (32-bit seconds), not pcapng
   ReplaySchedule schedule_;
   // The packet read but not yet handed out (paced replay waiting for its time).
   bool pending_ = false;
