@@ -129,8 +129,28 @@ auto open_closed(T lo, T hi) {
     return v > lo && v <= hi ? std::string() : fmt::format("must be in ({}, {}]", lo, hi);
   };
 }
-auto non_empty() {
-  return [](const std::string& s) { return s.empty() ? std::string("must not be empty") : ""; };
+// Text that reaches log lines, channel names and systemd's STATUS=: printable ASCII only (a
+// newline or an escape sequence in a sensor's name once went raw into the log).
+auto printable(bool allow_empty) {
+  return [allow_empty](const std::string& s) {
+    if (s.empty() && !allow_empty) return std::string("must not be empty");
+    for (const char c : s) {
+      if (c < 0x20 || c > 0x7E) {
+        return fmt::format("must be printable ASCII (holds byte 0x{:02x})",
+                           static_cast<unsigned char>(c));
+      }
+    }
+    return std::string();
+  };
+}
+// A replay's speed factor: 0 (as fast as possible) or 1/1000 to 1000 times the recorded pace
+// (1e-300 once overflowed the schedule and replayed at full speed).
+auto replay_rate() {
+  return [](double v) {
+    return v == 0.0 || (v >= 1e-3 && v <= 1e3)
+               ? std::string()
+               : std::string("must be 0 (as fast as possible) or in [0.001, 1000]");
+  };
 }
 auto ipv4_or_empty() {
   return [](const std::string& s) {
@@ -483,13 +503,14 @@ class Printer {
 
 template <class V>
 void visit_sensor(V& v, SensorOptions& o) {
-  v.field("name", o.name, non_empty());
-  v.field("frame_id", o.frame_id, non_empty());
-  v.field("channel_prefix", o.channel_prefix);
+  v.field("name", o.name, printable(false));
+  v.field("frame_id", o.frame_id, printable(false));
+  v.field("channel_prefix", o.channel_prefix, printable(true));
   v.field("model", o.model);
   v.field("calibration", o.calibration);
   v.field("cut_azimuth_deg", o.batcher.cut_azimuth_deg, half_open(0.0, 360.0));
-  v.field("flush_timeout_s", o.batcher.flush_timeout_s, above(0.0));
+  // At least 10 ms: many packet periods of every model (less blamed whole streams on spoofing).
+  v.field("flush_timeout_s", o.batcher.flush_timeout_s, closed(0.01, 3600.0));
   v.field("max_column_step_deg", o.batcher.max_column_step_deg, above(0.0));
   v.field("min_range_m", o.decoder.min_range_m, at_least(0.0));
   v.field("max_range_m", o.decoder.max_range_m, at_least(0.0));
@@ -505,7 +526,7 @@ void visit_sensor(V& v, SensorOptions& o) {
     s.field("interface", src.interface);
     s.field("promiscuous", src.promiscuous);
     s.field("file", src.file);
-    s.field("rate", src.rate, at_least(0.0));
+    s.field("rate", src.rate, replay_rate());
     s.field("loop", src.loop);
     s.field("channel", src.channel);
   });
@@ -521,17 +542,19 @@ void visit(V& v, DaemonOptions& o) {
     s.field("publish_tag_points", o.detector.keep_tag_points);
     s.field("cloud_decimation", o.lcm.cloud_decimation, at_least(0));
     s.section("channels", [&](V& c) {
-      c.field("detections", o.lcm.channels.detections, non_empty());
-      c.field("status", o.lcm.channels.status, non_empty());
-      c.field("raw", o.lcm.channels.raw, non_empty());
-      c.field("tag_points", o.lcm.channels.tag_points, non_empty());
-      c.field("cloud", o.lcm.channels.cloud, non_empty());
+      c.field("detections", o.lcm.channels.detections, printable(false));
+      c.field("status", o.lcm.channels.status, printable(false));
+      c.field("raw", o.lcm.channels.raw, printable(false));
+      c.field("tag_points", o.lcm.channels.tag_points, printable(false));
+      c.field("cloud", o.lcm.channels.cloud, printable(false));
     });
   });
   v.section("pipeline", [&](V& s) {
-    s.field("worker_threads", o.pipeline.worker_threads, closed(0, 256));
-    s.field("queue_depth", o.pipeline.queue_depth, closed(1, 1024));
-    s.field("publish_queue", o.pipeline.publish_queue, closed(1, 1024));
+    // Each worker and queue slot holds a rotation (and each worker a detector): on a VLS-128 the
+    // former maxima (256, 1024, 1024) took 6 GB and 19 s before the first publication.
+    s.field("worker_threads", o.pipeline.worker_threads, closed(0, 128));
+    s.field("queue_depth", o.pipeline.queue_depth, closed(1, 64));
+    s.field("publish_queue", o.pipeline.publish_queue, closed(1, 64));
     s.field("lossless_replay", o.pipeline.lossless_replay);
   });
   v.section("status", [&](V& s) { s.field("period_s", o.status.period_s, closed(0.01, 3600.0)); });
@@ -586,6 +609,18 @@ void check_relations(const DaemonOptions& o) {
       throw ConfigError(key + ".max_range_m", to_text(s.decoder.max_range_m),
                         "must be 0 (the model's limit) or above min_range_m");
     }
+    if (s.decoder.max_range_m == 0) {
+      // Against the model's own limit (with model auto, the farthest-seeing model's): above it,
+      // every return would be dropped without a word.
+      double limit = 0;
+      for (const velodyne::Model m : velodyne::all_models()) {
+        if (!s.model || *s.model == m) limit = std::max(limit, velodyne::model_spec(m).max_range_m);
+      }
+      if (s.decoder.min_range_m >= limit) {
+        throw ConfigError(key + ".min_range_m", to_text(s.decoder.min_range_m),
+                          fmt::format("must be below the model's maximum range ({} m)", limit));
+      }
+    }
     const SourceOptions& src = s.source;
     const std::string kind(source_kind_name(src.kind));
     if (src.data_port == src.position_port) {
@@ -613,6 +648,22 @@ void check_relations(const DaemonOptions& o) {
       if (*channels[i].second == *channels[j].second) {
         throw ConfigError(fmt::format("lcm.channels.{}", channels[i].first), *channels[i].second,
                           fmt::format("same as lcm.channels.{}", channels[j].first));
+      }
+    }
+  }
+  // Across sensors too: a prefix and another sensor's channel name can meet (prefix "A" with
+  // channel "X" is "AX", another sensor's channel "AX" with no prefix).
+  std::map<std::string, std::string> used;
+  for (size_t i = 0; i < o.sensors.size(); ++i) {
+    for (const auto& [what, base] : channels) {
+      const std::string full = channel_of(o.sensors[i], *base);
+      const std::string who = fmt::format("sensors[{}]'s {} channel", i, what);
+      const auto [it, inserted] = used.emplace(full, who);
+      if (!inserted) {
+        throw ConfigError(fmt::format("sensors[{}].channel_prefix", i), o.sensors[i].channel_prefix,
+                          fmt::format("makes its {} channel '{}', which is {} (each channel "
+                                      "carries one message type of one sensor)",
+                                      what, full, it->second));
       }
     }
   }

@@ -76,7 +76,7 @@ void block_signals() {
 }
 
 Daemon::Daemon(DaemonOptions options, RunOptions run, Logging* logging)
-    : options_(std::move(options)), logging_(logging) {
+    : options_(std::move(options)), logging_(logging), reload_check_(std::move(run.reload_check)) {
   workers_ = options_.pipeline.worker_threads > 0
                  ? options_.pipeline.worker_threads
                  : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
@@ -222,6 +222,10 @@ int Daemon::run() {
         } catch (const std::exception& e) {
           spdlog::error("cannot reopen the log: {}", e.what());
         }
+      }
+      if (reload_check_) {
+        const std::string verdict = reload_check_();
+        if (!verdict.empty()) spdlog::warn("SIGHUP: {}", verdict);
       }
     } else if (sig == SIGINT || sig == SIGTERM || sig == SIGQUIT) {
       stop_signal = sig;

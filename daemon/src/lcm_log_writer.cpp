@@ -30,10 +30,17 @@ void put64(uint8_t* p, uint64_t v) {
 
 LcmLogWriter::LcmLogWriter(const std::string& path, bool append) : path_(path) {
   // Always O_APPEND: after a torn event is cut off, the next one goes to the new end.
-  const int flags = O_WRONLY | O_CREAT | O_CLOEXEC | O_APPEND | (append ? 0 : O_TRUNC);
+  // No link followed (as root, one would overwrite what it points to); non-blocking, so that a
+  // FIFO without a reader fails here instead of blocking (a FIFO with one is refused below).
+  const int flags =
+      O_WRONLY | O_CREAT | O_CLOEXEC | O_APPEND | O_NOFOLLOW | O_NONBLOCK | (append ? 0 : O_TRUNC);
   fd_ = ::open(path.c_str(), flags, 0666);
   if (fd_ < 0) {
-    throw LcmError("cannot create the LCM log '" + path + "': " + std::strerror(errno));
+    const int error = errno;
+    throw LcmError("cannot create the LCM log '" + path + "': " +
+                   (error == ELOOP   ? "it is a symbolic link (not followed)"
+                    : error == ENXIO ? "it is a FIFO that nobody reads"
+                                     : std::strerror(error)));
   }
   struct stat st {};
   if (::fstat(fd_, &st) != 0 || !S_ISREG(st.st_mode)) {

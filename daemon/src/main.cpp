@@ -11,8 +11,10 @@
 #include <csignal>
 #include <cstdio>
 #include <exception>
+#include <new>
 #include <optional>
 #include <string>
+#include <system_error>
 #include <vector>
 
 #include "lidartag/daemon/config.hpp"
@@ -72,10 +74,38 @@ constexpr int kExitSetupError = 1;
 constexpr int kExitDataLost = 3;
 
 int setup_error(const std::exception& e) {
-  // One line whatever the message holds (paths and values come from the configuration).
-  std::fprintf(stderr, "lidartagd: error: %s\n",
-               lidartag::daemon::clip_text(e.what(), 600).c_str());
+  // One line whatever the message holds (paths and values come from the configuration). What the
+  // system refused (a thread, memory) says which limit to look at: a bare "Resource temporarily
+  // unavailable" does not.
+  std::string what = e.what();
+  if (const auto* s = dynamic_cast<const std::system_error*>(&e);
+      s != nullptr && s->code() == std::errc::resource_unavailable_try_again) {
+    what = "cannot start a thread (" + what +
+           "): the process's limits (address space, RLIMIT_AS; threads, RLIMIT_NPROC) are too low";
+  } else if (dynamic_cast<const std::bad_alloc*>(&e) != nullptr) {
+    what = "out of memory while setting up (" + what +
+           "): the address-space limit (RLIMIT_AS) "
+           "or the machine's memory is too small for this configuration";
+  }
+  std::fprintf(stderr, "lidartagd: error: %s\n", lidartag::daemon::clip_text(what, 600).c_str());
   return kExitSetupError;
+}
+
+// SIGHUP's look at the configuration: the file read again with the same command line, compared
+// with what runs. Only the log is reopened on SIGHUP; the rest needs a restart, and says so.
+std::string reload_verdict(const Args& a, const std::string& running) {
+  if (a.config.empty()) return {};
+  try {
+    DaemonOptions now = lidartag::daemon::load_config(a.config, a.set);
+    apply(a, now);
+    if (lidartag::daemon::print_config(now) == running) return {};
+    return "the configuration '" + a.config +
+           "' changed since the start; SIGHUP only reopens the log: restart the daemon "
+           "(systemctl restart lidartagd) to apply it";
+  } catch (const std::exception& e) {
+    return "the configuration '" + a.config + "' no longer loads (" +
+           lidartag::daemon::clip_text(e.what(), 400) + "); the running one is kept";
+  }
 }
 
 // After a run: what did not reach its destination makes the exit status 3 (unless it is already
@@ -143,7 +173,9 @@ int main(int argc, char** argv) {
       "configuration or command line, 3 the run ended but data was lost (LCM messages not "
       "delivered, an incomplete --record file, a replay cut short by a corrupt record).\n"
       "Signals: SIGINT/SIGTERM/SIGQUIT stop cleanly (final status logged and published), SIGHUP "
-      "reopens the log file, SIGUSR1 logs and publishes the status now, SIGUSR2 and SIGALRM are "
+      "reopens the log file (and warns when the configuration file changed or no longer loads: "
+      "settings apply on restart), SIGUSR1 logs and publishes the status now, SIGUSR2 and SIGALRM "
+      "are "
       "ignored (each acted on and logged at most once a second), SIGPIPE and SIGXFSZ do not "
       "kill it.");
   try {
@@ -171,6 +203,9 @@ int main(int argc, char** argv) {
     lidartag::daemon::Logging logging(options.logging);
     lidartag::daemon::RunOptions run;
     if (a.print_detections) run.print_detections = stdout;
+    run.reload_check = [&a, running = lidartag::daemon::print_config(options)] {
+      return reload_verdict(a, running);
+    };
     lidartag::daemon::Daemon daemon(std::move(options), run, &logging);
     return data_loss_status(daemon, daemon.run());
   } catch (const ConfigError& e) {

@@ -1,7 +1,9 @@
 #include "lidartag/daemon/setup_checks.hpp"
 
+#include <fcntl.h>
 #include <fmt/format.h>
 #include <netinet/in.h>
+#include <poll.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -56,6 +58,87 @@ void check_writable(const std::string& key, const std::string& path, const std::
   }
 }
 
+// How long a replay waits at setup for a FIFO's writer (opening one without a writer blocks).
+constexpr int kFifoWaitMs = 5000;
+
+// An output file of the daemon that it truncates and cuts back (the --record pcap, the LCM log):
+// not a symbolic link (as root, following one overwrites whatever it points to), not a FIFO,
+// socket or block device (opening a FIFO blocks until a reader comes, before READY=1). A
+// character device (/dev/null) is the writer's to judge.
+void check_plain_output(const std::string& key, const std::string& path, const std::string& what) {
+  struct stat st {};
+  if (::lstat(path.c_str(), &st) == 0) {
+    if (S_ISLNK(st.st_mode)) {
+      throw SetupError(key, fmt::format("{} '{}' is a symbolic link: refused (it would overwrite "
+                                        "whatever it points to); give the real path",
+                                        what, path));
+    }
+    if (!S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode) && !S_ISCHR(st.st_mode)) {
+      throw SetupError(key, fmt::format("{} '{}' is {}, not a regular file", what, path,
+                                        S_ISFIFO(st.st_mode)   ? "a FIFO"
+                                        : S_ISSOCK(st.st_mode) ? "a socket"
+                                                               : "a block device"));
+    }
+  }
+  check_writable(key, path, what);
+}
+
+// The log file may be a device (/dev/null) or a FIFO that something reads; a FIFO nobody reads
+// would block the daemon in open() before READY=1. (Whether it can be created is the logger's
+// own check: a configuration error naming logging.file.)
+void check_log_output(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0 || !S_ISFIFO(st.st_mode)) return;
+  const int fd = ::open(path.c_str(), O_WRONLY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) {
+    throw ConfigError(
+        "logging.file", path,
+        errno == ENXIO ? "a FIFO that nobody reads (opening it would block)" : errno_text(errno));
+  }
+  ::close(fd);
+}
+
+// A replay from a FIFO: its writer must be there within kFifoWaitMs (else opening it would block
+// for good, before READY=1 and deaf to SIGTERM).
+void check_fifo_writer(const std::string& key, const std::string& path, const std::string& what) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) throw SetupError(key, fmt::format("{} '{}': {}", what, path, errno_text(errno)));
+  // Linux reports no event on a FIFO that never had a writer: POLLIN once one writes, POLLHUP
+  // once one came and went.
+  pollfd p{fd, POLLIN, 0};
+  const int rc = ::poll(&p, 1, kFifoWaitMs);
+  ::close(fd);
+  if (rc <= 0) {
+    throw SetupError(key, fmt::format("{} '{}' is a FIFO without a writer (waited {} s)", what,
+                                      path, kFifoWaitMs / 1000));
+  }
+}
+
+// An output must not be one of the inputs: `--replay X --record X` once truncated the capture
+// being replayed, an LCM log written where it was read fed the daemon its own output.
+void check_not_an_input(const DaemonOptions& options, const std::string& key,
+                        const std::string& path, const std::string& what) {
+  struct stat out {};
+  if (path.empty() || ::stat(path.c_str(), &out) != 0) return;  // not there yet: no input
+  for (size_t i = 0; i < options.sensors.size(); ++i) {
+    const SourceOptions& src = options.sensors[i].source;
+    if (src.kind != SourceKind::kPcap && src.kind != SourceKind::kLcm) continue;
+    struct stat in {};
+    if (::stat(src.file.c_str(), &in) != 0) continue;
+    if (in.st_dev == out.st_dev && in.st_ino == out.st_ino) {
+      throw SetupError(key, fmt::format("{} '{}' is the file sensors[{}] replays ('{}'): it would "
+                                        "be overwritten while it is read",
+                                        what, path, i, src.file));
+    }
+  }
+  const std::string& log = options.logging.file;
+  struct stat log_st {};
+  if (!log.empty() && key != "logging.file" && ::stat(log.c_str(), &log_st) == 0 &&
+      log_st.st_dev == out.st_dev && log_st.st_ino == out.st_ino) {
+    throw SetupError(key, fmt::format("{} '{}' is also the log file", what, path));
+  }
+}
+
 void check_lcm(const std::string& url_text) {
   LcmUrl url;
   try {
@@ -64,7 +147,7 @@ void check_lcm(const std::string& url_text) {
   } catch (const LcmError& e) {
     throw SetupError("lcm.url", e.what());
   }
-  if (url.provider == "file") check_writable("lcm.url", url.target, "the LCM log");
+  if (url.provider == "file") check_plain_output("lcm.url", url.target, "the LCM log");
 }
 
 // A readable regular file of at most `limit` bytes.
@@ -96,6 +179,7 @@ void check_readable(const std::string& key, const std::string& path, const std::
   if (::access(path.c_str(), R_OK) != 0) {
     throw SetupError(key, fmt::format("{} '{}' cannot be read: {}", what, path, errno_text(errno)));
   }
+  if (S_ISFIFO(st.st_mode)) check_fifo_writer(key, path, what);
 }
 
 // The calibration file parses and fits the configured model; with model auto, some model (the
@@ -130,6 +214,11 @@ void check_calibration(const std::string& key, const SensorOptions& sensor) {
     throw SetupError(key, e.what());
   } catch (const YAML::Exception& e) {
     throw SetupError(key, fmt::format("calibration file '{}': not valid YAML: {}", path, e.msg));
+  } catch (const SetupError&) {
+    throw;
+  } catch (const std::exception& e) {
+    // A read that fails below the parsers (/proc/self/mem: "basic_filebuf::underflow error").
+    throw SetupError(key, fmt::format("calibration file '{}' cannot be read: {}", path, e.what()));
   }
 }
 
@@ -216,7 +305,22 @@ SetupError::SetupError(const std::string& key, const std::string& problem)
 void check_setup(const DaemonOptions& options) {
   check_lcm(options.lcm.url);
   if (!options.record_pcap.empty()) {
-    check_writable("record_pcap", options.record_pcap, "the --record file");
+    check_plain_output("record_pcap", options.record_pcap, "the --record file");
+    check_not_an_input(options, "record_pcap", options.record_pcap, "the --record file");
+  }
+  if (!options.logging.file.empty()) {
+    check_log_output(options.logging.file);
+    try {
+      check_not_an_input(options, "logging.file", options.logging.file, "the log file");
+    } catch (const SetupError&) {
+      throw ConfigError("logging.file", options.logging.file,
+                        "is the file a sensor replays: it would be written while it is read");
+    }
+  }
+  try {
+    const LcmUrl url = parse_lcm_url(options.lcm.url);  // checked above
+    if (url.provider == "file") check_not_an_input(options, "lcm.url", url.target, "the LCM log");
+  } catch (const LcmError&) {
   }
   check_port_overlap(options);
   for (size_t i = 0; i < options.sensors.size(); ++i) {

@@ -20,7 +20,7 @@ namespace {
 // The writer, its setup error naming the setting.
 velodyne::PcapWriter open_record_file(const std::string& path) {
   try {
-    return velodyne::PcapWriter(path);
+    return velodyne::PcapWriter(path, /*follow_links=*/false);
   } catch (const velodyne::IoError& e) {
     throw velodyne::IoError(std::string("record_pcap: ") + e.what());
   }

@@ -7,6 +7,8 @@
 // SIGUSR1/2) are in daemon_setup_e2e_test.cpp.
 #include <gtest/gtest.h>
 
+#include <fstream>
+
 #include "daemon/process.hpp"
 #include "fake_notify_socket.hpp"
 #include "fault_util.hpp"
@@ -131,6 +133,65 @@ TEST(Signals, SighupWithTheLogDirectoryGoneIsReportedAndTheRunGoesOn) {
   ASSERT_TRUE(s.has_value());
   EXPECT_EQ(s->rotations_published, s->rotations_assembled);
   EXPECT_EQ(static_cast<size_t>(s->rotations_published), lines_in(p.out()));
+}
+
+// Attack round 2: under a file-size limit (prlimit --fsize) SIGXFSZ killed the daemon (exit 153,
+// no final status, the pcap cut mid-packet). A write past the limit is a write error: recording
+// stops, the file ends at its last whole packet, the run goes on, exit status 3.
+TEST(FileSizeLimit, RecordPastTheLimitIsAWriteErrorNotAKill) {
+  REQUIRE_DEMO();
+  if (!std::filesystem::exists("/usr/bin/prlimit")) GTEST_SKIP() << "no /usr/bin/prlimit";
+  const std::string record = temp("fsize.pcap"), log = temp("fsize.lcmlog");
+  std::filesystem::remove(record);
+  // The LCM log is written under the limit too (its failures are counted: exit status 3 anyway).
+  Process p(
+      {"/usr/bin/prlimit", "--fsize=100000", "--", kDaemon, "--config", kDemoConfig, "--replay",
+       kDemo, "--max-speed", "--record", record, "--lcm-url", "file://" + log + "?mode=w"},
+      {}, temp("fsize"));
+  EXPECT_EQ(p.wait(60s), 3) << p.err();
+  EXPECT_NE(p.err().find("final status"), std::string::npos) << p.err();
+  EXPECT_NE(p.err().find("recording " + record + " failed"), std::string::npos) << p.err();
+  // Whole records only: the file reads to its end without a truncated record.
+  velodyne::PcapSource source(record);
+  velodyne::RawPacket packet;
+  size_t packets = 0;
+  while (source.next(packet, 0ms) == velodyne::ReadStatus::kPacket) ++packets;
+  EXPECT_GT(packets, 10u);
+  EXPECT_EQ(source.stats().truncated, 0u);
+  EXPECT_EQ(source.error(), "");
+  EXPECT_LE(std::filesystem::file_size(record), 100000u);
+}
+
+// Attack round 2: a record in the middle of a capture with an impossible length ended the
+// replay there, exit 0, "ended (the source ended)". The final status names the record and what
+// was not read, and the exit status says data was lost.
+TEST(CorruptReplay, ARecordThatStopsTheReplayIsNamedInTheFinalStatusAndExitStatus3) {
+  REQUIRE_DEMO();
+  const std::string capture = temp("corrupt.pcap"), log = temp("corrupt.lcmlog");
+  std::filesystem::copy_file(kDemo, capture, std::filesystem::copy_options::overwrite_existing);
+  {
+    // Record 100's caplen (classic pcap: 24-byte file header, 16-byte record headers) = 1 MiB.
+    std::fstream f(capture, std::ios::in | std::ios::out | std::ios::binary);
+    uint64_t at = 24;
+    for (int i = 0; i < 99; ++i) {
+      f.seekg(static_cast<std::streamoff>(at + 8));
+      uint32_t caplen = 0;
+      f.read(reinterpret_cast<char*>(&caplen), 4);
+      at += 16 + caplen;
+    }
+    const uint32_t huge = 1u << 20;
+    f.seekp(static_cast<std::streamoff>(at + 8));
+    f.write(reinterpret_cast<const char*>(&huge), 4);
+  }
+  Process p({kDaemon, "--config", kDemoConfig, "--replay", capture, "--max-speed", "--lcm-url",
+             "file://" + log + "?mode=w"},
+            {}, temp("corrupt"));
+  EXPECT_EQ(p.wait(60s), 3) << p.err();
+  const auto s = last_status(log);
+  ASSERT_TRUE(s.has_value());
+  EXPECT_EQ(s->state, int8_t{lidartag::status_t::STATE_ENDED});
+  EXPECT_NE(s->reason.find("is unreadable after record 99"), std::string::npos) << s->reason;
+  EXPECT_NE(s->reason.find("bytes not read"), std::string::npos) << s->reason;
 }
 
 }  // namespace

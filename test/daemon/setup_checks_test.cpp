@@ -6,8 +6,10 @@
 #include <gtest/gtest.h>
 #include <netinet/in.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -136,6 +138,70 @@ TEST(SetupChecks, RecordAndLogFilesMustBeCreatable) {
   EXPECT_EQ(error_of(o),
             "sensors[0].source.file: replay file '/nonexistent/replay.pcap': No such file or "
             "directory");
+}
+
+TEST(SetupChecks, OutputsAreNeitherLinksNorFifosNorAnInput) {
+  // Attack round 2: as root --record followed a link and overwrote its target; a FIFO blocked
+  // the daemon in open() before READY=1 past SIGTERM; --replay X --record X truncated X.
+  DaemonOptions o = replay_options();
+  const std::string dir = temp_path("outputs");
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  const std::string target = dir + "/precious", link = dir + "/link.pcap";
+  std::ofstream(target) << "keep me";
+  std::filesystem::create_symlink(target, link);
+  o.record_pcap = link;
+  EXPECT_EQ(error_of(o), "record_pcap: the --record file '" + link +
+                             "' is a symbolic link: refused (it would overwrite whatever it "
+                             "points to); give the real path");
+  o.record_pcap = "";
+  o.lcm.url = "file://" + link + "?mode=w";
+  EXPECT_NE(error_of(o).find("lcm.url: the LCM log '" + link + "' is a symbolic link"),
+            std::string::npos)
+      << error_of(o);
+  const std::string fifo = dir + "/fifo";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  o.lcm.url = "file://" + fifo + "?mode=w";
+  EXPECT_EQ(error_of(o), "lcm.url: the LCM log '" + fifo + "' is a FIFO, not a regular file");
+  o.lcm.url = "memq://";
+  o.record_pcap = fifo;
+  EXPECT_EQ(error_of(o),
+            "record_pcap: the --record file '" + fifo + "' is a FIFO, not a regular file");
+  o.record_pcap = "";
+  o.logging.file = fifo;
+  EXPECT_THROW(
+      {
+        try {
+          check_setup(o);
+        } catch (const ConfigError& e) {
+          EXPECT_EQ(e.key(), "logging.file");
+          EXPECT_EQ(e.reason(), "a FIFO that nobody reads (opening it would block)");
+          throw;
+        }
+      },
+      ConfigError);
+  o.logging.file = "";
+  // The replay itself as an output (also through a link that names it).
+  const std::string replay = o.sensors[0].source.file;
+  o.record_pcap = replay;
+  EXPECT_NE(error_of(o).find("is the file sensors[0] replays"), std::string::npos) << error_of(o);
+  o.record_pcap = "";
+  o.lcm.url = "file://" + replay + "?mode=a";
+  EXPECT_NE(error_of(o).find("lcm.url: the LCM log"), std::string::npos) << error_of(o);
+  o.lcm.url = "memq://";
+  o.logging.file = replay;
+  EXPECT_THROW(check_setup(o), ConfigError);  // the log file's problems are configuration errors
+  o.logging.file = "";
+  // A replay from a FIFO nobody writes: refused after a bounded wait, not a hang.
+  o.sensors[0].source.file = fifo;
+  const auto start = std::chrono::steady_clock::now();
+  EXPECT_EQ(error_of(o), "sensors[0].source.file: replay file '" + fifo +
+                             "' is a FIFO without a writer (waited 5 s)");
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(20));
+  std::ifstream kept(target);
+  std::string text;
+  std::getline(kept, text);
+  EXPECT_EQ(text, "keep me");
 }
 
 // A UDP socket bound to 127.0.0.1 on a free port, as another program would hold it.

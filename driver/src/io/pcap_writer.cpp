@@ -50,9 +50,19 @@ bool write_all(int fd, const uint8_t* data, size_t size, size_t& done, int& erro
 
 }  // namespace
 
-PcapWriter::PcapWriter(const std::string& path) : path_(path) {
-  fd_ = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
-  if (fd_ < 0) throw IoError("cannot create '" + path + "': " + std::strerror(errno));
+PcapWriter::PcapWriter(const std::string& path, bool follow_links) : path_(path) {
+  const int flags =
+      O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC | O_NONBLOCK | (follow_links ? 0 : O_NOFOLLOW);
+  fd_ = ::open(path.c_str(), flags, 0666);
+  if (fd_ < 0) {
+    const int error = errno;
+    throw IoError("cannot create '" + path + "': " +
+                  (error == ELOOP && !follow_links ? "it is a symbolic link (not followed)"
+                   : error == ENXIO                ? "it is a FIFO that nobody reads"
+                                                   : std::strerror(error)));
+  }
+  // Blocking writes from here on (O_NONBLOCK only kept open() from waiting for a FIFO's reader).
+  ::fcntl(fd_, F_SETFL, ::fcntl(fd_, F_GETFL) & ~O_NONBLOCK);
   uint8_t header[kFileHeader] = {};
   put_u32(header, 0xA1B2C3D4);  // microsecond timestamps
   put_u16(header + 4, 2);       // version 2.4

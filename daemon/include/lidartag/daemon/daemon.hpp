@@ -7,6 +7,7 @@
 
 #include <csignal>
 #include <cstdio>
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -29,6 +30,10 @@ struct RunOptions {
   // Test seam (not on the command line): called before each rotation's detection, e.g. to stall
   // the pipeline in the watchdog test.
   SensorPipeline::DetectHook detect_hook;
+  // On SIGHUP, after the log is reopened: reads the configuration again and says how it compares
+  // with the running one (empty: unchanged). The daemon logs what it returns: a configuration
+  // that no longer loads, or edits that need a restart, are never ignored silently.
+  std::function<std::string()> reload_check;
 };
 
 class Daemon {
@@ -56,6 +61,7 @@ class Daemon {
 
   DaemonOptions options_;
   Logging* logging_;
+  std::function<std::string()> reload_check_;
   int workers_;
   Notifier notifier_;
   std::unique_ptr<LcmBus> bus_;

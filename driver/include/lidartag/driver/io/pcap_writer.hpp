@@ -37,8 +37,10 @@ class PcapWriter {
   static constexpr size_t kBufferBytes = 256 * 1024;
 
   // Creates (truncates) `path` and writes the file header. Throws IoError with the path and the
-  // reason when the file cannot be created or written.
-  explicit PcapWriter(const std::string& path);
+  // reason when the file cannot be created or written, or is a FIFO that nobody reads (opening
+  // it never blocks). With `follow_links` false a symbolic link is refused (a daemon running as
+  // root must not overwrite whatever a link points to).
+  explicit PcapWriter(const std::string& path, bool follow_links = true);
   ~PcapWriter();
   PcapWriter(const PcapWriter&) = delete;
   PcapWriter& operator=(const PcapWriter&) = delete;
