@@ -69,7 +69,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     if (raw.destination_port == velodyne::kDefaultPositionPort) {
       velodyne::PositionPacket position;
       if (velodyne::parse_position_packet(raw.payload, position) == velodyne::PositionStatus::kOk)
-        clock.update(position);
+        clock.update(position, raw.receive_time_ns);
       continue;
     }
     check.add(raw.payload);

@@ -41,5 +41,11 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   fuzz::check(b.complete == complete && b.complete + b.incomplete == b.rotations,
               "complete + incomplete != rotations");
   if (model) fuzz::check(reader.model() == model, "the configured model was not used");
+  // The model probe: only payloads laid out as data packets vote, so a stream none of whose
+  // data packets is laid out as one decides no model (junk never locks the reader).
+  if (!model && reader.model()) {
+    fuzz::check(reader.model_check().packets() > 0 || c.failed_probes > 0 || c.decoded > 0,
+                "a model decided from no data packet");
+  }
   return 0;
 }

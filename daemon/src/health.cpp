@@ -219,7 +219,8 @@ Health HealthMonitor::update(const HealthSample& s) {
     problems.push_back(
         {HealthState::kSeveralSources,
          fmt::format("data packets from {} on port {}: set sensors[].source.sensor_address to "
-                     "one of them (one sensor entry per address)",
+                     "one of them (one sensor entry per address; sensors that unicast need a port "
+                     "each)",
                      list, s.data_port)});
   }
   if (s.data_packets == 0) {

@@ -17,6 +17,7 @@
 #include <nlohmann/json.hpp>
 #include <set>
 #include <thread>
+#include <tuple>
 
 #include "daemon/demo_daemon.hpp"
 #include "daemon/namespaces.hpp"
@@ -496,6 +497,55 @@ TEST(LiveUdp, DemoSentToLoopbackAtTheSensorRateGivesTheReplayDetections) {
        "sensors[0].source.data_port=" + std::to_string(data_port),
        "sensors[0].source.position_port=" + std::to_string(position_port)},
       data_port, position_port);
+}
+
+// Attack round 2: two sensors sharing one unicast port, each with its sensor_address (what the
+// "several sources" advice said): the kernel hands each unicast datagram to one of the sockets,
+// so one sensor heard nothing and stayed "waiting" while the other counted its packets foreign.
+// The status of the one that hears nothing now says why and what to do.
+TEST(LiveUdp, TwoSensorsSharingAUnicastPortAreToldWhyOneHearsNothing) {
+  REQUIRE_DEMO();
+  LIDARTAG_RUN_IN_NAMESPACE(std::vector<std::string>{"-n"}, "ip link set lo up",
+                            temp("netns_shared"));
+  const uint16_t data = 24368, position = 28308;
+  const std::string log = temp("shared.lcmlog");
+  std::filesystem::remove(log);
+  std::vector<std::string> args = {
+      kDaemon, "--config",           kDemoConfig, "--lcm-url", "file://" + log + "?mode=w",
+      "--set", "status.period_s=0.2"};
+  for (const auto& [i, name, address] :
+       {std::tuple{0, "a", "127.0.0.1"}, std::tuple{1, "b", "127.0.0.2"}}) {
+    const std::string k = "sensors[" + std::to_string(i) + "].";
+    for (const std::string& v :
+         {k + "name=" + name, k + "channel_prefix=" + std::string(name) + "_",
+          k + "source.kind=udp", k + "source.bind_address=127.0.0.1", k + "source.share_port=true",
+          k + "source.sensor_address=" + address, k + "source.data_port=" + std::to_string(data),
+          k + "source.position_port=" + std::to_string(position)}) {
+      args.push_back("--set");
+      args.push_back(v);
+    }
+  }
+  FakeNotifySocket sock;
+  Process daemon(args, {sock.env()}, temp("shared"));
+  ASSERT_EQ(sock.receive(30s).rfind("READY=1", 0), 0u) << daemon.err();
+  EXPECT_GT(send_demo(data, position), 1000u);  // from 127.0.0.1: sensor a's packets
+  std::this_thread::sleep_for(500ms);
+  daemon.signal(SIGTERM);
+  ASSERT_EQ(daemon.wait(30s), 0) << daemon.err();
+  const Decoded a = read_log(log, "a_"), b = read_log(log, "b_");
+  ASSERT_GE(a.status.size(), 3u);
+  ASSERT_GE(b.status.size(), 3u);
+  // The last status before the final one (the final one keeps the run's own account).
+  const lidartag::status_t& sa = a.status[a.status.size() - 2];
+  const lidartag::status_t& sb = b.status[b.status.size() - 2];
+  // Whichever socket the kernel picked, the sensor that heard nothing says why.
+  const lidartag::status_t& deaf = sa.packets_data == 0 ? sa : sb;
+  ASSERT_TRUE(sa.packets_data == 0 || sb.packets_data == 0)
+      << "both sockets received unicast datagrams: " << sa.packets_data << ", " << sb.packets_data;
+  EXPECT_EQ(deaf.state, int8_t{lidartag::status_t::STATE_SEVERAL_SOURCES}) << deaf.reason;
+  EXPECT_NE(deaf.reason.find("a unicast datagram reaches only one of the sockets sharing a port"),
+            std::string::npos)
+      << deaf.reason;
 }
 
 // libpcap capture of lo, in a network namespace of its own (capturing needs CAP_NET_RAW, which
