@@ -5,6 +5,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <csignal>
 #include <cstdio>
 #include <exception>
 #include <string>
@@ -16,6 +17,9 @@
 
 int main(int argc, char** argv) {
   namespace cli = lidartag::cli;
+  // Under a file-size limit a write past it fails with EFBIG (an error naming the file, exit 1)
+  // instead of SIGXFSZ killing the tool mid-file.
+  std::signal(SIGXFSZ, SIG_IGN);
   // spdlog's default logger writes to standard output, where it would break --json.
   auto log = spdlog::stderr_color_mt("lidartag");
   spdlog::set_default_logger(log);
