@@ -113,38 +113,6 @@ bool Daemon::progressing() const {
                      [&](const auto& p) { return p->progressing(now); });
 }
 
-void Daemon::note_shared_ports() {
-  // Sensors sharing a UDP port (share_port) each with its sensor_address: broadcast datagrams
-  // reach every socket of the port, a unicast one only one of them. A sensor that has heard
-  // nothing while another on its port drops packets from other senders as foreign is that case,
-  // and its status says so (the "several sources" advice holds for broadcasting sensors only).
-  const auto& sensors = options_.sensors;
-  for (size_t i = 0; i < sensors.size(); ++i) {
-    const SourceOptions& a = sensors[i].source;
-    if (a.kind != SourceKind::kUdp || !a.share_port || last_status_[i].packets_data > 0) continue;
-    for (size_t j = 0; j < sensors.size(); ++j) {
-      const SourceOptions& b = sensors[j].source;
-      if (j == i || b.kind != SourceKind::kUdp || b.data_port != a.data_port ||
-          last_status_[j].packets_foreign == 0) {
-        continue;
-      }
-      Health& h = last_status_[i].health;
-      if (h.state == HealthState::kEnded) break;  // the final status keeps its own account
-      h.reason += fmt::format(
-          "{}no data packet here while sensor '{}' on the same port {} dropped {} from other "
-          "senders: a unicast datagram reaches only one of the sockets sharing a port; give each "
-          "sensor its own data_port (sharing works for broadcast and multicast)",
-          h.reason.empty() ? "" : "; ", sensors[j].name, a.data_port,
-          last_status_[j].packets_foreign);
-      if (h.state == HealthState::kHealthy || h.state == HealthState::kWaiting ||
-          h.state == HealthState::kSilent) {
-        h.state = HealthState::kSeveralSources;
-      }
-      break;
-    }
-  }
-}
-
 size_t Daemon::sources_cut_short() const {
   return static_cast<size_t>(std::count_if(pipelines_.begin(), pipelines_.end(), [](const auto& p) {
     return !p->source_error().empty();
@@ -168,12 +136,11 @@ void Daemon::publish_status(bool final) {
   const int64_t now = steady_ns();
   const double uptime = static_cast<double>(now - started_ns_) * 1e-9;
   last_status_.clear();
-  for (auto& p : pipelines_) last_status_.push_back(p->status(now));
-  note_shared_ports();
-  for (size_t i = 0; i < pipelines_.size(); ++i) {
-    fill_status(last_status_[i], wall_utime(), uptime, status_message_);
-    bus_->publish(channel_of(pipelines_[i]->sensor(), options_.lcm.channels.status),
-                  status_message_);
+  for (auto& p : pipelines_) {
+    SensorStatus s = p->status(now);
+    fill_status(s, wall_utime(), uptime, status_message_);
+    bus_->publish(channel_of(p->sensor(), options_.lcm.channels.status), status_message_);
+    last_status_.push_back(std::move(s));
   }
   const std::string text = summary();
   if (final) {

@@ -219,8 +219,7 @@ Health HealthMonitor::update(const HealthSample& s) {
     problems.push_back(
         {HealthState::kSeveralSources,
          fmt::format("data packets from {} on port {}: set sensors[].source.sensor_address to "
-                     "one of them (one sensor entry per address; sensors that unicast need a port "
-                     "each)",
+                     "one of them (one sensor entry per address, each with share_port)",
                      list, s.data_port)});
   }
   if (s.data_packets == 0) {

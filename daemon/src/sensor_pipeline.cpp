@@ -54,6 +54,28 @@ std::optional<uint32_t> sender(const SourceOptions& s) {
   return std::nullopt;
 }
 
+// The senders of the sensors sharing this sensor's UDP ports (same bind address and ports, each
+// with share_port and a sensor_address), in configuration order, which is the order their
+// sockets are bound: each sensor's unicast datagrams are then steered to its own socket. Empty
+// unless at least two share and every one of them names its sender.
+std::vector<uint32_t> steer_senders(const SensorOptions& sensor, const DaemonOptions& options) {
+  const SourceOptions& me = sensor.source;
+  std::vector<uint32_t> senders;
+  if (!me.share_port) return senders;
+  for (const SensorOptions& other : options.sensors) {
+    const SourceOptions& o = other.source;
+    if (o.kind != SourceKind::kUdp || !o.share_port || o.bind_address != me.bind_address ||
+        o.data_port != me.data_port || o.position_port != me.position_port) {
+      continue;
+    }
+    const std::optional<uint32_t> address = sender(o);
+    if (!address) return {};
+    senders.push_back(*address);
+  }
+  if (senders.size() < 2) senders.clear();
+  return senders;
+}
+
 std::unique_ptr<velodyne::PacketSource> open_source(const SensorOptions& sensor,
                                                     const DaemonOptions& options) {
   const SourceOptions& s = sensor.source;
@@ -66,6 +88,7 @@ std::unique_ptr<velodyne::PacketSource> open_source(const SensorOptions& sensor,
       o.sensor_ipv4 = sender(s);
       o.receive_buffer_bytes = s.receive_buffer_bytes;
       o.reuse_address = s.share_port;  // daemon-setup: exclusive unless the config shares
+      o.steer_senders = steer_senders(sensor, options);
       return std::make_unique<velodyne::UdpSource>(o);
     }
     case SourceKind::kInterface: {

@@ -36,12 +36,22 @@ inline uint16_t free_udp_port() {
 
 // Sends the demo's packets to 127.0.0.1 at their recorded pace (one pass: bounded in count and
 // time). Returns the number sent.
-inline size_t send_demo(uint16_t data_port, uint16_t position_port) {
+// `from`: the sender's address (host byte order; any loopback address), 0: the kernel's choice.
+inline size_t send_demo(uint16_t data_port, uint16_t position_port, uint32_t from = 0) {
   using namespace std::chrono_literals;
   velodyne::PcapSourceOptions pacing;
   pacing.pacing = velodyne::ReplayPacing::kCaptureTime;
   velodyne::PcapSource source(kDemo, pacing);
   const int fd = socket(AF_INET, SOCK_DGRAM, 0);
+  if (from != 0) {
+    sockaddr_in local{};
+    local.sin_family = AF_INET;
+    local.sin_addr.s_addr = htonl(from);
+    if (bind(fd, reinterpret_cast<sockaddr*>(&local), sizeof(local)) != 0) {
+      close(fd);
+      return 0;
+    }
+  }
   sockaddr_in to{};
   to.sin_family = AF_INET;
   to.sin_addr.s_addr = htonl(INADDR_LOOPBACK);

@@ -1,6 +1,7 @@
 #include "lidartag/driver/io/udp_source.hpp"
 
 #include <arpa/inet.h>
+#include <linux/filter.h>
 #include <netinet/in.h>
 #include <poll.h>
 #include <sys/socket.h>
@@ -33,6 +34,28 @@ int64_t host_now_ns() {
 
 bool set_int_option(int fd, int level, int name, int value) {
   return ::setsockopt(fd, level, name, &value, sizeof(value)) == 0;
+}
+
+// Steers each datagram of a SO_REUSEPORT group to the socket of its sender: the group's sockets
+// are in the order they were bound (the order of `senders`); the program returns the index of
+// the datagram's IPv4 source address among them, and an index past the group (a sender not
+// listed) leaves the choice to the kernel's hash.
+bool attach_sender_steering(int fd, const std::vector<uint32_t>& senders) {
+  if (senders.empty() || senders.size() > 64) return false;
+  std::vector<sock_filter> code;
+  // A = the IPv4 source address (the network header, whatever offset the UDP payload is at).
+  code.push_back(BPF_STMT(BPF_LD | BPF_W | BPF_ABS, static_cast<uint32_t>(SKF_NET_OFF + 12)));
+  const auto n = senders.size();
+  for (size_t i = 0; i < n; ++i) {
+    // Compare i sits at 1 + i, "return i" at n + 2 + i: equal jumps n ahead of the next one.
+    code.push_back(BPF_JUMP(BPF_JMP | BPF_JEQ | BPF_K, senders[i], static_cast<uint8_t>(n), 0));
+  }
+  code.push_back(BPF_STMT(BPF_RET | BPF_K, 0xFFFFFFFFu));  // not listed: the kernel's hash
+  for (size_t i = 0; i < n; ++i) {
+    code.push_back(BPF_STMT(BPF_RET | BPF_K, static_cast<uint32_t>(i)));
+  }
+  sock_fprog program{static_cast<unsigned short>(code.size()), code.data()};
+  return ::setsockopt(fd, SOL_SOCKET, SO_ATTACH_REUSEPORT_CBPF, &program, sizeof(program)) == 0;
 }
 
 }  // namespace
@@ -68,6 +91,11 @@ UdpSource::UdpSource(UdpSourceOptions options)
       if (ec) throw IoError("cannot share UDP " + where + ": " + ec.message());
     }
     const int fd = s.native_handle();
+    const bool steer = options_.reuse_address && !multicast && !options_.steer_senders.empty();
+    if (steer && !set_int_option(fd, SOL_SOCKET, SO_REUSEPORT, 1)) {
+      throw IoError("cannot share UDP " + where +
+                    " by sender (SO_REUSEPORT): " + std::strerror(errno));
+    }
     // Ask for the buffer; when capped by rmem_max, try to force it (needs CAP_NET_ADMIN).
     s.set_option(asio::socket_base::receive_buffer_size(options_.receive_buffer_bytes), ec);
     asio::socket_base::receive_buffer_size granted;
@@ -90,6 +118,10 @@ UdpSource::UdpSource(UdpSourceOptions options)
                      "sensor driver; it is bound exclusively unless every user shares it)";
       }
       throw IoError("cannot bind UDP " + where + ": " + why);
+    }
+    if (steer && !attach_sender_steering(fd, options_.steer_senders)) {
+      throw IoError("cannot steer UDP " + where +
+                    " by sender (SO_ATTACH_REUSEPORT_CBPF): " + std::strerror(errno));
     }
     if (multicast) {
       s.set_option(asio::ip::multicast::join_group(address), ec);

@@ -56,9 +56,6 @@ class Daemon {
 
  private:
   void publish_status(bool final);
-  // Adds to last_status_ what one sensor cannot see alone: its unicast packets taken by another
-  // sensor's socket on a shared port.
-  void note_shared_ports();
   std::string summary() const;
   bool progressing() const;
 

@@ -40,6 +40,12 @@ struct UdpSourceOptions {
   // unnoticed (with sharing, Linux gives each unicast datagram to one socket only; broadcast and
   // multicast datagrams reach all). UDP has no lingering sockets for it to help with.
   bool reuse_address = false;
+  // With reuse_address: the sender addresses (host byte order) of every socket of this process
+  // that shares these ports, in the order they are opened, this one's among them. Each unicast
+  // datagram then goes to the socket of its sender (SO_REUSEPORT, a classic BPF program steering
+  // by source address) instead of to whichever socket the kernel picks; broadcast and multicast
+  // datagrams still reach every socket. Empty: no steering.
+  std::vector<uint32_t> steer_senders;
 };
 
 class UdpSource final : public PacketSource {
