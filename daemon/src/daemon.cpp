@@ -123,10 +123,15 @@ std::string Daemon::summary() const {
   std::string text;
   for (const auto& s : last_status_) {
     if (!text.empty()) text += "; ";
-    text += fmt::format("{}: {} {} rotations published, {} dropped, {} tags, {}{}{}", s.sensor,
+    // The partial rotations at a --loop seam are not losses: named apart from the dropped ones.
+    const std::string seam = s.rotations_seam == 0
+                                 ? std::string()
+                                 : fmt::format(", {} loop-seam partial{} (not published by design)",
+                                               s.rotations_seam, s.rotations_seam == 1 ? "" : "s");
+    text += fmt::format("{}: {} {} rotations published, {} dropped{}, {} tags, {}{}{}", s.sensor,
                         s.model.empty() ? "(model unknown)" : s.model, s.rotations_published,
-                        s.rotations_dropped, s.detections, health_state_name(s.health.state),
-                        s.health.reason.empty() ? "" : " (",
+                        s.rotations_behind + s.rotations_unsent, seam, s.detections,
+                        health_state_name(s.health.state), s.health.reason.empty() ? "" : " (",
                         s.health.reason.empty() ? "" : s.health.reason + ")");
   }
   return text;

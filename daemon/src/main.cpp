@@ -146,12 +146,12 @@ int main(int argc, char** argv) {
   app.add_option("--lcm-url", a.lcm_url,
                  "LCM URL (default: the config's lcm.url, else LCM's default multicast URL); "
                  "e.g. file:///tmp/tags.lcmlog?mode=w writes a log instead of using the network");
-  auto* replay = app.add_option("--replay", a.replay, "Replay this pcap for every sensor")
-                     ->check(CLI::ExistingFile);
+  // Whether the file can be read is a setup check (exit 1, naming sensors[N].source.file), as for
+  // a replay file named in the configuration.
+  auto* replay = app.add_option("--replay", a.replay, "Replay this pcap for every sensor");
   auto* replay_lcm =
       app.add_option("--replay-lcm", a.replay_lcm,
-                     "Replay the raw packets of this LCM log (lcm-logger of the raw channel)")
-          ->check(CLI::ExistingFile);
+                     "Replay the raw packets of this LCM log (lcm-logger of the raw channel)");
   replay->excludes(replay_lcm);
   auto* rate = app.add_option("--rate", a.rate, "Replay speed factor (1 = recorded pace)")
                    ->check(CLI::PositiveNumber);
@@ -181,7 +181,10 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : 2;
+    // Help and version exit 0; a usage error is one line with the program's prefix, exit 2.
+    if (e.get_exit_code() == 0) return app.exit(e) == 0 ? 0 : 2;
+    std::fprintf(stderr, "lidartagd: error: %s (run with --help for the options)\n", e.what());
+    return 2;
   }
 
   DaemonOptions options;

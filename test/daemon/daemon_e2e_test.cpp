@@ -688,7 +688,9 @@ TEST(CommandLine, EachBadSettingIsOneLineAndExitStatusTwo) {
     EXPECT_EQ(p.wait(30s), 2);
     const auto lines = lines_of(p.err());
     if (message.empty()) {
-      EXPECT_FALSE(lines.empty());  // CLI11's usage error
+      // A usage error CLI11 found: one line with the program's prefix, as every other error.
+      ASSERT_EQ(lines.size(), 1u) << p.err();
+      EXPECT_EQ(lines[0].rfind("lidartagd: error: ", 0), 0u) << lines[0];
       continue;
     }
     ASSERT_EQ(lines.size(), 1u) << p.err();

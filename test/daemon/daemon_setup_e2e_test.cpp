@@ -101,6 +101,9 @@ TEST(Setup, ProblemsStopTheDaemonBeforeReadyWithOneLine) {
       {{"--lcm-url", "file:///tmp/lidartag-setup-test.lcmlog"}, "lcm.url: LCM URL"},
       {{"--set", "sensors[0].source.file=/nonexistent/replay.pcap"},
        "sensors[0].source.file: replay file '/nonexistent/replay.pcap': No such file"},
+      // On the command line the same: an input that cannot be read (1), not a usage error.
+      {{"--replay", "/nonexistent/replay.pcap"},
+       "sensors[0].source.file: replay file '/nonexistent/replay.pcap': No such file"},
   };
   for (const auto& [extra, message] : cases) {
     SCOPED_TRACE(extra.back());
@@ -109,8 +112,9 @@ TEST(Setup, ProblemsStopTheDaemonBeforeReadyWithOneLine) {
     args.insert(args.end(), extra.begin(), extra.end());
     // The demo by its absolute path (the config's is relative to the source tree), unless the
     // case names another file.
-    if (std::none_of(extra.begin(), extra.end(),
-                     [](const std::string& a) { return a.find("source.file=") != a.npos; })) {
+    if (std::none_of(extra.begin(), extra.end(), [](const std::string& a) {
+          return a.find("source.file=") != a.npos || a == "--replay";
+        })) {
       args.insert(args.end(), {"--replay", kDemo});
     }
     if (std::find(args.begin(), args.end(), "--lcm-url") == args.end()) {

@@ -58,6 +58,12 @@ TEST(Loop, ACaptureShorterThanASecondLoopsAtItsPace) {
   const auto s = last_status(log);
   ASSERT_TRUE(s.has_value());
   EXPECT_GE(s->rotations_published, 22);
+  // The seams' partial rotations are not losses: the final status names them apart.
+  ASSERT_GT(s->rotations_seam, 0);
+  EXPECT_NE(p.err().find(" 0 dropped, " + std::to_string(s->rotations_seam) +
+                         " loop-seam partials (not published by design)"),
+            std::string::npos)
+      << p.err();
 }
 
 // The capture is truncated to half while looping: the pass in progress ends at the cut record

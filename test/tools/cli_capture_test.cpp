@@ -171,7 +171,14 @@ TEST(CliDump, PartialAlsoWritesTheIncompleteRotations) {
 TEST(CliErrors, UsageAndConfigurationErrorsExitTwoRuntimeErrorsExitOne) {
   EXPECT_EQ(run_tool("").exit_code, 2);
   EXPECT_EQ(run_tool("no-such-command").exit_code, 2);
-  EXPECT_EQ(run_tool("info /nonexistent-lidartag/x.pcap").exit_code, 2);
+  // A missing input is an input that cannot be read (docs/tools.md): 1, one prefixed line.
+  const auto missing = run_tool("info /nonexistent-lidartag/x.pcap");
+  EXPECT_EQ(missing.exit_code, 1);
+  EXPECT_EQ(missing.out.rfind("lidartag: error: ", 0), 0u) << missing.out;
+  EXPECT_NE(missing.out.find("/nonexistent-lidartag/x.pcap"), std::string::npos) << missing.out;
+  const auto unknown = run_tool("info --no-such-option /dev/null");
+  EXPECT_EQ(unknown.exit_code, 2);
+  EXPECT_EQ(unknown.out.rfind("lidartag: error: ", 0), 0u) << unknown.out;
   EXPECT_EQ(run_tool("--help").exit_code, 0);
   REQUIRE_CAPTURE("vlp16_rlu.pcap");
   const Result bad_model = run_tool("info --model vlp99 " + capture);

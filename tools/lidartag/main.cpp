@@ -42,8 +42,15 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    // Help and version exit 0; every usage error exits 2.
-    return app.exit(e) == 0 ? cli::kExitOk : cli::kExitUsage;
+    // Help and version exit 0. Errors are one line with the program's prefix, like every other
+    // error: an input file that does not exist is an input that cannot be read (1), the rest
+    // usage errors (2).
+    if (e.get_exit_code() == 0) return app.exit(e) == 0 ? cli::kExitOk : cli::kExitUsage;
+    const std::string what = e.what();
+    const bool missing = what.find("does not exist") != std::string::npos;
+    std::fprintf(stderr, "lidartag: error: %s%s\n", what.c_str(),
+                 missing ? "" : " (run with --help for the options)");
+    return missing ? cli::kExitRuntime : cli::kExitUsage;
   }
   for (auto& [sub, run] : runs) {
     if (!sub->parsed()) continue;
