@@ -436,4 +436,30 @@ TEST(CliDetect, BadArgumentsAreUsageErrors) {
   EXPECT_NE(r.out.find("tag99h1"), std::string::npos) << r.out;
 }
 
+// Issue 36: the README's detect example, run as printed (from the repository root), finds the
+// demo's two tags; with the default size the summary says what the rejected clusters measured.
+TEST(CliDetect, TheReadmeExampleWorksAsPrintedAndAWrongSizeSaysWhatItMeasured) {
+  std::ifstream readme(LIDARTAG_SOURCE_DIR "/README.md");
+  std::string line, example;
+  while (std::getline(readme, line)) {
+    if (line.rfind("build/bin/lidartag detect ", 0) == 0) {
+      example = line.substr(std::string("build/bin/lidartag ").size());
+      example = example.substr(0, example.find('#'));
+      break;
+    }
+  }
+  ASSERT_FALSE(example.empty()) << "no 'build/bin/lidartag detect' line in README.md";
+  const auto r = lidartag::testing::run_command(
+      "cd " LIDARTAG_SOURCE_DIR " && " + std::string(LIDARTAG_CLI) + " " + example + " 2>&1");
+  EXPECT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_EQ(r.out.find("no tags found"), std::string::npos) << example << "\n" << r.out;
+  EXPECT_NE(r.out.find("tag16h5 id 0"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("tag16h5 id 1"), std::string::npos) << r.out;
+  const auto wrong = run_tool("detect " + kDemo);
+  EXPECT_NE(wrong.out.find("no tags found"), std::string::npos) << wrong.out;
+  EXPECT_NE(wrong.out.find("clusters rejected as the wrong size for --tag-size 1.20 m measured 0."),
+            std::string::npos)
+      << wrong.out;
+}
+
 }  // namespace

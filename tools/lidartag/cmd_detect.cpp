@@ -57,7 +57,9 @@ det::DetectorOptions detector_options(const DetectArgs& args) {
     throw std::runtime_error("--config needs the lidartag_config library (daemon/), not built");
 #endif
   }
-  options.cluster_diagnostics = args.clusters;
+  // Always on: the summary names the sizes measured of clusters rejected as the wrong size (the
+  // per-cluster JSON only with --clusters).
+  options.cluster_diagnostics = true;
   if (!args.tag_sizes.empty()) options.tag_sizes_m = args.tag_sizes;
   if (!args.families.empty()) options.families = args.families;
   return options;
@@ -127,7 +129,7 @@ struct Reported {
   const det::TrackerResult* tracked = nullptr;  // null: tracker off
 };
 
-nlohmann::json rotation_json(size_t n, const Scan& scan, const Reported& rep) {
+nlohmann::json rotation_json(size_t n, const Scan& scan, const Reported& rep, bool clusters) {
   const det::ScanResult& r = *rep.result;
   nlohmann::json j;
   j["scan"] = n;
@@ -175,11 +177,11 @@ nlohmann::json rotation_json(size_t n, const Scan& scan, const Reported& rep) {
   if (rep.tracked != nullptr) timing["tracker"] = rep.tracked->time_ms;
   j["timing_ms"] = timing;
   j["rejected"] = rejected;
-  if (!r.diagnostics.empty()) {
-    nlohmann::json clusters = nlohmann::json::array();
+  if (clusters) {
+    nlohmann::json list = nlohmann::json::array();
     for (size_t i = 0; i < r.diagnostics.size(); ++i)
-      if (explained(r.diagnostics[i])) clusters.push_back(cluster_json(i, r.diagnostics[i]));
-    j["cluster_diagnostics"] = clusters;
+      if (explained(r.diagnostics[i])) list.push_back(cluster_json(i, r.diagnostics[i]));
+    j["cluster_diagnostics"] = list;
   }
   return j;
 }
@@ -248,6 +250,8 @@ struct Totals {
   double worst_ms = 0.0;
   double tracker_ms = 0.0;
   bool tracker = false;
+  std::map<long, size_t> wrong_size_cm;  // sides measured of clusters rejected for their size
+  std::vector<double> sizes_m;           // the sizes asked for
 
   void add(const Reported& rep) {
     const det::ScanResult& r = *rep.result;
@@ -264,6 +268,9 @@ struct Totals {
     }
     for (size_t s = 0; s < ms.size(); ++s) ms[s] += r.timing_ms[s];
     for (size_t k = 0; k < rejected.size(); ++k) rejected[k] += r.rejected[k];
+    for (const auto& d : r.diagnostics)
+      if (d.rejection == det::Rejection::kSize && d.side_m > 0)
+        ++wrong_size_cm[std::lround(d.side_m * 100)];
     worst_ms = std::max(worst_ms, r.total_ms());
   }
 
@@ -303,6 +310,22 @@ struct Totals {
                  static_cast<double>(rejected[static_cast<size_t>(k)]) / n);
     }
     fmt::print("\n");
+    if (!wrong_size_cm.empty()) {
+      // What the wrong-size clusters measured, the commonest first: the size to ask for.
+      std::vector<std::pair<size_t, long>> by_count;
+      for (const auto& [cm, count] : wrong_size_cm) by_count.emplace_back(count, cm);
+      std::sort(by_count.rbegin(), by_count.rend());
+      std::string measured, sizes;
+      for (size_t i = 0; i < std::min<size_t>(3, by_count.size()); ++i) {
+        measured += fmt::format("{}{:.2f} m ({}x)", i == 0 ? "" : ", ",
+                                static_cast<double>(by_count[i].second) / 100.0, by_count[i].first);
+      }
+      for (double s : sizes_m) sizes += fmt::format("{}{:.2f}", sizes.empty() ? "" : ", ", s);
+      fmt::print(
+          "clusters rejected as the wrong size for --tag-size {} m measured {} a side (a "
+          "tag's outline, or the board it is mounted on: give the printed marker's size)\n",
+          sizes, measured);
+    }
   }
 };
 
@@ -314,6 +337,7 @@ int run_detect(const DetectArgs& args) {
   det::ScanResult result;
   det::TrackerResult tracked;
   Totals totals;
+  totals.sizes_m = detector.options().tag_sizes_m;
   auto report = [&](size_t n, const Scan& scan) {
     detector.detect(scan, result);
     Reported rep{&result, nullptr};
@@ -323,7 +347,7 @@ int run_detect(const DetectArgs& args) {
     }
     totals.add(rep);
     if (args.json) {
-      fmt::print("{}\n", rotation_json(n, scan, rep).dump());
+      fmt::print("{}\n", rotation_json(n, scan, rep, args.clusters).dump());
       std::fflush(stdout);
     } else {
       print_rotation(n, scan, rep);
