@@ -194,6 +194,9 @@ struct Scenario {
   double restart_after_s = 0;
   bool second_sensor = false;   // another sensor (127.0.0.2, outdoor capture) on the same port
   uint64_t probe_junk = 0;      // 1206-byte junk datagrams before the sensor (SenderOptions)
+  // With second_sensor: the second sensor is a sensor entry of the daemon too (sharing the ports,
+  // each entry with its sensor_address), its status on SECOND_LIDARTAG_STATUS.
+  bool second_entry = false;
   bool expect_tags = true;      // the capture holds tags
   double min_tag_fraction = 0;  // of published rotations (clean scenarios)
 };
@@ -218,11 +221,17 @@ std::vector<Scenario> scenarios(const std::string& suite) {
       {"junk_before_sensor",
        "VLP-32C at 1x after 64 zero datagrams of the probe's size (one with a VLP-16 byte)",
        "vlp32c", t, 1},
+      {"two_sensors_shared",
+       "VLP-32C from .1 and another sensor from .2, unicast to one port, one sensor entry each",
+       "vlp32c", t, 1},
   };
   v[0].min_tag_fraction = 0.8;
   v[7].second_sensor = true;
   v[9].probe_junk = 64;  // once: every packet undecodable, or decoded as a VLP-16, "healthy"
   v[9].min_tag_fraction = 0.8;
+  v[10].second_sensor = true;  // once: one entry heard nothing, the other counted its packets
+  v[10].second_entry = true;   // foreign
+  v[10].min_tag_fraction = 0.8;
   if (s) return v;
   v.push_back({"vls128_10x", "VLS-128 at 10x its rate", "vls128", t, 10});
   v.push_back({"vls128_max", "VLS-128 as fast as the sender goes", "vls128", t, 0});
@@ -252,6 +261,7 @@ struct Result {
   SenderCounts sent, second;
   UdpMib kernel;  // deltas
   std::optional<status_t> status;
+  std::optional<status_t> second_status;  // the second sensor entry's (second_entry)
   uint64_t detection_messages = 0, with_tags = 0, tags_late = 0;
   // Status messages that said healthy although data packets had arrived since the one before and
   // none of them was decoded (a blind sensor reported as well).
@@ -288,7 +298,14 @@ Result run(const Scenario& sc, const Options& o) {
     std::ofstream c(config);
     c << "sensors:\n  - name: load\n    source:\n      kind: udp\n"
          "      bind_address: 127.0.0.1\n      data_port: 2368\n      position_port: 8308\n"
-      << (sc.second_sensor ? "      sensor_address: 127.0.0.1\n" : "") << "lcm:\n  url: \"file://"
+      << (sc.second_sensor ? "      sensor_address: 127.0.0.1\n" : "")
+      << (sc.second_entry ? "      share_port: true\n"
+                            "  - name: second\n    channel_prefix: SECOND_\n    source:\n"
+                            "      kind: udp\n      bind_address: 127.0.0.1\n"
+                            "      data_port: 2368\n      position_port: 8308\n"
+                            "      sensor_address: 127.0.0.2\n      share_port: true\n"
+                          : "")
+      << "lcm:\n  url: \"file://"
       << log << "?mode=w\"\n"
       << "pipeline:\n  worker_threads: " << o.workers << "\n"
       << "status:\n  period_s: 0.5\n"
@@ -398,6 +415,9 @@ Result run(const Scenario& sc, const Options& o) {
           ++r.healthy_blind;
         }
         r.status = s;
+      } else if (e->channel == "SECOND_LIDARTAG_STATUS") {
+        status_t s;
+        if (s.decode(e->data, 0, e->datalen) == e->datalen) r.second_status = s;
       } else if (e->channel == "LIDARTAG_DETECTIONS") {
         tag_detections_t d;
         if (d.decode(e->data, 0, e->datalen) != e->datalen) continue;
@@ -472,7 +492,8 @@ void check_exact_counters(Result& r, const S& s, const std::function<void(std::s
     };
     expect_seams("packets_missing", s.packets_missing, r.sent.lost);
     expect("packets_malformed", s.packets_malformed, r.sent.junk_sensor_port);
-    expect("packets_foreign", s.packets_foreign, r.second.data + r.second.position);
+    expect("packets_foreign", s.packets_foreign,
+           r.scenario.second_entry ? 0 : r.second.data + r.second.position);
     expect("packets_model_mismatch", s.packets_model_mismatch, 0);
     if (r.sent.restarts == 0) expect_seams("packets_inconsistent", s.packets_inconsistent, 0);
   }
@@ -489,8 +510,24 @@ void check(Result& r, const Options& o) {
     return;
   }
   const status_t& s = *r.status;
-  const uint64_t read_by_daemon =
+  uint64_t read_by_daemon =
       static_cast<uint64_t>(s.packets_received) + static_cast<uint64_t>(foreign_of(s));
+  if (r.scenario.second_entry) {
+    // Each sensor entry's socket takes its own sender's datagrams (steered by source address).
+    if (!r.second_status) {
+      fail("no status message of the second sensor entry");
+      return;
+    }
+    const status_t& s2 = *r.second_status;
+    read_by_daemon +=
+        static_cast<uint64_t>(s2.packets_received) + static_cast<uint64_t>(foreign_of(s2));
+    if (foreign_of(s2) != 0)
+      fail("the second entry took " + std::to_string(foreign_of(s2)) + " foreign packets");
+    if (r.kernel.rcvbuf_errors == 0 &&
+        static_cast<uint64_t>(s2.packets_received) != r.second.data + r.second.position)
+      fail("the second entry received " + std::to_string(s2.packets_received) + " of its " +
+           std::to_string(r.second.data + r.second.position) + " packets");
+  }
   // Every datagram a socket of the daemon read (the namespace holds no other reader) is counted.
   // Truncated datagrams are counted among the malformed; none of ours exceeds the buffer.
   if (read_by_daemon != r.kernel.in_datagrams)
@@ -518,7 +555,7 @@ void check(Result& r, const Options& o) {
       fail("rotations with tags " + std::to_string(fraction) + " < " +
            std::to_string(r.scenario.min_tag_fraction));
   }
-  if (r.second.data > 0 && static_cast<uint64_t>(foreign_of(s)) <
+  if (r.second.data > 0 && !r.scenario.second_entry && static_cast<uint64_t>(foreign_of(s)) <
                                r.second.data + r.second.position - r.kernel.rcvbuf_errors)
     fail("the second sensor's packets were not set apart (sensor_address)");
   check_exact_counters(r, s, fail);

@@ -115,6 +115,36 @@ def simulate(scene, out=None, rotations=None, seed=None, partial=False):
     return truth if out is not None else (decoded, truth)
 
 
+def _status_names():
+    """status_t in words: the sender addresses as dotted quads (the LCM field is int32, so
+    192.168.1.201 reads -1062731319) and the state, PPS and time source by name (the names
+    lidartagd's STATUS= line and logs use)."""
+    status_t = lcmtypes.status_t
+
+    def names(prefix):
+        return {getattr(status_t, n): n[len(prefix):].lower().replace("_", " ")
+                for n in dir(status_t) if n.startswith(prefix)}
+
+    states, pps, sources = names("STATE_"), names("PPS_"), names("TIME_")
+
+    def dotted(value):
+        v = value & 0xFFFFFFFF
+        return "%d.%d.%d.%d" % (v >> 24, (v >> 16) & 255, (v >> 8) & 255, v & 255)
+
+    status_t.sender_addresses = property(
+        lambda m: [dotted(int(a)) for a in m.senders],
+        doc="senders as dotted quads ('192.168.1.201')")
+    status_t.state_name = property(lambda m: states.get(m.state, "unknown"),
+                                   doc="state by name ('healthy', 'not decoding', ...)")
+    status_t.pps_name = property(lambda m: pps.get(m.pps, "unknown"),
+                                 doc="PPS state by name ('absent', 'locked', ...)")
+    status_t.time_source_name = property(lambda m: sources.get(m.time_source, "unknown"),
+                                         doc="'host' or 'gps'")
+
+
+_status_names()
+
+
 def read_lcm_log(path):
     """Every message of an LCM log of lidartagd, grouped by type.
 

@@ -72,6 +72,16 @@ def test_the_demo_log_reads_into_messages(demo_log, truth):
     assert status.healthy is False and status.model == "vlp32c"
     assert status.nstages == len(status.stage_names) == len(status.p50_ms)
     assert status.TIME_HOST == 0 and status.PPS_LOCKED == 2
+    # In words (issue 36): state, PPS and time source by name, senders as dotted quads.
+    assert status.state_name == "ended" and status.time_source_name in ("host", "gps")
+    assert status.pps_name in ("absent", "synchronizing", "locked", "error")
+    assert len(status.sender_addresses) == len(status.senders)
+    for text, value in zip(status.sender_addresses, status.senders):
+        parts = [int(p) for p in text.split(".")]
+        assert len(parts) == 4 and all(0 <= p <= 255 for p in parts)
+        assert (parts[0] << 24 | parts[1] << 16 | parts[2] << 8 | parts[3]) == int(value) & 0xFFFFFFFF
+    healthy = [m for _, _, m in log["status_t"] if m.state == m.STATE_HEALTHY]
+    assert all(m.state_name == "healthy" for m in healthy)
     raw = log["raw_packet_t"][0][2]
     assert raw.nbytes == len(raw.data) == 1206 and raw.port == 2368
     assert raw.data.dtype == np.uint8 and bytes(raw.data[:2]) == b"\xff\xee"

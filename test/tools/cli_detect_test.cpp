@@ -429,6 +429,18 @@ TEST(CliDetect, RandomlyDamagedPcdFilesNeverCrashTheTool) {
   }
 }
 
+TEST(CliDetect, TagSizesTakeUnitsAsEveryLengthDoes) {
+  // Issue 36: --outer-size 200mm worked, --tag-size 800mm failed with a 300-digit range.
+  const Result units = run_tool("detect " + kDemo + " --tag-size 800mm --tag-size 60cm");
+  EXPECT_EQ(units.exit_code, 0) << units.out;
+  EXPECT_NE(units.out.find("tag16h5 id 0"), std::string::npos) << units.out;
+  EXPECT_NE(units.out.find("tag16h5 id 1"), std::string::npos) << units.out;
+  const Result bad = run_tool("detect " + kDemo + " --tag-size 0.8parsecs");
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.out.find("'0.8parsecs' is not a length"), std::string::npos) << bad.out;
+  EXPECT_LT(bad.out.size(), 400u) << bad.out;
+}
+
 TEST(CliDetect, BadArgumentsAreUsageErrors) {
   EXPECT_EQ(run_tool("detect " + kDemo + " --tag-size -1").exit_code, 2);
   const Result r = run_tool("detect " + kDemo + " --family tag99h1");

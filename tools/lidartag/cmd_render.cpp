@@ -356,9 +356,10 @@ const Registrar kRender(
                      "YAML file whose `detector:` section sets the detector's options")
           ->check(CLI::ExistingFile);
       app.add_option("--tag-size", a->tag_sizes,
-                     "Tag size in metres (full printed marker, white ring included); repeat for "
+                     "Tag size (full printed marker, white ring included): metres, or with a unit "
+                     "(800mm, 80cm, 31.5in); repeat for "
                      "several sizes (default 1.2, or the config's)")
-          ->check(CLI::PositiveNumber);
+          ->transform(length_in_metres());
       app.add_option("--family", a->families,
                      "Tag family (tag16h5, tag25h9, tag36h10, tag36h11, tag16h6 or "
                      "FILE.json[:NAME]); repeat for several (default tag16h5, or the config's)")

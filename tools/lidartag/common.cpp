@@ -11,11 +11,25 @@
 #include <stdexcept>
 
 #include "lidartag/detector/cloud_scan.hpp"
+#include "lidartag/draw/units.hpp"
 #include "lidartag/driver/io/errors.hpp"
 #include "lidartag/driver/io/pcd.hpp"
 #include "lidartag/driver/io/udp_frame.hpp"
 
 namespace lidartag::cli {
+
+CLI::Validator length_in_metres() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        try {
+          text = fmt::format("{:.17g}", draw::parse_length_mm(text) / 1000.0);
+          return {};
+        } catch (const std::invalid_argument& e) {
+          return e.what();
+        }
+      },
+      "LENGTH");
+}
 
 void add_capture_options(CLI::App& app, CaptureArgs& args) {
   app.add_option("capture", args.capture, "pcap or pcapng file")

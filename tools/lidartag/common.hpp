@@ -52,4 +52,9 @@ bool is_pcd(const std::string& path);
 // beams estimated from the cloud). Throws velodyne::IoError naming the file.
 void load_pcd_scan(const CaptureArgs& args, int rings, double resolution_deg, Scan& scan);
 
+// A length option given in metres, or with its unit as everywhere a length is taken ("0.8",
+// "800mm", "80cm", "31.5in"): rewritten to metres before CLI11 converts it; a text that is not a
+// length is refused naming it.
+CLI::Validator length_in_metres();
+
 }  // namespace lidartag::cli
