@@ -222,11 +222,18 @@ CloudScanReport cloud_to_scan(const CloudFields& f, const CloudScanOptions& opti
     }
     cloud.push_back(p);
   }
+  // Points a cell can take (a return: a finite range above 0), against those in the scan after.
+  const auto placeable =
+      static_cast<size_t>(std::count_if(cloud.begin(), cloud.end(), [&](const CloudPoint& p) {
+        const double r2 = double{p.x} * p.x + double{p.y} * p.y + double{p.z} * p.z;
+        return r2 > 0.0 && std::isfinite(r2) && (f.ring.empty() || p.ring < rings);
+      }));
   if (!f.ring.empty()) {
     if (!organise_rings(cloud, rings, options.resolution_deg, out))
       throw CloudError("cannot organise the rings (column width " +
                        std::to_string(options.resolution_deg) + " degrees)");
     report.points = out.point_count();
+    report.merged = placeable > report.points ? placeable - report.points : 0;
     return report;
   }
   report.regressed = true;
@@ -247,6 +254,7 @@ CloudScanReport cloud_to_scan(const CloudFields& f, const CloudScanOptions& opti
                      " distinct elevations)");
   }
   report.points = out.point_count();
+  report.merged = placeable > report.points ? placeable - report.points : 0;
   return report;
 }
 

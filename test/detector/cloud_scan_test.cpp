@@ -184,6 +184,29 @@ TEST(CloudScan, UnorganisedCloudWithRingsIsBinnedByAzimuthAndKeepsTime) {
   EXPECT_EQ(b[0].id, 3);
 }
 
+TEST(CloudScan, PointsThatShareACellAreCountedNotDroppedSilently) {
+  // Issue 36: a dump read back binned 390 of 57,000 points into cells a nearer point took, with
+  // no message. Three points of ring 0 at one azimuth (the nearest kept) and one elsewhere.
+  Columns c;
+  c.add(5.0, 0.0, 0.0, 10, 0, 0, 0, 0);
+  c.add(6.0, 0.0, 0.0, 10, 0, 0, 0, 0);
+  c.add(7.0, 0.001, 0.0, 10, 0, 0, 0, 0);
+  c.add(0.0, -5.0, 0.0, 10, 0, 90, 0, 0);
+  c.width = 4;
+  Scan out;
+  CloudScanOptions o;
+  o.resolution_deg = 0.2;
+  o.rings = 1;
+  const auto report = cloud_to_scan(c.fields(), o, out);
+  EXPECT_EQ(report.points, 2u);
+  EXPECT_EQ(report.merged, 2u);
+  EXPECT_EQ(report.points + report.merged, 4u);  // every point accounted for
+  // Without rings, regressed: the same accounting.
+  const auto regressed = cloud_to_scan(c.fields(false), o, out);
+  EXPECT_TRUE(regressed.regressed);
+  EXPECT_EQ(regressed.points + regressed.merged, 4u);
+}
+
 TEST(CloudScan, WithoutRingNumbersRingsAreRegressed) {
   const Scan s = tag_scene();
   const Columns c = unorganised(s);

@@ -148,6 +148,12 @@ void load_pcd_scan(const CaptureArgs& args, int rings, double resolution_deg, Sc
   if (report.skipped_rings > 0)
     spdlog::warn("{}: {} points with a ring that is not a whole number in 0..{} skipped", path,
                  report.skipped_rings, scan.rings - 1);
+  if (report.merged > 0) {
+    spdlog::warn(
+        "{}: {} of {} points dropped: each fell into a ring's column (of {} degrees) that a "
+        "nearer point took; --resolution sets the column width",
+        path, report.merged, report.merged + report.points, resolution_deg);
+  }
   if (report.intensity_scaled)
     spdlog::warn("{}: every intensity is within [0, 1]: read as 0..1 and scaled to 0..255", path);
 }

@@ -45,6 +45,9 @@ struct CloudScanReport {
   size_t points = 0;               // points with a return placed in the scan
   size_t skipped_coordinates = 0;  // x, y or z infinite or beyond a float (NaN is "no return")
   size_t skipped_rings = 0;        // ring not a whole number in 0..255 (or >= options.rings)
+  // Binned by azimuth (not a grid): points that fell into a cell of their ring a nearer point
+  // took (the column width is too coarse for them), dropped.
+  size_t merged = 0;
   // Organised with ring numbers: each point kept its column and return (rows: the rings of return
   // 0, then of return 1, as `lidartag dump --organized` writes).
   bool grid = false;
