@@ -185,9 +185,33 @@ class Reader {
         break;
       }
     }
-    if (!out) throw py::stop_iteration();
+    if (!out) {
+      end_of_capture();
+      throw py::stop_iteration();
+    }
     ++rotations_;
     return std::move(*out);
+  }
+
+  // At the end, as `lidartag` does: a capture that gave no rotation, or that was cut short by a
+  // corrupt record, is an IoError (once), not an empty or a quietly shortened iteration.
+  void end_of_capture() {
+    if (ended_) return;
+    ended_ = true;
+    const std::string cut = reader_->source_error();
+    if (!cut.empty()) throw velodyne::IoError(cut);
+    if (rotations_ > 0) return;
+    if (skipped_ > 0) {
+      throw velodyne::IoError("'" + path_ + "': no complete rotation, only " +
+                              std::to_string(skipped_) + " incomplete one" +
+                              (skipped_ == 1 ? "" : "s") +
+                              " (a truncated or very short capture?); partial=True reads them");
+    }
+    throw velodyne::IoError("'" + path_ +
+                            "': no rotation: " + std::to_string(reader_->counts().data_packets) +
+                            " data packets, " + std::to_string(reader_->counts().decoded) +
+                            " decoded, " + std::to_string(reader_->source_stats().truncated) +
+                            " truncated records (check data_port, sensor, model)");
   }
 
   py::dict counts() const {
@@ -226,6 +250,7 @@ class Reader {
   std::optional<Rotation> pcd_;
   std::unique_ptr<velodyne::CaptureReader> reader_;
   uint64_t rotations_ = 0, skipped_ = 0;
+  bool ended_ = false;  // end_of_capture() ran
 };
 
 velodyne::PcdFormat format_of(const std::string& name) {

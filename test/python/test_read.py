@@ -73,7 +73,9 @@ def test_read_options(demo, tmp_path):
     assert abs(cut.arrays()["column_azimuth"][0] - 90.0) < 0.5
     assert cut.complete
     # Other ports: no sensor packets at all.
-    assert list(lidartag.read(demo, data_port=2369, position_port=8309)) == []
+    # Nothing on those ports: an error naming the counts, as `lidartag` says it (issue 36).
+    with pytest.raises(lidartag.IoError, match="no rotation: 0 data packets"):
+        list(lidartag.read(demo, data_port=2369, position_port=8309))
     with pytest.raises(ValueError, match="unknown model 'hdl64'"):
         lidartag.read(demo, model="hdl64")
     with pytest.raises(lidartag.IoError):
@@ -127,3 +129,27 @@ def test_an_xyz_only_pcd_is_a_clear_error(tmp_path):
     broken.write_bytes(b"FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 9\nDATA binary\n\0\0")
     with pytest.raises(lidartag.IoError, match="cannot fit"):
         lidartag.read_pcd(broken)
+
+
+def test_a_capture_without_a_rotation_is_an_error_as_in_the_cli(demo, tmp_path):
+    # Issue 36: Python read a truncated pcap as 0 rotations without a word while `lidartag`
+    # exited 1. The first 20 kB of the demo hold no complete rotation.
+    cut = tmp_path / "cut.pcap"
+    cut.write_bytes(open(demo, "rb").read()[:20000])
+    with pytest.raises(lidartag.IoError, match="no complete rotation"):
+        list(lidartag.read(cut))
+    assert len(list(lidartag.read(cut, partial=True))) >= 1
+    # A capture cut short by a corrupt record in the middle: every rotation before it, then the
+    # error naming the record (the CLI's exit status 3).
+    data = bytearray(open(demo, "rb").read())
+    at = 24
+    for _ in range(999):
+        at += 16 + int.from_bytes(data[at + 8:at + 12], "little")
+    data[at + 8:at + 12] = (1 << 20).to_bytes(4, "little")
+    corrupt = tmp_path / "corrupt.pcap"
+    corrupt.write_bytes(bytes(data))
+    got = []
+    with pytest.raises(lidartag.IoError, match="unreadable after record 999"):
+        for rotation in lidartag.read(corrupt):
+            got.append(rotation)
+    assert len(got) >= 4
