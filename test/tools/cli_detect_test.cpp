@@ -469,6 +469,10 @@ TEST(CliDetect, TheReadmeExampleWorksAsPrintedAndAWrongSizeSaysWhatItMeasured) {
   EXPECT_NE(r.out.find("tag16h5 id 1"), std::string::npos) << r.out;
   const auto wrong = run_tool("detect " + kDemo);
   EXPECT_NE(wrong.out.find("no tags found"), std::string::npos) << wrong.out;
+  // --clusters says the side it gives is the outline's (a board's, margin included).
+  const auto explained = run_tool("detect " + kDemo + " --clusters");
+  EXPECT_NE(explained.out.find("outline side 0."), std::string::npos) << explained.out;
+  EXPECT_NE(explained.out.find("(marker and any board margin)"), std::string::npos);
   EXPECT_NE(wrong.out.find("clusters rejected as the wrong size for --tag-size 1.20 m measured 0."),
             std::string::npos)
       << wrong.out;

@@ -219,6 +219,29 @@ TEST(CliTag, SvgAndPngShowTheSameMarkersAtTheirSize) {
   EXPECT_EQ(b[8], 1);  // metres
 }
 
+TEST(CliTag, AMarkerThatFitsWithASmallerMarginIsNotCutInTwo) {
+  // Issue 36: four 200 mm markers on A4 were tiled over 2 pages each (8 pages), silently; a 4 mm
+  // margin fits one a page. Without --margin the margin shrinks (said on standard error); with
+  // it the tiling stays and the margin that fits is named.
+  TempDir dir;
+  const std::string pdf = dir / "a4.pdf";
+  const Result shrunk =
+      run_split(kCli + " tag tag16h5 --id 0-3 --outer-size 200mm --page A4 -o " + pdf);
+  ASSERT_EQ(shrunk.exit_code, 0) << shrunk.err;
+  EXPECT_EQ(placements(shrunk.out).size(), 4u) << shrunk.out;
+  EXPECT_NE(shrunk.out.find("4 pages A4"), std::string::npos) << shrunk.out;
+  EXPECT_EQ(shrunk.out.find("tiled"), std::string::npos) << shrunk.out;
+  EXPECT_NE(shrunk.err.find("does not fit A4 portrait inside 10 mm margins: printed with"),
+            std::string::npos)
+      << shrunk.err;
+  const Result kept = run_split(kCli + " tag tag16h5 --id 0-3 --outer-size 200mm --page A4 " +
+                                "--margin 10mm -o " + pdf);
+  ASSERT_EQ(kept.exit_code, 0) << kept.err;
+  EXPECT_NE(kept.out.find("tiled"), std::string::npos) << kept.out;
+  EXPECT_NE(kept.err.find("each marker is tiled over 2 pages; --margin "), std::string::npos)
+      << kept.err;
+}
+
 TEST(CliTag, AMarkerLargerThanThePageIsTiledAndReassembles) {
   REQUIRE_PROGRAM("pdftoppm");
   TempDir dir;

@@ -233,7 +233,8 @@ void print_rotation(size_t n, const Scan& scan, const Reported& rep) {
         i, c.min_x, c.max_x, c.min_y, c.max_y, c.min_ring, c.max_ring, c.features, c.points,
         c.boundary_points);
     if (c.outlier_ratio >= 0) fmt::print(", outliers {:.2f}", c.outlier_ratio);
-    if (c.side_m >= 0) fmt::print(", side {:.3f} m", c.side_m);
+    if (c.side_m >= 0)
+      fmt::print(", outline side {:.3f} m (marker and any board margin)", c.side_m);
     if (c.mean_cost_m >= 0) fmt::print(", cost {:.4f} m", c.mean_cost_m);
     if (c.coverage >= 0) fmt::print(", coverage {:.2f}", c.coverage);
     if (c.score >= 0) fmt::print(", score {:.2f} margin {:.2f}", c.score, c.margin);

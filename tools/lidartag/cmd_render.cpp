@@ -154,7 +154,8 @@ draw::CloseUp detection_view(const det::ScanResult& result, int k, Families& fam
 std::string measured(const det::ClusterDiagnostic& c) {
   std::string s = fmt::format("{} points, {} boundary", c.points, c.boundary_points);
   if (c.outlier_ratio >= 0) s += fmt::format(", outliers {:.2f}", c.outlier_ratio);
-  if (c.side_m >= 0) s += fmt::format(", side {:.3f} m", c.side_m);
+  if (c.side_m >= 0)
+    s += fmt::format(", outline side {:.3f} m (marker and any board margin)", c.side_m);
   if (c.mean_cost_m >= 0) s += fmt::format(", cost {:.4f} m", c.mean_cost_m);
   if (c.coverage >= 0) s += fmt::format(", coverage {:.2f}", c.coverage);
   if (c.score >= 0) s += fmt::format(", score {:.2f} margin {:.2f}", c.score, c.margin);

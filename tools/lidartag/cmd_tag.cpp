@@ -2,6 +2,7 @@
 // -o FILE`: draws markers of any family at their exact printed size as PDF, SVG or PNG: one tag,
 // a sheet of several, or one tag tiled across pages when it is larger than the paper.
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include <cmath>
 #include <memory>
@@ -29,6 +30,7 @@ struct TagArgs {
   std::string page = "A4";
   std::string orientation = "auto";
   std::string margin = "10mm";
+  bool margin_given = false;  // --margin on the command line (else the default may shrink)
   double dpi = 300;
   bool bare = false;
 };
@@ -148,6 +150,40 @@ int run_tag(const TagArgs& a) {
   } catch (const std::invalid_argument& e) {
     throw UsageError(e.what());
   }
+  // A marker cut in two (or more) pages only for the default margin's sake: the largest margin
+  // down to kMinMargin_mm that keeps each marker on one page is taken, and said; with --margin
+  // given, the tiling stays and the margin that would avoid it is named.
+  constexpr double kMinMargin_mm = 3.0;  // most printers print to 3-6 mm of the edge
+  if (layout.tiled && !sheet.bare && !sheet.fit) {
+    draw::SheetOptions smaller = sheet;
+    std::optional<draw::Layout> whole;
+    for (double m = sheet.margin_mm - 0.5; m >= kMinMargin_mm - 1e-9 && !whole; m -= 0.5) {
+      smaller.margin_mm = m;
+      try {
+        draw::Layout l =
+            draw::layout_markers(static_cast<int>(job.ids.size()), job.outer_mm, smaller);
+        if (!l.tiled) whole = std::move(l);
+      } catch (const std::invalid_argument&) {
+      }
+    }
+    const size_t tiles = static_cast<size_t>(layout.tile_cols * layout.tile_rows);
+    if (whole && !a.margin_given) {
+      spdlog::warn(
+          "a {} marker does not fit {} inside {} margins: printed with {} margins, one "
+          "marker a page, instead of {} pages each (--margin {} keeps the margin and "
+          "tiles)",
+          draw::format_mm(job.outer_mm), layout.paper, draw::format_mm(sheet.margin_mm),
+          draw::format_mm(smaller.margin_mm), tiles, a.margin);
+      sheet.margin_mm = smaller.margin_mm;
+      layout = std::move(*whole);
+    } else if (whole) {
+      spdlog::warn("each marker is tiled over {} pages; --margin {} fits one a page", tiles,
+                   draw::format_mm(smaller.margin_mm));
+    } else {
+      spdlog::warn("each {} marker is tiled over {} pages of {} (cut along the marks)",
+                   draw::format_mm(job.outer_mm), tiles, layout.paper);
+    }
+  }
   const auto files = draw::write_marker_pages(job, layout);
 
   // What was written and where every marker is, for cutting, assembling and checking.
@@ -235,16 +271,21 @@ const Registrar kTag(
                      "Paper orientation; auto takes whichever needs fewer pages")
           ->check(CLI::IsMember({"auto", "portrait", "landscape"}))
           ->capture_default_str();
-      app.add_option("--margin", a->margin, "Unprinted border on every side")
-          ->type_name("LENGTH")
-          ->capture_default_str();
+      auto* margin = app.add_option("--margin", a->margin,
+                                    "Unprinted border on every side (not given: shrunk to as "
+                                    "little as 3 mm when that keeps a marker on one page)")
+                         ->type_name("LENGTH")
+                         ->capture_default_str();
       app.add_option("--dpi", a->dpi, "PNG resolution, dots per inch")
           ->check(CLI::Range(10.0, 2400.0))
           ->capture_default_str();
       app.add_flag("--bare", a->bare,
                    "Only the marker: the page is the marker (white ring included), one per page, "
                    "no caption, footer or marks");
-      return [a] { return run_tag(*a); };
+      return [a, margin] {
+        a->margin_given = margin->count() > 0;
+        return run_tag(*a);
+      };
     });
 
 }  // namespace
