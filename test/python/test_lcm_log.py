@@ -79,7 +79,8 @@ def test_the_demo_log_reads_into_messages(demo_log, truth):
     for text, value in zip(status.sender_addresses, status.senders):
         parts = [int(p) for p in text.split(".")]
         assert len(parts) == 4 and all(0 <= p <= 255 for p in parts)
-        assert (parts[0] << 24 | parts[1] << 16 | parts[2] << 8 | parts[3]) == int(value) & 0xFFFFFFFF
+        packed = parts[0] << 24 | parts[1] << 16 | parts[2] << 8 | parts[3]
+        assert packed == int(value) & 0xFFFFFFFF
     healthy = [m for _, _, m in log["status_t"] if m.state == m.STATE_HEALTHY]
     assert all(m.state_name == "healthy" for m in healthy)
     raw = log["raw_packet_t"][0][2]
