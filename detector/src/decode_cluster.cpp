@@ -157,9 +157,12 @@ ClusterDecode decode_cluster(std::span<const ClusterPoint> points, const RigidPo
     const double shift = ws.shifts[si];
     if (low && shift != out.shift) continue;
     if (shifted.applied() != shift) shifted.move_to(shift);
-    for (const auto& decoy : decoys) {
-      const DecodeResult d = decode_prepared(decoy, opt, ws.decode);
-      if (d.function >= 0) out.other_family_score = std::max(out.other_family_score, d.score);
+    for (size_t k = 0; k < decoys.size(); ++k) {
+      const DecodeResult d = decode_prepared(decoys[k], opt, ws.decode);
+      if (d.function >= 0 && d.score > out.other_family_score) {
+        out.other_family_score = d.score;
+        out.other_family = static_cast<int>(k);
+      }
     }
   }
   if (out.best.rejection == Rejection::kNone && out.other_family_score > out.best.score)

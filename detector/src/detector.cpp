@@ -324,6 +324,7 @@ int Detector::add_candidate(const ClusterDecode& dec, const Eigen::Vector3d& cen
   k.score = dec.best.score;
   k.margin = dec.best.margin_bits;
   k.other_family_score = dec.other_family_score;
+  k.other_family = dec.other_family;
   k.shift_searched = dec.shift_searched;
   k.points = points;
   k.fit_cost = fit_cost;

@@ -469,10 +469,17 @@ TEST(CliDetect, TheReadmeExampleWorksAsPrintedAndAWrongSizeSaysWhatItMeasured) {
   EXPECT_NE(r.out.find("tag16h5 id 1"), std::string::npos) << r.out;
   const auto wrong = run_tool("detect " + kDemo);
   EXPECT_NE(wrong.out.find("no tags found"), std::string::npos) << wrong.out;
-  // --clusters says the side it gives is the outline's (a board's, margin included).
+  // The clusters are explained only with --clusters (their diagnostics are always computed, for
+  // the summary's last line), and the side given is the outline's (a board's, margin included).
+  EXPECT_EQ(wrong.out.find("  cluster "), std::string::npos) << wrong.out;
   const auto explained = run_tool("detect " + kDemo + " --clusters");
   EXPECT_NE(explained.out.find("outline side 0."), std::string::npos) << explained.out;
   EXPECT_NE(explained.out.find("(marker and any board margin)"), std::string::npos);
+  // A tag of a family that is not configured is named with the family that fits (issue 36).
+  const auto other =
+      run_tool("detect " + kDemo + " --tag-size 0.8 --tag-size 0.6 --family tag36h11 --clusters");
+  EXPECT_NE(other.out.find("-> decode/other_family (tag16h5 fits better)"), std::string::npos)
+      << other.out;
   EXPECT_NE(wrong.out.find("clusters rejected as the wrong size for --tag-size 1.20 m measured 0."),
             std::string::npos)
       << wrong.out;

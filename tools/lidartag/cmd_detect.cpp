@@ -82,6 +82,17 @@ nlohmann::json vec(const Eigen::Vector3d& v) {
 }
 
 // Clusters with enough features to be a tag (the many tiny ones are left out).
+// " (tag36h11 fits better)" for a cluster rejected as another family's tag, naming it.
+std::string other_family_note(const det::ScanResult& r, const det::ClusterDiagnostic& c,
+                              const det::Detector& detector) {
+  if (c.rejection != det::Rejection::kOtherFamily || c.candidate < 0 ||
+      static_cast<size_t>(c.candidate) >= r.candidates.size())
+    return {};
+  const std::string_view name =
+      detector.decoy_family_name(r.candidates[static_cast<size_t>(c.candidate)].other_family);
+  return name.empty() ? std::string() : fmt::format(" ({} fits better)", name);
+}
+
 bool explained(const det::ClusterDiagnostic& c) {
   return c.rejection != det::Rejection::kFewFeatures;
 }
@@ -206,7 +217,9 @@ void print_detection(const det::Detection& d, const det::TrackedDetection* t) {
       1e3 * k.position_std_m.z(), k.angle_std_deg);
 }
 
-void print_rotation(size_t n, const Scan& scan, const Reported& rep) {
+// With `clusters` (--clusters), every cluster with enough features to be a tag, explained.
+void print_rotation(size_t n, const Scan& scan, const Reported& rep, const det::Detector& detector,
+                    bool clusters) {
   const det::ScanResult& r = *rep.result;
   const size_t count = rep.tracked ? rep.tracked->tags.size() : r.detections.size();
   fmt::print(
@@ -224,7 +237,7 @@ void print_rotation(size_t n, const Scan& scan, const Reported& rep) {
   } else {
     for (const auto& d : r.detections) print_detection(d, nullptr);
   }
-  for (size_t i = 0; i < r.diagnostics.size(); ++i) {
+  for (size_t i = 0; clusters && i < r.diagnostics.size(); ++i) {
     const auto& c = r.diagnostics[i];
     if (!explained(c)) continue;
     fmt::print(
@@ -238,7 +251,8 @@ void print_rotation(size_t n, const Scan& scan, const Reported& rep) {
     if (c.mean_cost_m >= 0) fmt::print(", cost {:.4f} m", c.mean_cost_m);
     if (c.coverage >= 0) fmt::print(", coverage {:.2f}", c.coverage);
     if (c.score >= 0) fmt::print(", score {:.2f} margin {:.2f}", c.score, c.margin);
-    fmt::print(" -> {}/{}\n", det::rejection_stage(c.rejection), det::rejection_name(c.rejection));
+    fmt::print(" -> {}/{}{}\n", det::rejection_stage(c.rejection), det::rejection_name(c.rejection),
+               other_family_note(r, c, detector));
   }
 }
 
@@ -351,7 +365,7 @@ int run_detect(const DetectArgs& args) {
       fmt::print("{}\n", rotation_json(n, scan, rep, args.clusters).dump());
       std::fflush(stdout);
     } else {
-      print_rotation(n, scan, rep);
+      print_rotation(n, scan, rep, detector, args.clusters);
     }
   };
 

@@ -55,6 +55,7 @@ struct ClusterDecode {
   // hypothesis below min_score, at its shift only); -1 when not decoded (no decoys, or nothing
   // could be scored).
   double other_family_score = -1.0;
+  int other_family = -1;  // the decoy (index into the decoys given) that scored it; -1: none
   // The shift was searched (an unseen axis): decoding chose where the tag sits.
   bool shift_searched = false;
 };

@@ -151,10 +151,10 @@ struct DecodeWorkspace {
   std::vector<float> exps;      // per point: its four kernel exponentials (their arguments first)
   // per point: the sample columns c0-c1 and rows r0-r1 its kernel reaches (-1: none)
   std::vector<std::array<int, 4>> reach;
-  std::vector<float> sorted;    // intensity medians
-  std::vector<float> varying;   // the evidence on the dictionary's varying cells
-  std::vector<float> tables;    // per group of 8 varying cells: the sum for each sign pattern
-  std::vector<float> scores;    // per function, without the cells common to all functions
+  std::vector<float> sorted;   // intensity medians
+  std::vector<float> varying;  // the evidence on the dictionary's varying cells
+  std::vector<float> tables;   // per group of 8 varying cells: the sum for each sign pattern
+  std::vector<float> scores;   // per function, without the cells common to all functions
   // Of the last decode_prepared that scored: what the cells common to every function add, and
   // the sum of the evidence's magnitudes (a function's normalised score is (scores + common) /
   // total).
