@@ -60,6 +60,17 @@ DetectorLimits derive_limits(const DetectorOptions& o,
   return l;
 }
 
+std::string_view Detector::other_family_of(const ScanResult& result,
+                                           const ClusterDiagnostic& c) const {
+  if (c.rejection != Rejection::kOtherFamily || c.candidate < 0 ||
+      static_cast<size_t>(c.candidate) >= result.candidates.size()) {
+    return {};
+  }
+  const int k = result.candidates[static_cast<size_t>(c.candidate)].other_family;
+  if (k < 0 || static_cast<size_t>(k) >= decoys_.size()) return {};
+  return decoys_[static_cast<size_t>(k)].family().name;
+}
+
 Detector::Detector(DetectorOptions options) : opt_(std::move(options)) {
   validate_options(opt_);
   try {

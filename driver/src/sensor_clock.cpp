@@ -1,5 +1,7 @@
 #include "lidartag/driver/sensor_clock.hpp"
 
+#include <cstdlib>
+
 namespace lidartag::velodyne {
 namespace {
 constexpr int64_t kHourNs = 3'600'000'000'000LL;
@@ -8,10 +10,6 @@ constexpr int64_t kDayNs = 24 * kHourNs;
 constexpr int64_t kGpsEraNs = 1024 * 7 * kDayNs;  // the week counter's rollover
 // Receive times before 2020 are no reference for the GPS era (a host clock without RTC or NTP).
 constexpr int64_t kPlausibleHostNs = 1'577'836'800LL * 1'000'000'000LL;
-
-int64_t absolute(int64_t v) {
-  return v < 0 ? -v : v;
-}
 }  // namespace
 
 int64_t join_hour(uint32_t usec_since_hour, int64_t reference_ns) {
@@ -37,18 +35,18 @@ void SensorClock::update(const PositionPacket& position, int64_t receive_ns) {
     // over (a fix in 2004 for 2023). Another offset (a capture replayed years later) is kept.
     const int64_t off = receive_ns - fix;
     const int64_t eras = (off + (off >= 0 ? kGpsEraNs / 2 : -kGpsEraNs / 2)) / kGpsEraNs;
-    if (eras != 0 && absolute(off - eras * kGpsEraNs) < kDayNs) {
+    if (eras != 0 && std::abs(off - eras * kGpsEraNs) < kDayNs) {
       fix += eras * kGpsEraNs;
       ++eras_;
     }
   }
   if (have_gps_) {
     const int64_t carried = gps_reference_ns_ + (receive_ns - gps_host_ns_);
-    if (absolute(fix - carried) > kMaxJumpNs) {
+    if (std::abs(fix - carried) > kMaxJumpNs) {
       // Adopted only once kConfirmFixes fixes in a row agree on the new time.
       const int64_t offset = fix - receive_ns;
       pending_ =
-          pending_ > 0 && absolute(offset - pending_offset_ns_) <= kMaxJumpNs ? pending_ + 1 : 1;
+          pending_ > 0 && std::abs(offset - pending_offset_ns_) <= kMaxJumpNs ? pending_ + 1 : 1;
       pending_offset_ns_ = offset;
       if (pending_ < kConfirmFixes) {
         ++rejected_;

@@ -82,17 +82,6 @@ nlohmann::json vec(const Eigen::Vector3d& v) {
 }
 
 // Clusters with enough features to be a tag (the many tiny ones are left out).
-// " (tag36h11 fits better)" for a cluster rejected as another family's tag, naming it.
-std::string other_family_note(const det::ScanResult& r, const det::ClusterDiagnostic& c,
-                              const det::Detector& detector) {
-  if (c.rejection != det::Rejection::kOtherFamily || c.candidate < 0 ||
-      static_cast<size_t>(c.candidate) >= r.candidates.size())
-    return {};
-  const std::string_view name =
-      detector.decoy_family_name(r.candidates[static_cast<size_t>(c.candidate)].other_family);
-  return name.empty() ? std::string() : fmt::format(" ({} fits better)", name);
-}
-
 bool explained(const det::ClusterDiagnostic& c) {
   return c.rejection != det::Rejection::kFewFeatures;
 }
@@ -252,7 +241,7 @@ void print_rotation(size_t n, const Scan& scan, const Reported& rep, const det::
     if (c.coverage >= 0) fmt::print(", coverage {:.2f}", c.coverage);
     if (c.score >= 0) fmt::print(", score {:.2f} margin {:.2f}", c.score, c.margin);
     fmt::print(" -> {}/{}{}\n", det::rejection_stage(c.rejection), det::rejection_name(c.rejection),
-               other_family_note(r, c, detector));
+               other_family_note(detector.other_family_of(r, c)));
   }
 }
 

@@ -164,7 +164,8 @@ std::string measured(const det::ClusterDiagnostic& c) {
 
 // A cluster: in its decoded frame with the best code when it reached decoding, else in the plane
 // of its points with a marker of the configured size nearest to what was measured, for scale.
-// `other_family`: for a cluster rejected as another family's tag, the family that fits better.
+// `other_family`: for a cluster rejected as another family's tag, the family that fits better
+// (Detector::other_family_of).
 draw::CloseUp cluster_view(const det::ScanResult& result, int index,
                            const det::DetectorOptions& options, Families& families,
                            std::string_view other_family) {
@@ -175,10 +176,7 @@ draw::CloseUp cluster_view(const det::ScanResult& result, int index,
       c.rejection == det::Rejection::kNone
           ? "accepted"
           : fmt::format("rejected at {}: {}{}", det::rejection_stage(c.rejection),
-                        det::rejection_name(c.rejection),
-                        c.rejection == det::Rejection::kOtherFamily && !other_family.empty()
-                            ? fmt::format(" ({} fits better)", other_family)
-                            : std::string());
+                        det::rejection_name(c.rejection), other_family_note(other_family));
   v.title = {fmt::format("cluster {}: {}", index, verdict), measured(c)};
   if (c.candidate >= 0) {
     const det::Candidate& k = result.candidates[static_cast<size_t>(c.candidate)];
@@ -314,12 +312,8 @@ int run_render(const RenderArgs& args) {
         c.rejection != det::Rejection::kNone &&
         static_cast<int>(det::stage_of(c.rejection)) >= static_cast<int>(det::Stage::kPlane);
     if (!(asked || (args.cluster < 0 && candidate))) continue;
-    const std::string_view other_family =
-        c.candidate >= 0 && static_cast<size_t>(c.candidate) < result.candidates.size()
-            ? detector.decoy_family_name(
-                  result.candidates[static_cast<size_t>(c.candidate)].other_family)
-            : std::string_view();
-    draw::CloseUp v = cluster_view(result, static_cast<int>(i), options, families, other_family);
+    draw::CloseUp v = cluster_view(result, static_cast<int>(i), options, families,
+                                   detector.other_family_of(result, c));
     v.title.push_back(fmt::format("{}, rotation {}", name, args.rotation));
     std::string what = fmt::format("cluster {} (", i);
     what += c.rejection == det::Rejection::kNone

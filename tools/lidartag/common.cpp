@@ -18,6 +18,10 @@
 
 namespace lidartag::cli {
 
+std::string other_family_note(std::string_view family) {
+  return family.empty() ? std::string() : fmt::format(" ({} fits better)", family);
+}
+
 CLI::Validator length_in_metres() {
   return CLI::Validator(
       [](std::string& text) -> std::string {

@@ -4,6 +4,7 @@
 #include <cstddef>
 #include <optional>
 #include <string>
+#include <string_view>
 
 #include "lidartag/cli11.hpp"
 #include "lidartag/driver/io/capture_reader.hpp"
@@ -51,6 +52,10 @@ bool is_pcd(const std::string& path);
 // come from a `ring` field or are regressed from the elevations (--model's beam table, or `rings`
 // beams estimated from the cloud). Throws velodyne::IoError naming the file.
 void load_pcd_scan(const CaptureArgs& args, int rings, double resolution_deg, Scan& scan);
+
+// " (tag36h11 fits better)" after a rejection of other_family that names the family
+// (Detector::other_family_of); "" when it names none.
+std::string other_family_note(std::string_view family);
 
 // A length option given in metres, or with its unit as everywhere a length is taken ("0.8",
 // "800mm", "80cm", "31.5in"): rewritten to metres before CLI11 converts it; a text that is not a

@@ -50,12 +50,9 @@ class Detector {
   const DetectorLimits& limits() const { return limits_; }
   // One per configured family, in DetectorOptions::families order.
   const std::vector<RkhsDictionary>& dictionaries() const { return dicts_; }
-  // The name of the built-in family Candidate::other_family names ("" for -1 or out of range).
-  std::string_view decoy_family_name(int index) const {
-    return index >= 0 && static_cast<size_t>(index) < decoys_.size()
-               ? std::string_view(decoys_[static_cast<size_t>(index)].family().name)
-               : std::string_view();
-  }
+  // For a cluster rejected as another family's tag, the built-in family that fits it better
+  // (its candidate's Candidate::other_family); empty otherwise.
+  std::string_view other_family_of(const ScanResult& result, const ClusterDiagnostic& c) const;
 
   // Detects the tags of one rotation into `out` (cleared first). Never throws; reuses the
   // detector's buffers, so it does not allocate once they have grown to the scene. A scan whose

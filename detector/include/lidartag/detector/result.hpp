@@ -116,7 +116,7 @@ struct Candidate {
   // every shift (below min_score: at the best shift only); -1 when not decoded (check off, score
   // below decode.other_family_min_score, or nothing could be scored).
   double other_family_score = -1.0;
-  // The built-in family that scored other_family_score (Detector::decoy_family_name); -1 none.
+  // The built-in family that scored other_family_score (Detector::other_family_of); -1 none.
   int other_family = -1;
   // The outline placed the tag along one axis only (a square mount): decoding chose the shift
   // along the other, so votes and scores agree with the decoder by construction there.
