@@ -176,8 +176,8 @@ std::string HealthMonitor::ended_reason(const HealthSample& s) const {
   }
   if (s.publish_failures > 0) add(fmt::format("{} LCM messages not published", s.publish_failures));
   if (s.dropped_behind > 0) {
-    add(fmt::format("{} rotations dropped: detection was slower than the source",
-                    s.dropped_behind));
+    add(fmt::format("{} rotation{} dropped: detection was slower than the source", s.dropped_behind,
+                    s.dropped_behind == 1 ? "" : "s"));
   }
   const uint64_t expected = s.decoded + s.missing;
   if (expected >= 100 &&

@@ -221,13 +221,13 @@ TEST(Replay, TheQuickStartOfTheDocsPrintsWhatTheDaemonPrints) {
 TEST(Replay, FallingBehindDropsTheOldestRotationsAndCountsThem) {
   REQUIRE_DEMO();
   // One worker, one waiting rotation, no waiting for the detector, and a detector made slow on
-  // purpose (20,000 RANSAC hypotheses per plane: tens of ms per rotation): decoding at full speed
-  // outruns detection, so rotations must be dropped (and nothing queue). With the default detector
-  // (about 1 ms per rotation) a fast machine kept up with the decoder in some runs.
+  // purpose: a million line hypotheses per tag edge (a fixed count; the plane fit's hypotheses stop
+  // adaptively, so raising them did not slow it reliably) costs tens of ms per rotation, while the
+  // whole capture decodes in a few ms. Rotations must be dropped (and nothing queue).
   const std::string log = temp("drop.lcmlog");
   Process p({kDaemon, "--config", kDemoConfig, "--replay", kDemo, "--max-speed", "--workers", "1",
              "--set", "pipeline.queue_depth=1", "--set", "pipeline.publish_queue=1", "--set",
-             "pipeline.lossless_replay=false", "--set", "detector.plane.iterations=20000",
+             "pipeline.lossless_replay=false", "--set", "detector.corners.line_iterations=1000000",
              "--lcm-url", "file://" + log + "?mode=w"},
             {}, temp("drop"));
   ASSERT_EQ(p.wait(120s), 0) << p.err();
