@@ -147,7 +147,7 @@ void LinePrinter::print(const std::string& line) {
 
 std::string detections_line(const std::string& sensor, const RotationResult& r) {
   const auto& detections = r.detection.detections;
-  std::string line = fmt::format("{} #{} {} tag{}", sensor, r.sequence, detections.size(),
+  std::string line = fmt::format("{} rotation {}: {} tag{}", sensor, r.sequence, detections.size(),
                                  detections.size() == 1 ? "" : "s");
   for (size_t i = 0; i < detections.size(); ++i) {
     const auto& d = detections[i];

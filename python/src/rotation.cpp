@@ -386,7 +386,7 @@ from above, seconds from the rotation's first firing.)")
       .def("__len__", [](const Rotation& r) { return r.scan.point_count(); })
       .def("__repr__", [](const Rotation& r) {
         const std::string model = model_name(r.scan);
-        return "<lidartag.Rotation #" + std::to_string(r.scan.sequence) + " " +
+        return "<lidartag.Rotation " + std::to_string(r.scan.sequence) + " " +
                (model.empty() ? "?" : model) + " stamp " +
                std::to_string(static_cast<double>(r.scan.stamp_ns) * 1e-9) + " s, " +
                std::to_string(r.scan.point_count()) + " points, " +

@@ -40,6 +40,9 @@ nlohmann::json truth_to_json(const Truth& truth) {
     }
     rotations.push_back(
         {{"index", r.index},
+         // The number the driver gives it (lidartag detect, dump, the daemon, Python): the run
+         // starts with a partial rotation, number 0.
+         {"sequence", r.index + 1},
          {"stamp", static_cast<double>(r.stamp_ns) * 1e-9},
          {"stamp_ns", r.stamp_ns},
          {"sensor",

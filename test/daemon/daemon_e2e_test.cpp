@@ -183,7 +183,7 @@ TEST(Replay, DemoIntoAnLcmLogEveryRotationInOrderWithTheTruthTags) {
   const auto lines = lines_of(p.out());
   ASSERT_EQ(lines.size(), d.detections.size());
   for (size_t i = 0; i < lines.size(); ++i) {
-    EXPECT_EQ(lines[i].rfind("demo #" + std::to_string(i) + " ", 0), 0u) << lines[i];
+    EXPECT_EQ(lines[i].rfind("demo rotation " + std::to_string(i) + ": ", 0), 0u) << lines[i];
   }
 }
 
@@ -200,11 +200,11 @@ TEST(Replay, TheQuickStartOfTheDocsPrintsWhatTheDaemonPrints) {
       in_block = true;
     } else if (in_block && line.rfind("```", 0) == 0) {
       break;
-    } else if (in_block && line.rfind("# demo #", 0) == 0) {
+    } else if (in_block && line.rfind("# demo rotation ", 0) == 0) {
       documented.push_back(line.substr(2));
     }
   }
-  ASSERT_GE(documented.size(), 2u) << "no '# demo #' lines under the Quick start command";
+  ASSERT_GE(documented.size(), 2u) << "no '# demo rotation' lines under the Quick start command";
   // The documented command; the same capture by its absolute path, LCM in memory.
   Process p({kDaemon, "--config", kDemoConfig, "--max-speed", "--print-detections", "--replay",
              kDemo, "--lcm-url", "memq://"},

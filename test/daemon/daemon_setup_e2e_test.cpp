@@ -307,7 +307,7 @@ TEST(Signals, PrintDetectionsIntoAPipeWhoseReaderGoesAwayEndsCleanly) {
              "--print-detections"},
             {}, temp("head"));
   EXPECT_EQ(p.wait(60s), 0) << p.err();  // not 141 (killed by SIGPIPE)
-  EXPECT_EQ(lines_of(p.out()), std::vector<std::string>{"demo #0 0 tags"});
+  EXPECT_EQ(lines_of(p.out()), std::vector<std::string>{"demo rotation 0: 0 tags"});
   const std::string err = p.err();
   EXPECT_NE(err.find("--print-detections: standard output was closed"), std::string::npos) << err;
   EXPECT_NE(err.find("SIGPIPE (standard output closed): stopping"), std::string::npos) << err;

@@ -448,7 +448,9 @@ TEST(CaptureReader, CountersGoOnAcrossAModelChange) {
   CaptureReader reader(std::move(owned), {});
   uint64_t max_missing = 0, max_rotations = 0;
   bool fell = false;
-  while (reader.next()) {
+  std::vector<uint64_t> sequences;
+  while (const Scan* scan = reader.next()) {
+    sequences.push_back(scan->sequence);
     const BatcherStats b = reader.batcher_stats();
     fell = fell || b.missing_packets < max_missing || b.rotations < max_rotations;
     max_missing = std::max(max_missing, b.missing_packets);
@@ -457,6 +459,11 @@ TEST(CaptureReader, CountersGoOnAcrossAModelChange) {
   EXPECT_EQ(reader.model(), Model::kVLP32C);
   EXPECT_FALSE(fell);
   EXPECT_GE(reader.batcher_stats().missing_packets, 200u);  // the VLP-16's 226 lost packets
+  // Rotations are numbered on across the change: dump names its files by these numbers, and the
+  // daemon's consumers see them in order.
+  ASSERT_GE(sequences.size(), 20u);
+  for (size_t i = 1; i < sequences.size(); ++i)
+    EXPECT_EQ(sequences[i], sequences[i - 1] + 1) << "rotation " << i;
 }
 
 TEST(CaptureReader, AConfiguredModelThePacketsContradictIsReported) {

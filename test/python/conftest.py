@@ -34,6 +34,14 @@ def demo_rotations(demo):
 
 
 @pytest.fixture(scope="session")
+def lidartag_cli():
+    path = os.environ.get("LIDARTAG_CLI")
+    if not path or not os.path.exists(path):
+        pytest.skip("LIDARTAG_CLI (the built lidartag tool) not given")
+    return path
+
+
+@pytest.fixture(scope="session")
 def lidartagd():
     path = os.environ.get("LIDARTAGD")
     if not path or not os.path.exists(path):

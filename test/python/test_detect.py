@@ -1,4 +1,6 @@
 """The detector with the options of lidartagd's YAML, its detections with numpy poses."""
+import json
+
 import numpy as np
 import pytest
 
@@ -22,6 +24,40 @@ def test_detections_of_the_demo_match_its_truth(demo_rotations, truth):
         assert set(result.timing_ms) == {"features", "clustering", "validation", "plane",
                                          "corners", "pose", "decode"}
         assert result.total_ms == pytest.approx(sum(result.timing_ms.values()))
+
+
+def test_python_and_the_cli_name_and_number_things_alike(demo, demo_rotations, lidartag_cli):
+    # One name per thing: a rotation is its sequence number, lengths are *_m, in the CLI's JSON as
+    # in Python (and LCM); the same rotation gives the same values under the same names.
+    import subprocess
+    out = subprocess.run([lidartag_cli, "detect", str(demo), "--tag-size", "0.8", "--tag-size",
+                          "0.6", "--json", "--clusters", "--no-tracker"],
+                         check=True, capture_output=True, text=True).stdout
+    lines = [json.loads(line) for line in out.splitlines()]
+    detector = lidartag.Detector(DEMO_SIZES, diagnostics=True)
+    complete = [r for r in demo_rotations if r.complete]
+    assert [j["sequence"] for j in lines] == [r.sequence for r in complete]
+    assert lines[0]["sequence"] == 1  # rotation 0 is the capture's leading partial one
+    cli, rotation = lines[0], complete[0]
+    assert repr(rotation).startswith(f"<lidartag.Rotation {rotation.sequence} ")
+    result = detector.detect(rotation)
+    assert result.sequence == cli["sequence"]
+    assert len(result) == len(cli["detections"]) == 2
+    for j in cli["detections"]:
+        d = next(d for d in result if d.id == j["id"])
+        for key, value in j.items():
+            assert hasattr(d, key), f"the CLI's detection key '{key}' is not a Detection attribute"
+            if isinstance(value, (int, float, str)):
+                assert getattr(d, key) == pytest.approx(value), key
+    diagnostics = result.diagnostics
+    for j in cli["cluster_diagnostics"]:
+        d = diagnostics[j["index"]]
+        for key in ("features", "points", "boundary_points", "outlier_ratio", "side_m",
+                    "mean_cost_m", "coverage", "score", "margin"):
+            if key in j:
+                assert key in d, f"the CLI's cluster key '{key}' is not in Python's diagnostics"
+                assert d[key] == pytest.approx(j[key], rel=1e-6, abs=1e-9), key
+        assert set(j) - {"index", "result", "stage", "box", "rings"} <= set(d), set(j) - set(d)
 
 
 def test_a_detection_is_a_consistent_pose(demo_rotations):

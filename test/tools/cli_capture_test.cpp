@@ -132,9 +132,12 @@ TEST(CliDump, WritesOnePcdPerCompleteRotation) {
   const Result r = run_tool("dump " + capture + " --out " + out);
   ASSERT_EQ(r.exit_code, 0) << r.out;
   size_t files = 0, points = 0;
-  for (; fs::exists(out + "/scan_00000" + std::to_string(files) + ".pcd"); ++files) {
+  // Named by the rotation's number: the first complete one is rotation 1 (0 is the partial one).
+  EXPECT_FALSE(fs::exists(out + "/rotation_000000.pcd"));
+  for (; fs::exists(out + "/rotation_00000" + std::to_string(files + 1) + ".pcd"); ++files) {
     const auto cloud =
-        lidartag::velodyne::read_pcd(out + "/scan_00000" + std::to_string(files) + ".pcd");
+        lidartag::velodyne::read_pcd(out + "/rotation_00000" + std::to_string(files + 1) + ".pcd");
+    EXPECT_EQ(cloud.rotation.sequence, files + 1);
     EXPECT_GT(cloud.size(), 10000u);
     const auto& ring = cloud.field("ring");
     EXPECT_EQ(*std::max_element(ring.begin(), ring.end()), 15.0);
@@ -159,11 +162,11 @@ TEST(CliDump, PartialAlsoWritesTheIncompleteRotations) {
   ASSERT_EQ(r.exit_code, 0) << r.out;
   size_t points = 0;
   for (int i = 0; i < 5; ++i) {
-    const std::string file = dir.str() + "/scan_00000" + std::to_string(i) + ".pcd";
+    const std::string file = dir.str() + "/rotation_00000" + std::to_string(i) + ".pcd";
     ASSERT_TRUE(fs::exists(file)) << file;
     points += lidartag::velodyne::read_pcd(file).size();
   }
-  EXPECT_FALSE(fs::exists(dir.str() + "/scan_000005.pcd"));
+  EXPECT_FALSE(fs::exists(dir.str() + "/rotation_000005.pcd"));
   const nlohmann::json j = info_json(capture);
   EXPECT_EQ(points, j["rotations"]["points"].get<size_t>());
 }

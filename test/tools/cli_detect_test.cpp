@@ -66,7 +66,7 @@ void expect_matches_truth(const nlohmann::json& detections, const nlohmann::json
       if (d["id"] == tag["id"] && d["family"] == tag["family"]) match = &d;
     ASSERT_NE(match, nullptr) << where << ": tag " << tag["id"];
     const auto& d = *match;
-    EXPECT_DOUBLE_EQ(d["size"].get<double>(), tag["size"].get<double>()) << where;
+    EXPECT_DOUBLE_EQ(d["size_m"].get<double>(), tag["size"].get<double>()) << where;
     EXPECT_LT(dist(d["position"], tag["position"]), 0.02) << where << ": tag " << tag["id"];
     EXPECT_LT(angle_deg(d["orientation"], tag["orientation"]), 2.0) << where;
     ASSERT_EQ(d["corners"].size(), 4u);
@@ -93,9 +93,12 @@ TEST(CliDetect, JsonOfTheDemoCaptureMatchesItsTruth) {
   while (std::getline(lines, line)) {
     const auto j = nlohmann::json::parse(line, nullptr, false);
     ASSERT_FALSE(j.is_discarded()) << "not one JSON object per line: " << line;
-    EXPECT_EQ(j["scan"].get<size_t>(), n);
     ASSERT_LT(n, truth["rotations"].size());
     const auto& t = truth["rotations"][n];
+    // Rotations by their number, as dump, the daemon, Python and the simulator's truth give it:
+    // rotation 0 is the capture's leading partial one, so the first complete one is 1.
+    EXPECT_EQ(j["sequence"].get<size_t>(), n + 1);
+    EXPECT_EQ(j["sequence"], t["sequence"]);
     EXPECT_NEAR(j["stamp"].get<double>(), t["stamp"].get<double>(), 1e-3);
     EXPECT_GT(j["points"].get<int>(), 50000);
     for (const char* stage :
@@ -212,7 +215,7 @@ TEST(CliDetect, PcdWithRingsAndWithout) {
   TempDir dir;
   const Result dump = run_tool("dump " + kDemo + " --out " + (dir / "scans").string());
   ASSERT_EQ(dump.exit_code, 0) << dump.out;
-  const std::string with_rings = (dir / "scans" / "scan_000000.pcd").string();
+  const std::string with_rings = (dir / "scans" / "rotation_000001.pcd").string();
   const auto truth = demo_truth();
 
   Result r = run_tool("detect " + with_rings + " --tag-size 0.8 --tag-size 0.6 --json", false);
@@ -275,7 +278,7 @@ TEST(CliDetect, PcdsOfEveryFormatAndLayoutKeepTheStampAndTheTags) {
     const std::string out = (dir / (organized ? "organized" : "flat")).string();
     r = run_tool("dump " + kDemo + " --out " + out + (organized ? " --organized" : ""));
     ASSERT_EQ(r.exit_code, 0) << r.out;
-    files.push_back(out + "/scan_000000.pcd");
+    files.push_back(out + "/rotation_000001.pcd");
   }
   const lidartag::Scan scan = first_demo_rotation();
   const auto organized = lidartag::velodyne::read_pcd(files[1]);

@@ -168,14 +168,14 @@ TEST(CliTruncatedCapture, TheMessageNamesPartial) {
   EXPECT_TRUE(contains(r.err, "--partial detects in them")) << r.err;
   r = run_split(kCli + " detect --partial --json " + cut);
   EXPECT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_TRUE(contains(r.out, "\"scan\":0")) << r.out;
+  EXPECT_TRUE(contains(r.out, "\"sequence\":0")) << r.out;
 
   r = run_split(kCli + " dump " + cut + " --out " + (dir / "a"));
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_TRUE(contains(r.err, "--partial writes them")) << r.err;
   r = run_split(kCli + " dump --partial " + cut + " --out " + (dir / "b"));
   EXPECT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_TRUE(fs::exists(dir / "b/scan_000000.pcd"));
+  EXPECT_TRUE(fs::exists(dir / "b/rotation_000000.pcd"));
 
   // Nothing on the data port at all: the counts say why.
   r = run_split(kCli + " detect " + cut + " --data-port 9");
@@ -188,24 +188,33 @@ TEST(CliDump, RefusesANonEmptyFolderAndForceRemovesOnlyItsOwnFiles) {
   const std::string out = dir / "scans";
   fs::create_directories(out);
   write_file(out + "/notes.txt", "keep me");
-  write_file(out + "/scan_000042.pcd", "an old rotation");
+  write_file(out + "/scan_000042.pcd", "an old rotation (the name earlier builds wrote)");
+  write_file(out + "/rotation_000043.pcd", "an old rotation");
   write_file(out + "/scan_0001.pcd", "not a name dump writes");
 
   Result r = run_split(kCli + " dump " + kDemo + " --out " + out);
   EXPECT_EQ(r.exit_code, 2);
-  EXPECT_TRUE(contains(r.err, "is not empty (1 scan_*.pcd file, 2 other entries)")) << r.err;
+  EXPECT_TRUE(contains(r.err, "is not empty (2 PCD files of an earlier dump, 2 other entries)"))
+      << r.err;
   EXPECT_TRUE(contains(r.err, "--force")) << r.err;
   EXPECT_TRUE(fs::exists(out + "/scan_000042.pcd"));
-  EXPECT_FALSE(fs::exists(out + "/scan_000000.pcd"));
+  EXPECT_FALSE(fs::exists(out + "/rotation_000001.pcd"));
 
   r = run_split(kCli + " dump " + kDemo + " --out " + out + " --force");
   EXPECT_EQ(r.exit_code, 0) << r.err;
   EXPECT_EQ(read_file(out + "/notes.txt"), "keep me");
   EXPECT_TRUE(fs::exists(out + "/scan_0001.pcd"));
   EXPECT_FALSE(fs::exists(out + "/scan_000042.pcd"));
-  for (int i = 0; i < 10; ++i)
-    EXPECT_TRUE(fs::exists(out + "/scan_00000" + std::to_string(i) + ".pcd")) << i;
-  EXPECT_FALSE(fs::exists(out + "/scan_000010.pcd"));
+  EXPECT_FALSE(fs::exists(out + "/rotation_000043.pcd"));
+  // The demo's complete rotations are 1 to 10 (0 and 11 are its partial ends).
+  for (int i = 1; i <= 10; ++i) {
+    const std::string number = std::to_string(i);
+    EXPECT_TRUE(
+        fs::exists(out + "/rotation_" + std::string(6 - number.size(), '0') + number + ".pcd"))
+        << i;
+  }
+  EXPECT_FALSE(fs::exists(out + "/rotation_000000.pcd"));
+  EXPECT_FALSE(fs::exists(out + "/rotation_000011.pcd"));
   EXPECT_TRUE(contains(r.out, "wrote 10 PCD files")) << r.out;
 
   // A new folder, or an empty one, needs no --force.

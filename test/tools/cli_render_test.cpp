@@ -68,8 +68,10 @@ nlohmann::json detect_rotation(const std::string& args, int rotation) {
   EXPECT_EQ(r.exit_code, 0) << r.err;
   std::istringstream lines(r.out);
   std::string line;
-  for (int n = 0; std::getline(lines, line); ++n)
-    if (n == rotation) return nlohmann::json::parse(line);
+  while (std::getline(lines, line)) {
+    nlohmann::json j = nlohmann::json::parse(line);
+    if (j["sequence"] == rotation) return j;
+  }
   return {};
 }
 
@@ -241,7 +243,7 @@ TEST(CliRender, CloseUpsShowTheDecodedCodeAtTheTagsSize) {
 // measured, so that the picture shows why.
 TEST(CliRender, ATagNotFoundIsDrawnFromItsRejectedCluster) {
   TempDir dir;
-  const nlohmann::json rotation = detect_rotation(kDemo, 0);
+  const nlohmann::json rotation = detect_rotation(kDemo, 1);
   ASSERT_TRUE(rotation["detections"].empty());
   std::vector<nlohmann::json> rejected;  // reached the plane fit or later: each gets a close-up
   for (const auto& c : rotation["cluster_diagnostics"])
@@ -256,7 +258,7 @@ TEST(CliRender, ATagNotFoundIsDrawnFromItsRejectedCluster) {
   for (size_t k = 0; k < rejected.size(); ++k) {
     const auto& c = rejected[k];
     SCOPED_TRACE("cluster " + c["index"].dump());
-    EXPECT_EQ(pics[k + 1].file, dir / ("demo-rotation0-cluster" + c["index"].dump() + ".png"));
+    EXPECT_EQ(pics[k + 1].file, dir / ("demo-rotation1-cluster" + c["index"].dump() + ".png"));
     const std::string stage = c["stage"], result = c["result"];
     EXPECT_NE(r.out.find("cluster " + c["index"].dump() + " (" + stage + "/" + result + ")"),
               std::string::npos);
@@ -286,7 +288,7 @@ TEST(CliRender, ATagNotFoundIsDrawnFromItsRejectedCluster) {
       return double(on) / n;
     };
     EXPECT_GT(dashed(1.2, draw::kFittedSquare), 0.4);
-    EXPECT_GT(dashed(c["side"].get<double>(), draw::kMeasuredSide), 0.4);
+    EXPECT_GT(dashed(c["side_m"].get<double>(), draw::kMeasuredSide), 0.4);
     // Every point lies inside the 1.2 m marker: the band outside it (below the title, above the
     // legend) is empty.
     const double half = 0.6 * p.px_per_m;
@@ -340,7 +342,7 @@ TEST(CliRender, ADecodeRejectionShowsTheBestCodeAndTheCellsRead) {
 
 TEST(CliRender, OneClusterAskedFor) {
   TempDir dir;
-  const nlohmann::json rotation = detect_rotation(kDemo + kSizes, 0);
+  const nlohmann::json rotation = detect_rotation(kDemo + kSizes, 1);
   int accepted = -1;
   for (const auto& c : rotation["cluster_diagnostics"])
     if (c["result"] == "accepted" && accepted < 0) accepted = c["index"].get<int>();
@@ -350,14 +352,14 @@ TEST(CliRender, OneClusterAskedFor) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto pics = pictures(r.out);
   ASSERT_EQ(pics.size(), 2u) << r.out;  // the bird's-eye view and that cluster
-  EXPECT_EQ(pics[1].file, dir / ("one-rotation0-cluster" + std::to_string(accepted) + ".png"));
+  EXPECT_EQ(pics[1].file, dir / ("one-rotation1-cluster" + std::to_string(accepted) + ".png"));
   EXPECT_NE(r.out.find("(accepted, best tag16h5 id "), std::string::npos) << r.out;
 }
 
 TEST(CliRender, RotationRangeSizePrefixAndPcdInput) {
   TempDir dir;
-  Result r = run_split(kCli + " render " + kDemo + kSizes + " --rotation 9 --range 3 --size 400 " +
-                       "-o " + dir.str() + "/");
+  Result r = run_split(kCli + " render " + kDemo + kSizes +
+                       " --rotation 9 --range 300cm --size 400 " + "-o " + dir.str() + "/");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   auto pics = pictures(r.out);
   ASSERT_EQ(pics.size(), 3u);
@@ -367,21 +369,26 @@ TEST(CliRender, RotationRangeSizePrefixAndPcdInput) {
   EXPECT_EQ(small.width, 400);
   EXPECT_EQ(read_png(pics[1].file).width, 320);
 
-  // A PCD of rotation 0 gives the same tags.
+  // A PCD of rotation 1 (the first complete one) gives the same tags, named by the same number.
   ASSERT_EQ(run_split(kCli + " dump " + kDemo + " --out " + (dir / "pcd")).exit_code, 0);
-  r = run_split(kCli + " render " + (dir / "pcd/scan_000000.pcd") + kSizes + " -o " +
+  r = run_split(kCli + " render " + (dir / "pcd/rotation_000001.pcd") + kSizes + " -o " +
                 (dir / "cloud"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
   pics = pictures(r.out);
   ASSERT_EQ(pics.size(), 3u) << r.out;
-  EXPECT_EQ(pics[1].file, dir / "cloud-rotation0-tag16h5-0.png");
+  EXPECT_EQ(pics[1].file, dir / "cloud-rotation1-tag16h5-0.png");
 }
 
 TEST(CliRender, BadArgumentsAreUsageErrors) {
   TempDir dir;
-  Result r = run_split(kCli + " render " + kDemo + " --rotation 10 -o " + (dir / "x"));
+  // Rotations by number: the demo has 0 to 11, the first and the last incomplete.
+  Result r = run_split(kCli + " render " + kDemo + " --rotation 12 -o " + (dir / "x"));
   EXPECT_EQ(r.exit_code, 2);
-  EXPECT_NE(r.err.find("has 10 complete rotations (0-9)"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("has rotations 0-11"), std::string::npos) << r.err;
+  r = run_split(kCli + " render " + kDemo + " --rotation 11 -o " + (dir / "x"));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("rotation 11 of " + kDemo + " is incomplete"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--partial draws it"), std::string::npos) << r.err;
   r = run_split(kCli + " render " + kDemo + " --cluster 100000 -o " + (dir / "x"));
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.err.find("detect --clusters"), std::string::npos) << r.err;
@@ -398,7 +405,7 @@ TEST(CliRender, BadArgumentsAreUsageErrors) {
   fs::remove(dir / "xyz.pcd");
   r = run_split(kCli + " render " + kDemo + " -o /nonexistent-dir/x");
   EXPECT_EQ(r.exit_code, 1);
-  EXPECT_NE(r.err.find("/nonexistent-dir/x-rotation0.png"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("/nonexistent-dir/x-rotation1.png"), std::string::npos) << r.err;
   EXPECT_TRUE(fs::is_empty(dir.str()));
 }
 

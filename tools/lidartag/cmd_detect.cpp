@@ -97,8 +97,8 @@ nlohmann::json cluster_json(size_t index, const det::ClusterDiagnostic& c) {
   o["points"] = c.points;
   o["boundary_points"] = c.boundary_points;
   const std::pair<const char*, double> measured[] = {
-      {"outlier_ratio", c.outlier_ratio}, {"side", c.side_m}, {"mean_cost", c.mean_cost_m},
-      {"coverage", c.coverage},           {"score", c.score}, {"margin", c.margin}};
+      {"outlier_ratio", c.outlier_ratio}, {"side_m", c.side_m}, {"mean_cost_m", c.mean_cost_m},
+      {"coverage", c.coverage},           {"score", c.score},   {"margin", c.margin}};
   for (const auto& [key, value] : measured)
     if (value >= 0) o[key] = value;
   return o;
@@ -129,10 +129,10 @@ struct Reported {
   const det::TrackerResult* tracked = nullptr;  // null: tracker off
 };
 
-nlohmann::json rotation_json(size_t n, const Scan& scan, const Reported& rep, bool clusters) {
+nlohmann::json rotation_json(const Scan& scan, const Reported& rep, bool clusters) {
   const det::ScanResult& r = *rep.result;
   nlohmann::json j;
-  j["scan"] = n;
+  j["sequence"] = scan.sequence;  // the rotation's number, as the daemon and Python give it
   j["stamp"] = static_cast<double>(scan.stamp_ns) * 1e-9;
   j["points"] = scan.point_count();
   j["features"] = r.features;
@@ -142,7 +142,7 @@ nlohmann::json rotation_json(size_t n, const Scan& scan, const Reported& rep, bo
     nlohmann::json o;
     o["family"] = std::string(d.family);
     o["id"] = d.id;
-    o["size"] = d.size_m;
+    o["size_m"] = d.size_m;
     o["position"] = vec(d.position);
     const auto& q = d.orientation;
     o["orientation"] = quaternion(q);
@@ -207,15 +207,16 @@ void print_detection(const det::Detection& d, const det::TrackedDetection* t) {
 }
 
 // With `clusters` (--clusters), every cluster with enough features to be a tag, explained.
-void print_rotation(size_t n, const Scan& scan, const Reported& rep, const det::Detector& detector,
+void print_rotation(const Scan& scan, const Reported& rep, const det::Detector& detector,
                     bool clusters) {
   const det::ScanResult& r = *rep.result;
   const size_t count = rep.tracked ? rep.tracked->tags.size() : r.detections.size();
   fmt::print(
-      "scan {:4d}  stamp {:.6f}  {:6d} points  {:5d} features  {:4d} clusters  {:7.2f} ms"
+      "rotation {:4d}  stamp {:.6f}  {:6d} points  {:5d} features  {:4d} clusters  {:7.2f} ms"
       "  {} detection{}",
-      n, static_cast<double>(scan.stamp_ns) * 1e-9, scan.point_count(), r.features, r.clusters,
-      r.total_ms() + (rep.tracked ? rep.tracked->time_ms : 0.0), count, count == 1 ? "" : "s");
+      scan.sequence, static_cast<double>(scan.stamp_ns) * 1e-9, scan.point_count(), r.features,
+      r.clusters, r.total_ms() + (rep.tracked ? rep.tracked->time_ms : 0.0), count,
+      count == 1 ? "" : "s");
   if (rep.tracked != nullptr)
     fmt::print("  {} track{} ({} confirmed){}", rep.tracked->tracks,
                rep.tracked->tracks == 1 ? "" : "s", rep.tracked->confirmed_tracks,
@@ -342,7 +343,7 @@ int run_detect(const DetectArgs& args) {
   det::TrackerResult tracked;
   Totals totals;
   totals.sizes_m = detector.options().tag_sizes_m;
-  auto report = [&](size_t n, const Scan& scan) {
+  auto report = [&](const Scan& scan) {
     detector.detect(scan, result);
     Reported rep{&result, nullptr};
     if (tracker) {
@@ -351,17 +352,17 @@ int run_detect(const DetectArgs& args) {
     }
     totals.add(rep);
     if (args.json) {
-      fmt::print("{}\n", rotation_json(n, scan, rep, args.clusters).dump());
+      fmt::print("{}\n", rotation_json(scan, rep, args.clusters).dump());
       std::fflush(stdout);
     } else {
-      print_rotation(n, scan, rep, detector, args.clusters);
+      print_rotation(scan, rep, detector, args.clusters);
     }
   };
 
   if (is_pcd(args.capture.capture)) {
     Scan scan;
     load_pcd_scan(args.capture, args.rings, args.resolution_deg, scan);
-    report(0, scan);
+    report(scan);
   } else {
     velodyne::CaptureReader reader(args.capture.capture, reader_options(args.capture));
     std::error_code ec;
@@ -369,7 +370,8 @@ int run_detect(const DetectArgs& args) {
     size_t n = 0;
     while (const Scan* scan = reader.next()) {
       if (scan->complete || args.partial) {
-        report(n++, *scan);
+        report(*scan);
+        ++n;
       } else {
         ++totals.skipped;
       }

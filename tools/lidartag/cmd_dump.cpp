@@ -30,9 +30,10 @@ struct DumpArgs {
   bool force = false;
 };
 
-// The files dump writes: scan_NNNNNN.pcd (six digits or more).
+// The files dump writes: rotation_NNNNNN.pcd, NNNNNN the rotation's sequence number (six digits or
+// more); scan_NNNNNN.pcd is what earlier builds wrote (--force removes those too).
 bool is_dump_file(const fs::path& p) {
-  static const std::regex pattern(R"(scan_[0-9]{6,}\.pcd)");
+  static const std::regex pattern(R"((rotation|scan)_[0-9]{6,}\.pcd)");
   return std::regex_match(p.filename().string(), pattern);
 }
 
@@ -47,8 +48,8 @@ void prepare_output(const DumpArgs& args) {
     if (ec) throw velodyne::IoError("cannot list '" + args.out + "': " + ec.message());
     if (ours + others > 0 && !args.force) {
       throw UsageError(fmt::format(
-          "output folder '{}' is not empty ({} scan_*.pcd file{}, {} other entr{}); choose an "
-          "empty or new folder, or --force to delete its scan_*.pcd files first",
+          "output folder '{}' is not empty ({} PCD file{} of an earlier dump, {} other entr{}); "
+          "choose an empty or new folder, or --force to delete those PCD files first",
           args.out, ours, ours == 1 ? "" : "s", others, others == 1 ? "y" : "ies"));
     }
     if (ours > 0) {
@@ -58,7 +59,8 @@ void prepare_output(const DumpArgs& args) {
           throw velodyne::IoError("cannot remove '" + entry.path().string() +
                                   "': " + (ec ? ec.message() : "not removed"));
       }
-      spdlog::info("removed {} scan_*.pcd file{} from {}", ours, ours == 1 ? "" : "s", args.out);
+      spdlog::info("removed {} PCD file{} of an earlier dump from {}", ours, ours == 1 ? "" : "s",
+                   args.out);
     }
   }
   fs::create_directories(args.out, ec);
@@ -79,8 +81,9 @@ int run_dump(const DumpArgs& args) {
       ++skipped;
       continue;
     }
+    // Named by the rotation's sequence number, as detect, the daemon and Python number it.
     const std::string path =
-        (fs::path(args.out) / fmt::format("scan_{:06d}.pcd", written)).string();
+        (fs::path(args.out) / fmt::format("rotation_{:06d}.pcd", scan->sequence)).string();
     points += velodyne::write_pcd(path, *scan, {velodyne::PcdFormat::kBinary, args.organized});
     ++written;
     progress.update(capture_bytes_read(reader), fmt::format("{} files", written));
@@ -100,8 +103,9 @@ const Registrar kDump(
       auto args = std::make_shared<DumpArgs>();
       add_capture_options(app, args->capture);
       app.add_option("--out", args->out,
-                     "Output directory (created; must be empty unless --force): scan_000000.pcd, "
-                     "scan_000001.pcd, ...")
+                     "Output directory (created; must be empty unless --force): one "
+                     "rotation_NNNNNN.pcd per rotation, NNNNNN its number (rotation_000001.pcd, "
+                     "...)")
           ->required();
       app.add_flag("--partial", args->partial,
                    "Also write incomplete rotations (first, last, lossy)");
@@ -109,7 +113,9 @@ const Registrar kDump(
                    "Organised clouds as PCL expects: WIDTH = columns, HEIGHT = rings (x returns), "
                    "NaN where a laser had no return");
       app.add_flag("--force", args->force,
-                   "Write into a non-empty directory: its scan_*.pcd files are deleted first, "
+                   "Write into a non-empty directory: the PCD files an earlier dump wrote there "
+                   "(rotation_*.pcd, "
+                   "scan_*.pcd) are deleted first, "
                    "other files are kept");
       return [args] { return run_dump(*args); };
     });

@@ -45,7 +45,7 @@ struct RenderArgs {
   std::string config;
   std::vector<double> tag_sizes;
   std::vector<std::string> families;
-  int rotation = 0;
+  int64_t rotation = -1;  // sequence number; -1: the first complete one (with --partial: the first)
   bool partial = false;
   double range_m = 0;
   int cluster = -1;
@@ -217,41 +217,51 @@ int run_render(const RenderArgs& args) {
   if (args.size_px < 200 || args.size_px > 8000)
     throw UsageError("--size must be 200 to 8000 pixels");
 
-  // The rotation, counted as `detect` counts them (complete ones, or all with --partial).
+  // The rotation by its sequence number, as detect, dump, the daemon and Python number them.
   Scan pcd_scan;
   const Scan* scan = nullptr;
   std::unique_ptr<velodyne::CaptureReader> reader;
   if (is_pcd(args.capture.capture)) {
-    if (args.rotation != 0) throw UsageError("a PCD file holds one rotation: --rotation 0");
     load_pcd_scan(args.capture, args.rings, args.resolution_deg, pcd_scan);
+    if (args.rotation >= 0 && static_cast<uint64_t>(args.rotation) != pcd_scan.sequence) {
+      throw UsageError(fmt::format("--rotation {}: a PCD file holds one rotation (rotation {})",
+                                   args.rotation, pcd_scan.sequence));
+    }
     scan = &pcd_scan;
   } else {
     reader = std::make_unique<velodyne::CaptureReader>(args.capture.capture,
                                                        reader_options(args.capture));
-    int n = 0;
-    size_t skipped = 0;
+    size_t complete = 0, skipped = 0;
+    std::optional<uint64_t> first, last;
     std::error_code ec;
     Progress progress(fs::file_size(args.capture.capture, ec));  // a late rotation of a long one
     while (const Scan* s = reader->next()) {
-      progress.update(capture_bytes_read(*reader), fmt::format("rotation {}", n));
+      progress.update(capture_bytes_read(*reader), fmt::format("rotation {}", s->sequence));
+      if (!first) first = s->sequence;
+      last = s->sequence;
+      complete += s->complete ? 1 : 0;
+      skipped += s->complete ? 0 : 1;
+      const bool wanted = args.rotation < 0 ? s->complete || args.partial
+                                            : s->sequence == static_cast<uint64_t>(args.rotation);
+      if (!wanted) continue;
       if (!s->complete && !args.partial) {
-        ++skipped;
-        continue;
+        throw UsageError(fmt::format(
+            "--rotation {}: rotation {} of {} is incomplete (a capture's first and last, or "
+            "lossy); --partial draws it",
+            args.rotation, s->sequence, args.capture.capture));
       }
-      if (n++ == args.rotation) {
-        scan = s;
-        break;
-      }
+      scan = s;
+      break;
     }
     progress.done();
     warn_model_mismatch(*reader, args.capture);
     if (scan == nullptr) {
-      require_rotations(*reader, args.capture, static_cast<size_t>(n), skipped, "renders them");
-      throw UsageError(fmt::format("--rotation {}: {} has {} {}rotation{} (0-{})", args.rotation,
-                                   args.capture.capture, n, args.partial ? "" : "complete ",
-                                   n == 1 ? "" : "s", n - 1));
+      require_rotations(*reader, args.capture, complete, skipped, "renders them");
+      throw UsageError(fmt::format("--rotation {}: {} has rotations {}-{}", args.rotation,
+                                   args.capture.capture, first.value_or(0), last.value_or(0)));
     }
   }
+  const uint64_t number = scan->sequence;
 
   det::ScanResult result;
   detector.detect(*scan, result);
@@ -259,14 +269,14 @@ int run_render(const RenderArgs& args) {
     throw UsageError(
         fmt::format("--cluster {}: rotation {} has clusters 0-{} (detect --clusters "
                     "lists them)",
-                    args.cluster, args.rotation, static_cast<int>(result.diagnostics.size()) - 1));
+                    args.cluster, number, static_cast<int>(result.diagnostics.size()) - 1));
 
   std::vector<draw::ViewCluster> clusters;
   for (size_t i = 0; i < result.diagnostics.size(); ++i)
     clusters.push_back(
         {static_cast<int>(i), &result.diagnostics[i], result.points_of(result.diagnostics[i])});
 
-  const std::string prefix = fmt::format("{}-rotation{}", output_prefix(args), args.rotation);
+  const std::string prefix = fmt::format("{}-rotation{}", output_prefix(args), number);
   const std::string name = fs::path(args.capture.capture).filename().string();
 
   draw::BirdsEyeOptions bo;
@@ -274,7 +284,7 @@ int run_render(const RenderArgs& args) {
   bo.range_m = args.range_m;
   bo.highlight = args.cluster;
   bo.title = {
-      fmt::format("{}, rotation {} (stamp {:.6f} s)", name, args.rotation,
+      fmt::format("{}, rotation {} (stamp {:.6f} s)", name, number,
                   static_cast<double>(scan->stamp_ns) * 1e-9),
       fmt::format("{} points, {} clusters, {} detection{}", scan->point_count(), result.clusters,
                   result.detections.size(), result.detections.size() == 1 ? "" : "s")};
@@ -298,7 +308,7 @@ int run_render(const RenderArgs& args) {
     for (size_t k = 0; k < result.detections.size(); ++k) {
       const det::Detection& d = result.detections[k];
       draw::CloseUp v = detection_view(result, static_cast<int>(k), families);
-      v.title.push_back(fmt::format("{}, rotation {}", name, args.rotation));
+      v.title.push_back(fmt::format("{}, rotation {}", name, number));
       write(v, fmt::format("{}-{}-{}.png", prefix, d.family, d.id),
             fmt::format("{} id {}", d.family, d.id));
     }
@@ -314,7 +324,7 @@ int run_render(const RenderArgs& args) {
     if (!(asked || (args.cluster < 0 && candidate))) continue;
     draw::CloseUp v = cluster_view(result, static_cast<int>(i), options, families,
                                    detector.other_family_of(result, c));
-    v.title.push_back(fmt::format("{}, rotation {}", name, args.rotation));
+    v.title.push_back(fmt::format("{}, rotation {}", name, number));
     std::string what = fmt::format("cluster {} (", i);
     what += c.rejection == det::Rejection::kNone
                 ? std::string("accepted")
@@ -337,18 +347,21 @@ const Registrar kRender(
       add_capture_options(app, a->capture);
       app.get_option("capture")->description("pcap or pcapng file, or a PCD point cloud");
       app.add_option("--rotation", a->rotation,
-                     "Rotation to draw, counted as detect prints them (complete ones, or all "
-                     "with --partial)")
-          ->check(CLI::NonNegativeNumber)
-          ->capture_default_str();
-      app.add_flag("--partial", a->partial, "Count incomplete rotations too (first, last, lossy)");
+                     "Rotation to draw, by its number (as detect, dump and the daemon number "
+                     "them; default: the first complete one)")
+          ->check(CLI::NonNegativeNumber);
+      app.add_flag("--partial", a->partial,
+                   "Draw an incomplete rotation too (first, last, lossy): by default the first "
+                   "rotation, complete or not");
       app.add_option("--cluster", a->cluster,
                      "Draw this cluster (its index in detect --clusters) highlighted, and its "
                      "close-up instead of the others'")
           ->check(CLI::NonNegativeNumber);
       app.add_option("--range", a->range_m,
-                     "Bird's-eye view: metres from the sensor to the picture's edge (default: "
-                     "the detections and candidates with room around them)")
+                     "Bird's-eye view: distance from the sensor to the picture's edge, metres "
+                     "or with a unit (8, 800cm; default: the detections and candidates with room "
+                     "around them)")
+          ->transform(length_in_metres())
           ->check(CLI::PositiveNumber);
       app.add_option("-o,--out", a->out,
                      "Prefix of the files (PREFIX-rotationN.png, PREFIX-rotationN-FAMILY-ID.png, "

@@ -97,7 +97,10 @@ void CaptureReader::switch_model(Model model) {
   model_ = model;
   decoder_ = std::make_unique<Decoder>(Calibration::builtin(model), options_.decoder);
   // The counters go on across the change (a status must never see them fall).
-  if (batcher_) retired_ += batcher_->stats();
+  if (batcher_) {
+    retired_ += batcher_->stats();
+    next_sequence_ = batcher_->next_sequence();
+  }
   batcher_.reset();  // the next packet makes one for the new model; scans are reshaped by it
   mismatched_epochs_ = 0;
 }
@@ -189,6 +192,7 @@ bool CaptureReader::handle(std::span<const uint8_t> payload, int64_t time_ns, ui
   ++counts_.decoded;
   if (!batcher_) {
     batcher_ = std::make_unique<ScanBatcher>(decoder_->spec(), packet_->mode, options_.batcher);
+    batcher_->continue_sequence(next_sequence_);
   }
   mode_ = packet_->mode;
   // A pause in the packets' own clock longer than flush_timeout_s makes the stream a new one for

@@ -103,6 +103,10 @@ class ScanBatcher {
   }
 
   const BatcherStats& stats() const { return stats_; }
+  // The sequence number the next rotation gets; a batcher that replaces another (a model change)
+  // goes on from it, so that rotation numbers never repeat.
+  uint64_t next_sequence() const { return sequence_; }
+  void continue_sequence(uint64_t next) { sequence_ = next; }
   // Columns a scan needs for one rotation at 300 rpm (the slowest), with margin.
   static int column_capacity(const ModelSpec& spec);
 

@@ -135,6 +135,7 @@ class CaptureReader {
   std::unique_ptr<Decoder> decoder_;
   std::unique_ptr<ScanBatcher> batcher_;
   BatcherStats retired_;                   // of the batchers of models switched away from
+  uint64_t next_sequence_ = 0;             // of a batcher switched away from
   std::unique_ptr<PacketColumns> packet_;  // parsed: the batcher decodes it into the scan
   SensorClock clock_;
   ModelCheck check_;
