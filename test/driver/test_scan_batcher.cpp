@@ -53,7 +53,7 @@ struct Rig {
   void flush() {
     while (batcher.flush(current())) keep(true);  // what the reorder window held, then the rest
   }
-  void poll(int64_t now_ns) { keep(batcher.poll(now_ns, current())); }
+  void idle(double silent_s) { keep(batcher.idle(silent_s, current())); }
 };
 
 double ahead_of_cut(double az, double cut) {
@@ -473,9 +473,9 @@ TEST(ScanBatcher, StreamThatStopsIsFlushedAfterTheTimeout) {
   Rig rig(Model::kVLP16, ReturnMode::kStrongest, o);
   const auto stream = testing::make_stream(rig.spec, ReturnMode::kStrongest, 30);
   rig.feed_all(stream);
-  rig.poll(stream.back().time_ns + 100'000'000);
+  rig.idle(0.1);  // a pause: the held packets go into the rotation, which goes on
   EXPECT_TRUE(rig.scans.empty());
-  rig.poll(stream.back().time_ns + 300'000'000);
+  rig.idle(0.3);  // silence past flush_timeout_s: the rotation is delivered
   ASSERT_EQ(rig.scans.size(), 1u);
   EXPECT_FALSE(rig.scans[0]->ends_at_cut);
 }

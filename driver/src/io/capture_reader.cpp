@@ -12,9 +12,6 @@ using namespace std::chrono_literals;
 namespace {
 // Packets held back while probing: this many, or 4 x probe_packets when that is more.
 constexpr size_t kMinHeld = 1024;
-// Host time without packets after which the batcher's reorder window is released (many packet
-// periods of every model).
-constexpr double kReorderWait_s = 0.005;
 // Data packets per model check after the decision.
 constexpr size_t kModelEpochPackets = 64;
 }  // namespace
@@ -243,15 +240,10 @@ CaptureReader::ReadResult CaptureReader::read(Scan& scan, std::chrono::milliseco
       if (!decided_ && !draining_) decide();
       source_ended_ = true;
       continue;
-    } else if (batcher_ && batcher_->in_progress()) {
+    } else if (batcher_) {
+      // A pause or silence of the source: the batcher's window releases, or flushes, by itself.
       const double silent_s = std::chrono::duration<double>(Clock::now() - last_data_).count();
-      if (silent_s > options_.batcher.flush_timeout_s) {
-        // The source fell silent: deliver the rotation in progress rather than hold it.
-        if (batcher_->flush(scan)) return ReadResult::kRotation;
-      } else if (silent_s > kReorderWait_s) {
-        // A pause: no reordered packet is on its way, the held-back ones go into the scan.
-        if (batcher_->release_held(scan)) return ReadResult::kRotation;
-      }
+      if (batcher_->idle(silent_s, scan)) return ReadResult::kRotation;
     }
     if (Clock::now() >= deadline) return ReadResult::kTimeout;
   }
