@@ -6,6 +6,9 @@
 //
 //   receiver --ScanBuffer slot (drop oldest | wait)--> take (serial) -> detect (parallel)
 //            -> sequencer -> publish (serial, in order) -> release, take again
+//
+// This file is the data path; what it counts goes to its SensorMonitor (sensor_monitor.hpp),
+// which makes the status, the health and the watchdog's verdict.
 #pragma once
 
 #include <tbb/task_arena.h>
@@ -26,6 +29,7 @@
 #include "lidartag/daemon/rotation.hpp"
 #include "lidartag/daemon/rotation_publisher.hpp"
 #include "lidartag/daemon/scan_buffer.hpp"
+#include "lidartag/daemon/sensor_monitor.hpp"
 #include "lidartag/daemon/sensor_status.hpp"
 #include "lidartag/daemon/tap_source.hpp"
 #include "lidartag/detector/detector.hpp"
@@ -82,20 +86,17 @@ class SensorPipeline {
   // published, and rotations are assembled (or the sensor is waiting for its first packets within
   // health.startup_grace_s, or silent with watchdog.while_silent), each within
   // watchdog.stall_timeout_s. Any thread.
-  bool progressing(int64_t now_ns) const;
+  bool progressing(int64_t now_ns) const { return monitor_.progressing(now_ns, finished()); }
   // Counters and health now, latency percentiles since the previous call (one thread).
   SensorStatus status(int64_t now_ns);
   const SensorOptions& sensor() const { return sensor_; }
   // Set when the pipeline stopped on an error (e.g. the calibration does not fit the model
   // decided from the packets); empty otherwise.
-  std::string error() const;
+  std::string error() const { return monitor_.error(); }
   // Why the source ended before its end (a replay cut short by a corrupt record); else empty.
-  std::string source_error() const;
+  std::string source_error() const { return monitor_.source_error(); }
 
  private:
-  struct Snapshot;
-  struct Counts;
-  struct ReceiverState;
   struct Graph;
   void receive();
   void wake_pipeline();
@@ -103,11 +104,7 @@ class SensorPipeline {
   void take(Out& out);
   void detect(Rotation& rotation);
   void publish(Rotation& rotation);
-  void note_sender(const velodyne::RawPacket& packet);
-  void take_snapshot(const Scan* last);
   bool at_loop_seam(const Scan& scan);
-  std::string stall(int64_t now_ns) const;
-  void fail(const std::string& what);
 
   SensorOptions sensor_;
   const DaemonOptions& options_;
@@ -118,6 +115,7 @@ class SensorPipeline {
   DetectHook hook_;
   std::string raw_channel_;
   FailureLog failures_;
+  SensorMonitor monitor_;
 
   TapSource* tap_ = nullptr;  // owned by reader_
   std::unique_ptr<velodyne::CaptureReader> reader_;
@@ -125,26 +123,16 @@ class SensorPipeline {
   std::vector<std::unique_ptr<detector::Detector>> detectors_;
   ScanBuffer<Rotation> buffer_;
   RotationPublisher publisher_;
-  HealthMonitor health_;
   size_t tokens_;  // rotations in the pipeline at most: workers + publish_queue
   std::unique_ptr<Graph> graph_;
   uint64_t taken_ = 0;                 // take() only (serial): also the next publication order
   std::atomic<uint64_t> released_{0};  // publish() (serial); in the pipeline: taken - released
 
   std::thread receiver_;
-  std::atomic<bool> stopping_{false}, receiver_done_{false}, finished_{false};
-  std::atomic<bool> stopped_{false};           // the source ended because stop() was called
-  std::atomic<bool> receiver_waiting_{false};  // waiting for the pipeline to free a slot
-  std::atomic<int64_t> started_ns_{0}, receiver_beat_ns_{0};
+  std::atomic<bool> stopping_{false}, finished_{false};
 
-  lidartag::raw_packet_t raw_message_;             // receiver thread
-  std::unique_ptr<ReceiverState> receiver_state_;  // senders seen, the model verdict
-  bool after_seam_ = false;                        // receiver thread
-
-  mutable std::mutex counts_mutex_;  // the rotation counters change together
-  std::unique_ptr<Counts> counts_;
-  mutable std::mutex snapshot_mutex_;
-  std::unique_ptr<Snapshot> snapshot_;
+  lidartag::raw_packet_t raw_message_;  // receiver thread
+  bool after_seam_ = false;             // receiver thread
 };
 
 }  // namespace lidartag::daemon
