@@ -96,39 +96,8 @@ namespace {
 
 // ---- Value checks: each returns the reason a value is bad, or an empty string. ----
 
-struct Any {
-  template <class T>
-  std::string operator()(const T&) const {
-    return {};
-  }
-};
+using namespace ::lidartag::rules;  // the project's one vocabulary of rules
 
-template <class T>
-auto at_least(T lo) {
-  return [lo](auto v) { return v >= lo ? std::string() : fmt::format("must be >= {}", lo); };
-}
-template <class T>
-auto above(T lo) {
-  return [lo](auto v) { return v > lo ? std::string() : fmt::format("must be > {}", lo); };
-}
-template <class T>
-auto closed(T lo, T hi) {
-  return [lo, hi](auto v) {
-    return v >= lo && v <= hi ? std::string() : fmt::format("must be in [{}, {}]", lo, hi);
-  };
-}
-template <class T>
-auto half_open(T lo, T hi) {
-  return [lo, hi](auto v) {
-    return v >= lo && v < hi ? std::string() : fmt::format("must be in [{}, {})", lo, hi);
-  };
-}
-template <class T>
-auto open_closed(T lo, T hi) {
-  return [lo, hi](auto v) {
-    return v > lo && v <= hi ? std::string() : fmt::format("must be in ({}, {}]", lo, hi);
-  };
-}
 // Text that reaches log lines, channel names and systemd's STATUS=: printable ASCII only (a
 // newline or an escape sequence in a sensor's name once went raw into the log).
 auto printable(bool allow_empty) {
@@ -196,20 +165,14 @@ Names<JournalMode> journal_modes() {
 }
 // ---- Text form of values (the printer, and the value quoted in errors). ----
 
+// A value as text (the printer, and the value quoted in errors): the rules' value_text, and a
+// model by its name.
 template <class T>
 std::string to_text(const T& v) {
-  if constexpr (std::is_same_v<T, bool>) {
-    return v ? "true" : "false";
-  } else if constexpr (std::is_same_v<T, std::string>) {
-    return v;
-  } else if constexpr (std::is_arithmetic_v<T>) {
-    return fmt::format("{}", v);
-  } else if constexpr (std::is_same_v<T, std::optional<velodyne::Model>>) {
+  if constexpr (std::is_same_v<T, std::optional<velodyne::Model>>) {
     return v ? std::string(velodyne::model_spec(*v).name) : "auto";
   } else {
-    std::string text = "[";
-    for (size_t i = 0; i < v.size(); ++i) text += (i ? ", " : "") + to_text(v[i]);
-    return text + "]";
+    return value_text(v);
   }
 }
 
@@ -406,46 +369,11 @@ class Reader {
   std::set<std::string> seen_;
 };
 
-// Checks options built in code with the same rules.
-class Checker {
- public:
-  explicit Checker(std::string path) : path_(std::move(path)) {}
-
-  template <class T, class Check = Any>
-  void field(const char* key, T& value, Check check = {}, std::string_view /*unit*/ = {}) {
-    const std::string name = join_key(path_, key);
-    if constexpr (std::is_invocable_v<Check, const T&>) {
-      if (std::string reason = check(value); !reason.empty()) {
-        throw ConfigError(name, to_text(value), reason);
-      }
-    } else {
-      for (size_t i = 0; i < value.size(); ++i) {
-        if (std::string reason = check(value[i]); !reason.empty()) {
-          throw ConfigError(fmt::format("{}[{}]", name, i), to_text(value[i]), reason);
-        }
-      }
-    }
-  }
-  template <class E>
-  void choice(const char*, E&, const Names<E>&) {}
-  template <class F>
-  void section(const char* key, F&& body) {
-    Checker sub(join_key(path_, key));
-    body(sub);
-  }
-  template <class T, class F>
-  void list(const char* key, std::vector<T>& values, const T&, F&& body) {
-    const std::string name = join_key(path_, key);
-    if (values.empty()) throw ConfigError(name, "[]", "expected a non-empty list");
-    for (size_t i = 0; i < values.size(); ++i) {
-      Checker sub(fmt::format("{}[{}]", name, i));
-      body(sub, values[i]);
-    }
-  }
-
- private:
-  std::string path_;
-};
+// Options built in code are checked with the same table and rules (rules::RuleChecker).
+[[noreturn]] void config_error(const std::string& key, const std::string& value,
+                               const std::string& reason) {
+  throw ConfigError(key, value, reason);
+}
 
 // Emits the options as YAML.
 class Printer {
@@ -508,12 +436,8 @@ void visit_sensor(V& v, SensorOptions& o) {
   v.field("channel_prefix", o.channel_prefix, printable(true));
   v.field("model", o.model);
   v.field("calibration", o.calibration);
-  v.field("cut_azimuth_deg", o.batcher.cut_azimuth_deg, half_open(0.0, 360.0));
-  // At least 10 ms: many packet periods of every model (less blamed whole streams on spoofing).
-  v.field("flush_timeout_s", o.batcher.flush_timeout_s, closed(0.01, 3600.0));
-  v.field("max_column_step_deg", o.batcher.max_column_step_deg, above(0.0));
-  v.field("min_range_m", o.decoder.min_range_m, at_least(0.0));
-  v.field("max_range_m", o.decoder.max_range_m, at_least(0.0));
+  velodyne::visit_batcher_options(v, o.batcher);  // the driver's own tables, at this level
+  velodyne::visit_decoder_options(v, o.decoder);
   v.section("source", [&](V& s) {
     SourceOptions& src = o.source;
     s.choice("kind", src.kind, source_kinds());
@@ -922,7 +846,7 @@ detector::DetectorOptions parse_detector_config(std::string_view yaml, const std
 
 void validate(const DaemonOptions& options) {
   DaemonOptions copy = options;
-  Checker checker("");
+  RuleChecker checker("", config_error);
   visit(checker, copy);
   check_relations(copy);
 }

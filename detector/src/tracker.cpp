@@ -56,28 +56,16 @@ Eigen::Matrix3d quarter_turn(int q) {
 
 namespace {
 
-template <class T>
-std::string value_text(const T& v) {
-  if constexpr (std::is_same_v<T, bool>)
-    return v ? "true" : "false";
-  else
-    return rules::number_text(static_cast<double>(v));
+// Throws the detector's error for the first tracker option that breaks its rule.
+void fail(const std::string& key, const std::string& value, const std::string& reason) {
+  throw OptionsError(key, value, reason);
 }
-
-// Applies the rules of visit_tracker_options to options built in code.
-struct Checker {
-  template <class T, class Rule>
-  void field(const char* key, T& value, Rule rule, std::string_view /*unit*/) {
-    if (std::string reason = rule(value); !reason.empty())
-      throw OptionsError(std::string("tracker.") + key, value_text(value), reason);
-  }
-};
 
 }  // namespace
 
 void validate_tracker_options(const TrackerOptions& options) {
   TrackerOptions copy = options;  // the visitor takes fields by reference
-  Checker checker;
+  rules::RuleChecker checker("tracker.", fail);
   visit_tracker_options(checker, copy);
 }
 

@@ -16,6 +16,7 @@
 #include "lidartag/detector/plane_fit.hpp"
 #include "lidartag/detector/pose_fit.hpp"
 #include "lidartag/detector/rkhs_decoder.hpp"
+#include "lidartag/options/rules.hpp"
 
 namespace lidartag::detector {
 
@@ -64,73 +65,10 @@ struct DetectorOptions {
   bool keep_cluster_points = false;
 };
 
-// ---- The rules. Each returns the reason a value is bad, or an empty string. ----
+// ---- The rules: the project's one vocabulary (lidartag/options/rules.hpp), and the detector's
+// own.
 namespace rules {
-
-// A number as the shortest text that reads back to it ("0.5", "1e-06").
-std::string number_text(double v);
-
-struct Any {
-  template <class T>
-  std::string operator()(const T&) const {
-    return {};
-  }
-};
-
-template <class T>
-struct AtLeast {
-  using value_type = T;
-  T lo;
-  std::string operator()(const T& v) const {
-    return v >= lo ? std::string() : "must be >= " + number_text(static_cast<double>(lo));
-  }
-};
-template <class T>
-struct Above {
-  using value_type = T;
-  T lo;
-  std::string operator()(const T& v) const {
-    return v > lo ? std::string() : "must be > " + number_text(static_cast<double>(lo));
-  }
-};
-// [lo, hi], [lo, hi), (lo, hi], (lo, hi).
-template <class T, bool kLoIn, bool kHiIn>
-struct Range {
-  using value_type = T;
-  T lo, hi;
-  std::string operator()(const T& v) const {
-    const bool ok = (kLoIn ? v >= lo : v > lo) && (kHiIn ? v <= hi : v < hi);
-    return ok ? std::string()
-              : std::string("must be in ") + (kLoIn ? "[" : "(") +
-                    number_text(static_cast<double>(lo)) + ", " +
-                    number_text(static_cast<double>(hi)) + (kHiIn ? "]" : ")");
-  }
-};
-
-template <class T>
-AtLeast<T> at_least(T lo) {
-  return {lo};
-}
-template <class T>
-Above<T> above(T lo) {
-  return {lo};
-}
-template <class T>
-Range<T, true, true> closed(T lo, T hi) {
-  return {lo, hi};
-}
-template <class T>
-Range<T, true, false> half_open(T lo, T hi) {
-  return {lo, hi};
-}
-template <class T>
-Range<T, false, true> open_closed(T lo, T hi) {
-  return {lo, hi};
-}
-template <class T>
-Range<T, false, false> open(T lo, T hi) {
-  return {lo, hi};
-}
+using namespace ::lidartag::rules;
 
 // A family name the detector can load: built in, or FILE.json[:NAME] that reads.
 struct KnownFamily {
@@ -138,35 +76,15 @@ struct KnownFamily {
   std::string operator()(const std::string& name) const;
 };
 
-// A list: at least `min_size` elements, each passing `element`. Called on one element (so that an
-// error can name it), the list's size is checked by whoever sees the whole list.
-template <class R>
-struct Each {
-  using value_type = typename R::value_type;
-  R element;
-  size_t min_size = 1;
-  std::string operator()(const value_type& v) const { return element(v); }
-};
-template <class R>
-Each<R> each(R element, size_t min_size = 1) {
-  return {element, min_size};
-}
-
 }  // namespace rules
 
 // Names of the pose algorithms, for a visitor's choice().
 std::vector<std::pair<std::string, PoseAlgorithm>> pose_algorithm_names();
 
 // The rule table: every setting of DetectorOptions with its key, its unit and its rule, nested by
-// stage. A visitor V provides
-//   template <class T, class Rule> void field(const char* key, T& value, Rule rule,
-//                                             std::string_view unit);
-//   template <class E> void choice(const char* key, E& value,
-//                                  const std::vector<std::pair<std::string, E>>& names);
-//   template <class F> void section(const char* key, F&& body);   // body(V&) for the section
-// The daemon's YAML reader, checker and printer are such visitors (daemon/src/config.cpp), and so
-// is validate_options. A rule on a list (rules::Each) is called per element. Rules between fields
-// are in check_option_relations.
+// stage (a visitor as lidartag/options/rules.hpp describes). The daemon's YAML reader, checker and
+// printer are such visitors (daemon/src/config.cpp), and so is validate_options. A rule on a list
+// (rules::Each) is called per element. Rules between fields are in check_option_relations.
 template <class V>
 void visit_options(V& v, DetectorOptions& o) {
   using namespace rules;

@@ -12,6 +12,7 @@
 #include "lidartag/driver/scan.hpp"
 #include "lidartag/driver/sensor_clock.hpp"
 #include "lidartag/driver/sensor_model.hpp"
+#include "lidartag/options/rules.hpp"
 
 namespace lidartag::velodyne {
 
@@ -119,6 +120,15 @@ struct DecoderOptions {
   double min_range_m = 0.0;
   double max_range_m = 0.0;
 };
+
+// The rule table of DecoderOptions (lidartag/options/rules.hpp). Between fields (max above min,
+// min below the model's range) the configuration checks, which knows the model.
+template <class V>
+void visit_decoder_options(V& v, DecoderOptions& o) {
+  using namespace rules;
+  v.field("min_range_m", o.min_range_m, at_least(0.0), "m");
+  v.field("max_range_m", o.max_range_m, at_least(0.0), "m");
+}
 
 // Decodes data packets of one sensor. Holds the calibration, per-laser constants and the last
 // measured rotation rate (used where a packet's own azimuths cannot give it).

@@ -3,6 +3,8 @@
 
 #include <cstdint>
 
+#include "lidartag/options/rules.hpp"
+
 namespace lidartag::velodyne {
 
 struct BatcherOptions {
@@ -17,6 +19,16 @@ struct BatcherOptions {
   // lost packets. A time step of a second or more, or backwards, is a jump (restart).
   double max_column_step_deg = 5.0;
 };
+
+// The rule table of BatcherOptions (lidartag/options/rules.hpp): keys, rules, units.
+template <class V>
+void visit_batcher_options(V& v, BatcherOptions& o) {
+  using namespace rules;
+  v.field("cut_azimuth_deg", o.cut_azimuth_deg, half_open(0.0, 360.0), "deg");
+  // At least 10 ms: many packet periods of every model (less blamed whole streams on spoofing).
+  v.field("flush_timeout_s", o.flush_timeout_s, closed(0.01, 3600.0), "s");
+  v.field("max_column_step_deg", o.max_column_step_deg, above(0.0), "deg");
+}
 
 struct BatcherStats {
   uint64_t rotations = 0;   // delivered
