@@ -23,13 +23,21 @@
 
 namespace lidartag::rules {
 
-// A number as the shortest text that reads back to it in its own type ("0.5", "1e-06", "0.1"
-// for the float 0.1).
+// A number as the shortest text that reads back to it in its own type ("0.5", "0.1" for the
+// float 0.1, "1e-06"): plain digits from 1e-4 to 1e16 ("0.0001", "100000"), an exponent outside.
 template <class T>
 std::string number_text(T v) {
   std::array<char, 48> buf{};
-  const auto [end, ec] = std::to_chars(buf.data(), buf.data() + buf.size(), v);
-  return ec == std::errc() ? std::string(buf.data(), end) : std::string("?");
+  std::to_chars_result r{};
+  if constexpr (std::is_floating_point_v<T>) {
+    const T a = v < 0 ? -v : v;
+    r = a == 0 || (a >= T(1e-4) && a < T(1e16))
+            ? std::to_chars(buf.data(), buf.data() + buf.size(), v, std::chars_format::fixed)
+            : std::to_chars(buf.data(), buf.data() + buf.size(), v);
+  } else {
+    r = std::to_chars(buf.data(), buf.data() + buf.size(), v);
+  }
+  return r.ec == std::errc() ? std::string(buf.data(), r.ptr) : std::string("?");
 }
 
 template <class T>
