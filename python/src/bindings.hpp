@@ -4,6 +4,8 @@
 
 #include <pybind11/pybind11.h>
 
+#include <cstdint>
+#include <optional>
 #include <string>
 
 #include "lidartag/driver/scan.hpp"
@@ -18,6 +20,12 @@ struct Rotation {
 
   // Copies the filled columns of `source` (the reader's scan is reused for the next rotation).
   static Rotation copy_of(const Scan& source);
+  // A rotation made of any point cloud (Rotation.from_points): `points` a numpy structured array
+  // or a dict of equally long arrays, with fields x, y, z, intensity and optionally ring,
+  // azimuth, time, return_type (the names Rotation.points uses). Throws CloudError.
+  static Rotation from_points(const py::object& points, int rings,
+                              const std::optional<std::string>& model, double resolution_deg,
+                              int64_t stamp_ns, uint64_t sequence);
 };
 
 // Model and return-mode names of a scan ("vlp32c", "dual"); empty when unknown.

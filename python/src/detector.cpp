@@ -269,6 +269,18 @@ the key. diagnostics=True also records what happened to every cluster.)")
            py::arg("config") = py::none(), py::arg("diagnostics") = false)
       .def("detect", &PyDetector::detect, py::arg("rotation"),
            "The detections of one Rotation (a DetectionResult). Runs without the GIL.")
+      .def(
+          "detect",
+          [](PyDetector& d, const py::object& points, int rings,
+             const std::optional<std::string>& model, double resolution_deg) {
+            const Rotation rotation =
+                Rotation::from_points(points, rings, model, resolution_deg, 0, 0);
+            return d.detect(rotation);
+          },
+          py::arg("points"), py::kw_only(), py::arg("rings") = 0, py::arg("model") = py::none(),
+          py::arg("resolution_deg") = 0.2,
+          "The detections of a point cloud from any source: a numpy structured array or a dict "
+          "of arrays, as Rotation.from_points takes (rings, model and resolution_deg as there).")
       .def_property_readonly("tag_sizes_m",
                              [](const PyDetector& d) { return d.options().tag_sizes_m; })
       .def_property_readonly("families", [](const PyDetector& d) { return d.options().families; });

@@ -128,6 +128,74 @@ Rotation rotation_of_pcd(const std::string& path, const std::optional<velodyne::
   return r;
 }
 
+}  // namespace
+
+Rotation Rotation::from_points(const py::object& points, int rings,
+                               const std::optional<std::string>& model, double resolution_deg,
+                               int64_t stamp_ns, uint64_t sequence) {
+  // The field names of Rotation.points, and where each goes.
+  static const std::array<const char*, 8> kNames = {"x",    "y",       "z",    "intensity",
+                                                    "ring", "azimuth", "time", "return_type"};
+  std::vector<std::string> names;
+  if (py::isinstance<py::dict>(points)) {
+    for (const auto& kv : points.cast<py::dict>()) names.push_back(py::str(kv.first));
+  } else if (py::hasattr(points, "dtype") && !points.attr("dtype").attr("names").is_none()) {
+    for (const auto& n : points.attr("dtype").attr("names")) names.push_back(py::str(n));
+  } else {
+    throw py::type_error(
+        "from_points takes a numpy structured array (fields x, y, z, intensity, optionally ring, "
+        "azimuth, time, return_type) or a dict of such arrays");
+  }
+  // Each field as a contiguous float64 column (a copy when it is not one already).
+  std::vector<std::string> found;
+  std::vector<py::array_t<double, py::array::c_style | py::array::forcecast>> arrays;
+  for (const char* name : kNames) {
+    if (std::find(names.begin(), names.end(), name) == names.end()) continue;
+    auto column = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(
+        points[py::str(name)]);
+    if (!column || column.ndim() != 1)
+      throw detector::CloudError(std::string("field ") + name + " is not a 1-D array of numbers");
+    found.emplace_back(name);
+    arrays.push_back(std::move(column));
+  }
+  detector::CloudFields fields;
+  size_t size = arrays.empty() ? 0 : static_cast<size_t>(arrays[0].size());
+  for (size_t i = 0; i < found.size(); ++i) {
+    const std::span<const double> view(arrays[i].data(), static_cast<size_t>(arrays[i].size()));
+    if (view.size() != size)
+      throw detector::CloudError("field " + found[i] + " has " + std::to_string(view.size()) +
+                                 " values, field " + found[0] + " " + std::to_string(size));
+    const std::string& n = found[i];
+    if (n == "x") fields.x = view;
+    if (n == "y") fields.y = view;
+    if (n == "z") fields.z = view;
+    if (n == "intensity") fields.intensity = view;
+    if (n == "ring") fields.ring = view;
+    if (n == "azimuth") fields.azimuth_deg = view;
+    if (n == "time") fields.time_s = view;
+    if (n == "return_type") fields.return_type = view;
+  }
+  for (const char* required : {"x", "y", "z", "intensity"}) {
+    if (std::find(found.begin(), found.end(), required) == found.end())
+      throw detector::CloudError(std::string("the points have no ") + required +
+                                 " field (the detector reads tags from x, y, z and intensity)");
+  }
+  fields.width = size;
+  fields.height = 1;
+  const std::optional<velodyne::Model> m = model_option(model);
+  const detector::CloudScanOptions options =
+      detector::cloud_scan_options(fields, velodyne::beam_elevations_deg(m), rings, resolution_deg);
+  Rotation r;
+  detector::cloud_to_scan(fields, options, r.scan);
+  r.scan.stamp_ns = stamp_ns;
+  r.scan.sequence = sequence;
+  r.scan.complete = true;  // a whole cloud, as the caller's driver assembled it
+  if (m) r.scan.model = static_cast<uint8_t>(*m);
+  return r;
+}
+
+namespace {
+
 // Reads rotations lazily; the GIL is released while packets are read and decoded.
 class Reader {
  public:
@@ -383,6 +451,18 @@ from above, seconds from the rotation's first firing.)")
       .def_property_readonly("packets", [](const Rotation& r) { return r.scan.packets; })
       .def_property_readonly("missing_packets",
                              [](const Rotation& r) { return r.scan.missing_packets; })
+      .def_static("from_points", &Rotation::from_points, py::arg("points"), py::kw_only(),
+                  py::arg("rings") = 0, py::arg("model") = py::none(),
+                  py::arg("resolution_deg") = 0.2, py::arg("stamp_ns") = 0, py::arg("sequence") = 0,
+                  R"(A rotation made of a point cloud from any source (another driver, a bag).
+
+points: a numpy structured array or a dict of equal-length arrays with fields x, y, z (metres,
+sensor frame), intensity (0-255; 0-1 is scaled) and optionally ring (0 = lowest beam), azimuth
+(degrees clockwise from +x), time (seconds from the rotation's start), return_type -- the names
+Rotation.points uses, so rotation.points round-trips. Without ring, the rings come from the model's
+beam elevations (model="vlp32c", ...) or are estimated (rings=N beams). Points are binned into
+columns of resolution_deg of azimuth. Raises CloudError (no intensity, sizes that disagree, rings
+that cannot be told).)")
       .def("__len__", [](const Rotation& r) { return r.scan.point_count(); })
       .def("__repr__", [](const Rotation& r) {
         const std::string model = model_name(r.scan);

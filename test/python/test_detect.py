@@ -135,3 +135,37 @@ def test_detect_over_a_capture(demo, truth):
         expect_matches_truth(result, expected)
     detector = lidartag.Detector(DEMO_SIZES)
     assert len(list(lidartag.detect(demo, detector, partial=True))) == 12
+
+
+def test_a_point_cloud_from_anywhere_is_detected(demo_rotations, truth):
+    # Rotation.points round-trips through Rotation.from_points: the same tags where the truth says.
+    detector = lidartag.Detector(DEMO_SIZES)
+    complete = [r for r in demo_rotations if r.complete]
+    rotation, expected = complete[0], truth["rotations"][0]
+    rebuilt = lidartag.Rotation.from_points(rotation.points, stamp_ns=rotation.stamp_ns,
+                                            sequence=rotation.sequence)
+    assert rebuilt.sequence == rotation.sequence and rebuilt.stamp_ns == rotation.stamp_ns
+    assert rebuilt.rings == 32 and len(rebuilt) > 0.98 * len(rotation)
+    expect_matches_truth(detector.detect(rebuilt), expected)
+    # Detector.detect takes the array itself.
+    expect_matches_truth(detector.detect(rotation.points), expected)
+
+
+def test_a_cloud_without_rings_takes_them_from_the_model_or_fails_clearly(demo_rotations, truth):
+    rotation = next(r for r in demo_rotations if r.complete)
+    p = rotation.points
+    # Another driver's cloud: plain float64 arrays, no ring, intensity scaled to 0-1.
+    cloud = {"x": p["x"].astype(np.float64), "y": p["y"].astype(np.float64),
+             "z": p["z"].astype(np.float64), "intensity": p["intensity"] / 255.0}
+    result = lidartag.Detector(DEMO_SIZES).detect(cloud, model="vlp32c")
+    expect_matches_truth(result, truth["rotations"][0])
+    assert lidartag.Rotation.from_points(cloud, model="VLP-32C").model == "vlp32c"
+    with pytest.raises(lidartag.CloudError, match="intensity"):
+        lidartag.Rotation.from_points({k: cloud[k] for k in ("x", "y", "z")}, model="vlp32c")
+    with pytest.raises(lidartag.CloudError, match="values"):
+        lidartag.Rotation.from_points(dict(cloud, intensity=cloud["intensity"][:-1]),
+                                      model="vlp32c")
+    with pytest.raises(TypeError, match="structured array"):
+        lidartag.Rotation.from_points(np.zeros((10, 4)))
+    with pytest.raises(ValueError, match="unknown model"):
+        lidartag.Rotation.from_points(cloud, model="hdl-99")
