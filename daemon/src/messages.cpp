@@ -29,6 +29,9 @@ void fill_detection(const detector::Detection& d, lidartag::tag_detection_t& out
   out.margin = d.margin;
   out.points = d.points;
   out.fit_cost = d.fit_cost;
+  out.time_first_s = d.time_first_s;
+  out.time_center_s = d.time_center_s;
+  out.time_last_s = d.time_last_s;
   out.decoded = true;
   out.track_id = -1;
   out.track_rotations = 0;

@@ -1,7 +1,9 @@
 // Detection assembly: pose from the fit and the decoded quarter turns, corners of the black square.
 #include "lidartag/detector/detection.hpp"
 
+#include <algorithm>
 #include <array>
+#include <limits>
 #include <numbers>
 
 namespace lidartag::detector {
@@ -23,6 +25,26 @@ Eigen::Quaterniond unit_quaternion(const Eigen::Matrix3d& r) {
   Eigen::Quaterniond q = Eigen::Quaterniond(r).normalized();
   if (q.w() < 0) q.coeffs() *= -1.0;
   return q;
+}
+
+FiringTimes firing_times(std::span<const ClusterPoint> points, const Scan& scan,
+                         const Eigen::Vector3d& center) {
+  FiringTimes t;
+  if (points.empty()) return t;
+  t.first_s = std::numeric_limits<double>::max();
+  t.last_s = std::numeric_limits<double>::lowest();
+  double nearest = std::numeric_limits<double>::max();
+  for (const ClusterPoint& p : points) {
+    const double time = scan.time_s[scan.at(0, p.ring, p.col)];
+    t.first_s = std::min(t.first_s, time);
+    t.last_s = std::max(t.last_s, time);
+    const double d = (Eigen::Vector3d(p.x, p.y, p.z) - center).squaredNorm();
+    if (d < nearest) {
+      nearest = d;
+      t.center_s = time;
+    }
+  }
+  return t;
 }
 
 Detection assemble_detection(const TagFrame& frame, const DecodeResult& decoded, int family_index,

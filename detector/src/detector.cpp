@@ -301,7 +301,12 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
   const int points = static_cast<int>(b.points.size());
   diag.candidate =
       add_candidate(dec, frame.center, frame.undecoded, t, points, fit.cost, diag.coverage, out);
-  out.candidates[static_cast<size_t>(diag.candidate)].track_only = track_only;
+  Candidate& candidate = out.candidates[static_cast<size_t>(diag.candidate)];
+  candidate.track_only = track_only;
+  const FiringTimes times = firing_times(b.points, scan, frame.center);
+  candidate.time_first_s = times.first_s;
+  candidate.time_center_s = times.center_s;
+  candidate.time_last_s = times.last_s;
   if (dec.best.rejection != Rejection::kNone || track_only)
     return finish(Stage::kDecode, dec.best.rejection);
 
@@ -309,12 +314,14 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
   Detection det =
       assemble_detection(frame, dec.best, dec.family,
                          dicts_[static_cast<size_t>(dec.family)].family(), t, points, fit.cost);
+  det.time_first_s = times.first_s;
+  det.time_center_s = times.center_s;
+  det.time_last_s = times.last_s;
   if (opt_.keep_tag_points) {
     det.first_point = static_cast<int>(out.tag_points.size());
     out.tag_points.insert(out.tag_points.end(), b.points.begin(), b.points.end());
   }
-  out.candidates[static_cast<size_t>(diag.candidate)].detection =
-      static_cast<int>(out.detections.size());
+  candidate.detection = static_cast<int>(out.detections.size());
   out.detections.push_back(det);
   finish(Stage::kDecode, Rejection::kNone);
 }

@@ -439,6 +439,9 @@ void Tracker::report(const ScanResult& result, TrackerResult& out) const {
     d.id = t.leader / 4;
     d.size_m = c.size_m;
     d.position = c.position;
+    d.time_first_s = c.time_first_s;
+    d.time_center_s = c.time_center_s;
+    d.time_last_s = c.time_last_s;
     // The track's function in the candidate's frame: quarter turns q - delta.
     const int q = ((t.leader & 3) - t.delta) & 3;
     const Eigen::Matrix3d r =

@@ -93,6 +93,7 @@ struct PyDetection {
       Eigen::Matrix<double, 4, 3, Eigen::RowMajor>::Zero();
   double score = 0, margin = 0, fit_cost = 0;
   int points = 0;
+  double time_first_s = 0, time_center_s = 0, time_last_s = 0;
 };
 
 struct PyResult {
@@ -124,6 +125,9 @@ PyDetection convert(const det::Detection& d) {
   p.margin = d.margin;
   p.points = d.points;
   p.fit_cost = d.fit_cost;
+  p.time_first_s = d.time_first_s;
+  p.time_center_s = d.time_center_s;
+  p.time_last_s = d.time_last_s;
   return p;
 }
 
@@ -208,6 +212,13 @@ marker, white ring included).)")
       .def_readonly("margin", &PyDetection::margin)
       .def_readonly("points", &PyDetection::points)
       .def_readonly("fit_cost", &PyDetection::fit_cost)
+      .def_readonly("time_first_s", &PyDetection::time_first_s,
+                    "When the beams crossed the tag's first point, seconds after the rotation's "
+                    "stamp (DetectionResult.stamp_ns).")
+      .def_readonly("time_center_s", &PyDetection::time_center_s,
+                    "When they crossed the point nearest its centre (seconds after the stamp).")
+      .def_readonly("time_last_s", &PyDetection::time_last_s,
+                    "When they crossed its last point (seconds after the stamp).")
       .def("__repr__", [](const PyDetection& d) {
         return "<lidartag.Detection " + d.family + " id " + std::to_string(d.id) + " at [" +
                std::to_string(d.position.x()) + ", " + std::to_string(d.position.y()) + ", " +

@@ -169,3 +169,26 @@ def test_a_cloud_without_rings_takes_them_from_the_model_or_fails_clearly(demo_r
         lidartag.Rotation.from_points(np.zeros((10, 4)))
     with pytest.raises(ValueError, match="unknown model"):
         lidartag.Rotation.from_points(cloud, model="hdl-99")
+
+
+def test_each_detection_carries_the_time_the_beams_crossed_it(demo_rotations, truth):
+    # Within 0.5 ms of when the beams crossed the tag's true centre: the time of the column whose
+    # azimuth is nearest the centre's (azimuth clockwise from +x); first <= centre <= last.
+    detector = lidartag.Detector(DEMO_SIZES)
+    complete = [r for r in demo_rotations if r.complete]
+    checked = 0
+    for rotation, expected in zip(complete, truth["rotations"]):
+        grid = rotation.arrays()
+        azimuths, times = grid["column_azimuth"], grid["column_time"]
+        for d in detector.detect(rotation):
+            tag = next(t for t in expected["tags"] if t["id"] == d.id)
+            x, y = tag["position"][0], tag["position"][1]
+            centre = np.degrees(np.arctan2(-y, x)) % 360.0
+            off = np.abs((azimuths - centre + 180.0) % 360.0 - 180.0)
+            crossed = times[int(np.argmin(off))]
+            assert abs(d.time_center_s - crossed) < 0.5e-3, (d.id, d.time_center_s, crossed)
+            assert d.time_first_s <= d.time_center_s <= d.time_last_s
+            # A 0.6-0.8 m tag at 3.5-4 m spans 9-13 degrees: 2.5-3.6 ms at 600 rpm.
+            assert 1e-3 < d.time_last_s - d.time_first_s < 10e-3
+            checked += 1
+    assert checked == 2 * len(complete)

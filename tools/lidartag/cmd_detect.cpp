@@ -152,6 +152,10 @@ nlohmann::json rotation_json(const Scan& scan, const Reported& rep, bool cluster
     o["score"] = d.score;
     o["margin"] = d.margin;
     o["points"] = d.points;
+    // When the beams crossed the tag, seconds after the rotation's stamp.
+    o["time_first_s"] = d.time_first_s;
+    o["time_center_s"] = d.time_center_s;
+    o["time_last_s"] = d.time_last_s;
     if (t != nullptr) {
       o["decoded"] = t->decoded;
       if (t->track.track_id >= 0) o["track"] = track_json(t->track);

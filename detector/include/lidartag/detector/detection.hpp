@@ -4,11 +4,14 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <span>
 
 #include "lidartag/detector/pose_fit.hpp"
 #include "lidartag/detector/result.hpp"
 #include "lidartag/detector/rkhs_decoder.hpp"
 #include "lidartag/detector/tag_family.hpp"
+#include "lidartag/detector/types.hpp"
+#include "lidartag/driver/scan.hpp"
 
 namespace lidartag::detector {
 
@@ -28,6 +31,15 @@ Eigen::Matrix3d decoded_rotation(const Eigen::Matrix3d& undecoded, int quarter_t
 
 // A rotation as a unit quaternion with w >= 0.
 Eigen::Quaterniond unit_quaternion(const Eigen::Matrix3d& r);
+
+// When the beams crossed a cluster (Detection::time_first_s, ...): the firing times of its points
+// in `scan` (seconds from the rotation's start), the earliest, the latest, and that of the point
+// nearest `center`. Zeros for no points.
+struct FiringTimes {
+  double first_s = 0.0, center_s = 0.0, last_s = 0.0;
+};
+FiringTimes firing_times(std::span<const ClusterPoint> points, const Scan& scan,
+                         const Eigen::Vector3d& center);
 
 // The detection of a decoded cluster: pose, the black square's corners, ID, score and margin.
 Detection assemble_detection(const TagFrame& frame, const DecodeResult& decoded, int family_index,

@@ -45,6 +45,10 @@ struct Detection {
   double margin = 0.0;    // over the second best function, in cells' worth of evidence
   int points = 0;         // points of the cluster used for the pose
   double fit_cost = 0.0;  // eq. (8) at the optimum, metres summed over the points
+  // When the beams crossed the tag, seconds from the rotation's first firing (Scan::stamp_ns): its
+  // first and last points, and the point nearest its centre (what a moving sensor's pose is
+  // interpolated at; a rotation lasts 100 ms at 600 rpm).
+  double time_first_s = 0.0, time_center_s = 0.0, time_last_s = 0.0;
   // Its `points` points in ScanResult::tag_points start here; -1 without keep_tag_points.
   int first_point = -1;
 };
@@ -105,6 +109,8 @@ struct Candidate {
   double size_m = 0.0;    // the tag size t that matched
   // Tag centre (sensor frame, metres) at the best hypothesis' shift.
   Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  // Firing times of its points, as Detection's (first, nearest the centre, last).
+  double time_first_s = 0.0, time_center_s = 0.0, time_last_s = 0.0;
   // The fitted frame before the quarter turns are known (eq. (9) is blind to them): the tag frame
   // of function f = 4 k + q is undecoded_orientation * Rx(-q * 90 deg) (x the tag's normal).
   Eigen::Quaterniond undecoded_orientation = Eigen::Quaterniond::Identity();
