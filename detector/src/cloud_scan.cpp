@@ -122,26 +122,27 @@ void to_grid(const CloudFields& f, int rings, int returns, double scale, CloudSc
 }  // namespace
 
 CloudFields cloud_fields_by_name(const std::vector<std::string>& names,
-                                 const std::vector<std::vector<double>>& columns, size_t width,
+                                 const std::vector<std::span<const double>>& columns, size_t width,
                                  size_t height) {
-  auto column = [&](const char* name) {
-    const auto it = std::find(names.begin(), names.end(), name);  // the first of a name
-    return it == names.end()
-               ? std::span<const double>()
-               : std::span<const double>(columns[static_cast<size_t>(it - names.begin())]);
-  };
   CloudFields fields;
-  fields.x = column("x");
-  fields.y = column("y");
-  fields.z = column("z");
-  fields.intensity = column("intensity");
-  fields.ring = column("ring");
-  fields.azimuth_deg = column("azimuth");
-  fields.time_s = column("time");
-  fields.return_type = column("return_type");
+  std::span<const double>* const targets[] = {
+      &fields.x,    &fields.y,           &fields.z,      &fields.intensity,
+      &fields.ring, &fields.azimuth_deg, &fields.time_s, &fields.return_type};
+  static_assert(std::size(targets) == kCloudFieldNames.size());
+  for (size_t k = 0; k < kCloudFieldNames.size(); ++k) {
+    const auto it = std::find(names.begin(), names.end(), kCloudFieldNames[k]);  // the first
+    if (it != names.end()) *targets[k] = columns[static_cast<size_t>(it - names.begin())];
+  }
   fields.width = width;
   fields.height = height;
   return fields;
+}
+
+CloudFields cloud_fields_by_name(const std::vector<std::string>& names,
+                                 const std::vector<std::vector<double>>& columns, size_t width,
+                                 size_t height) {
+  return cloud_fields_by_name(
+      names, std::vector<std::span<const double>>(columns.begin(), columns.end()), width, height);
 }
 
 CloudScanOptions cloud_scan_options(const CloudFields& cloud,

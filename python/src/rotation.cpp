@@ -133,9 +133,6 @@ Rotation rotation_of_pcd(const std::string& path, const std::optional<velodyne::
 Rotation Rotation::from_points(const py::object& points, int rings,
                                const std::optional<std::string>& model, double resolution_deg,
                                int64_t stamp_ns, uint64_t sequence) {
-  // The field names of Rotation.points, and where each goes.
-  static const std::array<const char*, 8> kNames = {"x",    "y",       "z",    "intensity",
-                                                    "ring", "azimuth", "time", "return_type"};
   std::vector<std::string> names;
   if (py::isinstance<py::dict>(points)) {
     for (const auto& kv : points.cast<py::dict>()) names.push_back(py::str(kv.first));
@@ -146,42 +143,32 @@ Rotation Rotation::from_points(const py::object& points, int rings,
         "from_points takes a numpy structured array (fields x, y, z, intensity, optionally ring, "
         "azimuth, time, return_type) or a dict of such arrays");
   }
-  // Each field as a contiguous float64 column (a copy when it is not one already).
+  // The fields the detector reads (detector::kCloudFieldNames), each as a contiguous float64
+  // column (a copy when it is not one already); other fields are left alone.
   std::vector<std::string> found;
   std::vector<py::array_t<double, py::array::c_style | py::array::forcecast>> arrays;
-  for (const char* name : kNames) {
+  std::vector<std::span<const double>> columns;
+  for (const std::string_view name : detector::kCloudFieldNames) {
     if (std::find(names.begin(), names.end(), name) == names.end()) continue;
-    auto column = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(
-        points[py::str(name)]);
-    if (!column || column.ndim() != 1)
-      throw detector::CloudError(std::string("field ") + name + " is not a 1-D array of numbers");
     found.emplace_back(name);
-    arrays.push_back(std::move(column));
-  }
-  detector::CloudFields fields;
-  size_t size = arrays.empty() ? 0 : static_cast<size_t>(arrays[0].size());
-  for (size_t i = 0; i < found.size(); ++i) {
-    const std::span<const double> view(arrays[i].data(), static_cast<size_t>(arrays[i].size()));
-    if (view.size() != size)
-      throw detector::CloudError("field " + found[i] + " has " + std::to_string(view.size()) +
-                                 " values, field " + found[0] + " " + std::to_string(size));
-    const std::string& n = found[i];
-    if (n == "x") fields.x = view;
-    if (n == "y") fields.y = view;
-    if (n == "z") fields.z = view;
-    if (n == "intensity") fields.intensity = view;
-    if (n == "ring") fields.ring = view;
-    if (n == "azimuth") fields.azimuth_deg = view;
-    if (n == "time") fields.time_s = view;
-    if (n == "return_type") fields.return_type = view;
+    auto column = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(
+        points[py::str(found.back())]);
+    if (!column || column.ndim() != 1)
+      throw detector::CloudError("field " + found.back() + " is not a 1-D array of numbers");
+    columns.emplace_back(column.data(), static_cast<size_t>(column.size()));
+    arrays.push_back(std::move(column));  // keeps the view's data alive
+    if (columns.back().size() != columns.front().size())
+      throw detector::CloudError("field " + found.back() + " has " +
+                                 std::to_string(columns.back().size()) + " values, field " +
+                                 found.front() + " " + std::to_string(columns.front().size()));
   }
   for (const char* required : {"x", "y", "z", "intensity"}) {
     if (std::find(found.begin(), found.end(), required) == found.end())
       throw detector::CloudError(std::string("the points have no ") + required +
                                  " field (the detector reads tags from x, y, z and intensity)");
   }
-  fields.width = size;
-  fields.height = 1;
+  const detector::CloudFields fields =
+      detector::cloud_fields_by_name(found, columns, columns.front().size(), 1);
   const std::optional<velodyne::Model> m = model_option(model);
   const detector::CloudScanOptions options =
       detector::cloud_scan_options(fields, velodyne::beam_elevations_deg(m), rings, resolution_deg);

@@ -83,6 +83,20 @@ struct TableCounter {
   }
 };
 
+// What a rule table lists for default options: `visit(counter, options)` calls the table.
+struct TableCount {
+  std::map<std::string, size_t> fields;  // per section ("": the top level)
+  size_t settings = 0;
+};
+template <class Options, class Visit>
+TableCount count_table(Visit visit) {
+  TableCount c;
+  Options options;
+  TableCounter counter{c.fields, c.settings, ""};
+  visit(counter, options);
+  return c;
+}
+
 size_t printed_keys(const std::string& prefix) {
   std::set<std::string> keys;
   leaf_keys(YAML::Load(print_config(DaemonOptions{})), "", keys);
@@ -95,11 +109,8 @@ size_t printed_keys(const std::string& prefix) {
 // the tables, nothing kept by hand): a field added to a struct but not to its table fails here,
 // and the configuration prints one key per setting of the table.
 TEST(Config, EveryDetectorOptionIsMapped) {
-  std::map<std::string, size_t> fields;
-  size_t settings = 0;
-  detector::DetectorOptions o;
-  TableCounter counter{fields, settings, ""};
-  detector::visit_options(counter, o);
+  auto [fields, settings] = count_table<detector::DetectorOptions>(
+      [](auto& v, auto& o) { detector::visit_options(v, o); });
   // keep_tag_points is lcm.publish_tag_points (outside the detector section); keep_cluster_points
   // is for tools that draw clusters.
   EXPECT_EQ(field_count<detector::DetectorOptions>(), fields[""] + 2);
@@ -115,16 +126,14 @@ TEST(Config, EveryDetectorOptionIsMapped) {
 }
 
 TEST(Config, EveryDriverOptionIsMappedByItsRuleTable) {
-  std::map<std::string, size_t> fields;
-  size_t settings = 0;
-  TableCounter counter{fields, settings, ""};
-  velodyne::BatcherOptions batcher;
-  velodyne::visit_batcher_options(counter, batcher);
-  EXPECT_EQ(field_count<velodyne::BatcherOptions>(), settings);
-  settings = 0;
-  velodyne::DecoderOptions decoder;
-  velodyne::visit_decoder_options(counter, decoder);
-  EXPECT_EQ(field_count<velodyne::DecoderOptions>(), settings);
+  EXPECT_EQ(field_count<velodyne::BatcherOptions>(),
+            count_table<velodyne::BatcherOptions>([](auto& v, auto& o) {
+              velodyne::visit_batcher_options(v, o);
+            }).settings);
+  EXPECT_EQ(field_count<velodyne::DecoderOptions>(),
+            count_table<velodyne::DecoderOptions>([](auto& v, auto& o) {
+              velodyne::visit_decoder_options(v, o);
+            }).settings);
   // The driver's keys sit in each sensor's entry, checked with the driver's rules.
   const DaemonOptions parsed = parse_config(
       "sensors: [{name: a, cut_azimuth_deg: 90, flush_timeout_s: 0.5, max_column_step_deg: 3, "
@@ -433,11 +442,9 @@ namespace {
 // The tracker's keys come from its rule table (detector::visit_tracker_options): every field of
 // TrackerOptions is a key of the `tracker:` section.
 TEST(Config, EveryTrackerOptionIsMappedByItsRuleTable) {
-  std::map<std::string, size_t> fields;
-  size_t settings = 0;
-  TableCounter counter{fields, settings, ""};
-  detector::TrackerOptions tracker;
-  detector::visit_tracker_options(counter, tracker);
+  const size_t settings = count_table<detector::TrackerOptions>([](auto& v, auto& o) {
+                            detector::visit_tracker_options(v, o);
+                          }).settings;
   EXPECT_EQ(field_count<detector::TrackerOptions>(), settings);
   EXPECT_EQ(printed_keys("tracker."), settings);
   const DaemonOptions o = parse_config("tracker: {enabled: false, window: 20, max_angle_deg: 5}");

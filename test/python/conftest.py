@@ -33,20 +33,22 @@ def demo_rotations(demo):
     return list(lidartag.read(demo))
 
 
+def _built_program(variable, what):
+    """The built program ctest names in `variable`; the test is skipped without it."""
+    path = os.environ.get(variable)
+    if not path or not os.path.exists(path):
+        pytest.skip(f"{variable} ({what}) not given")
+    return path
+
+
 @pytest.fixture(scope="session")
 def lidartag_cli():
-    path = os.environ.get("LIDARTAG_CLI")
-    if not path or not os.path.exists(path):
-        pytest.skip("LIDARTAG_CLI (the built lidartag tool) not given")
-    return path
+    return _built_program("LIDARTAG_CLI", "the built lidartag tool")
 
 
 @pytest.fixture(scope="session")
 def lidartagd():
-    path = os.environ.get("LIDARTAGD")
-    if not path or not os.path.exists(path):
-        pytest.skip("LIDARTAGD (the built lidartagd) not given")
-    return path
+    return _built_program("LIDARTAGD", "the built lidartagd")
 
 
 def expect_matches_truth(result, truth_rotation, tolerance_m=0.05):

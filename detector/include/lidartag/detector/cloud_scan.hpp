@@ -2,10 +2,12 @@
 // ring-major Scan the detector takes. Used by `lidartag detect` and the Python module alike.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <span>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "lidartag/driver/scan.hpp"
@@ -55,9 +57,17 @@ struct CloudScanReport {
   bool intensity_scaled = false;  // every intensity within [0, 1]: read as 0..1, scaled by 255
 };
 
-// The fields of a cloud whose columns are named as `lidartag dump` writes them (x y z intensity
-// ring azimuth time return_type; other names are ignored), e.g. a PCD file's (velodyne::PcdCloud's
-// fields and columns): each views its column, empty where the cloud has no column of that name.
+// The names of a cloud's fields, as `lidartag dump` writes them and Rotation.points has them: x,
+// y, z, intensity, ring, azimuth, time, return_type (CloudFields: x ... return_type).
+inline constexpr std::array<std::string_view, 8> kCloudFieldNames = {
+    "x", "y", "z", "intensity", "ring", "azimuth", "time", "return_type"};
+
+// The fields of a cloud whose columns are named as in kCloudFieldNames (other names are ignored),
+// e.g. a PCD file's (velodyne::PcdCloud's fields and columns): each views its column, empty where
+// the cloud has no column of that name.
+CloudFields cloud_fields_by_name(const std::vector<std::string>& names,
+                                 const std::vector<std::span<const double>>& columns, size_t width,
+                                 size_t height);
 CloudFields cloud_fields_by_name(const std::vector<std::string>& names,
                                  const std::vector<std::vector<double>>& columns, size_t width,
                                  size_t height);
