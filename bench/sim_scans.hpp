@@ -19,6 +19,7 @@
 #include "lidartag/driver/packet.hpp"
 #include "lidartag/driver/scan_batcher.hpp"
 #include "lidartag/driver/sensor_clock.hpp"
+#include "lidartag/sim/sensor_sim.hpp"
 #include "lidartag/sim/simulator.hpp"
 
 namespace lidartag::eval {
@@ -95,6 +96,30 @@ inline double normal_error_deg(const Eigen::Quaterniond& estimate,
   const double c = (estimate.normalized() * Eigen::Vector3d::UnitX())
                        .dot(truth_quaternion(truth_wxyz) * Eigen::Vector3d::UnitX());
   return std::acos(std::clamp(c, -1.0, 1.0)) * 180.0 / std::numbers::pi;
+}
+
+// Where a truth tag (of the rotation `rotation`, given at its first firing) is in the sensor's
+// frame `after_s` seconds later: a moving sensor moves it meanwhile (30 deg/s turns a tag at 7 m
+// by 0.37 m in one rotation). Its centre; the orientation turns with it.
+inline sim::TagTruth tag_at_time(const sim::SensorOptions& sensor,
+                                 const sim::RotationTruth& rotation, const sim::TagTruth& tag,
+                                 double after_s) {
+  const Eigen::Quaterniond s = truth_quaternion(rotation.sensor_orientation);
+  const sim::Trajectory trajectory(sensor);
+  const double t_s =
+      static_cast<double>(rotation.stamp_ns - static_cast<int64_t>(sensor.start_time_s * 1e9)) *
+          1e-9 +
+      after_s;
+  const sim::Pose then = trajectory.at(t_s);
+  const Eigen::Matrix3d to_sensor = then.rotation.transpose() * s.toRotationMatrix();
+  const Eigen::Vector3d shift =
+      then.rotation.transpose() * (rotation.sensor_position - then.position);
+  sim::TagTruth out = tag;
+  out.position = to_sensor * tag.position + shift;
+  for (size_t k = 0; k < 4; ++k) out.corners[k] = to_sensor * tag.corners[k] + shift;
+  const Eigen::Quaterniond o(to_sensor * truth_quaternion(tag.orientation).toRotationMatrix());
+  out.orientation = {o.w(), o.x(), o.y(), o.z()};
+  return out;
 }
 
 // One truth tag of one rotation against the detections of that rotation.

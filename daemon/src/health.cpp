@@ -14,11 +14,12 @@ double seconds(int64_t ns) {
 }
 
 // Most severe first: the state reported is the first problem's.
-constexpr std::array<HealthState, 12> kSeverity = {
+constexpr std::array<HealthState, 13> kSeverity = {
     HealthState::kError,          HealthState::kStalled,         HealthState::kNotDecoding,
     HealthState::kPublishFailing, HealthState::kModelMismatch,   HealthState::kSeveralSources,
     HealthState::kSilent,         HealthState::kRateImplausible, HealthState::kFallingBehind,
-    HealthState::kPacketLoss,     HealthState::kWaiting,         HealthState::kHealthy};
+    HealthState::kPacketLoss,     HealthState::kTagSizeMismatch, HealthState::kWaiting,
+    HealthState::kHealthy};
 
 size_t rank(HealthState s) {
   return static_cast<size_t>(std::find(kSeverity.begin(), kSeverity.end(), s) - kSeverity.begin());
@@ -54,6 +55,8 @@ std::string_view health_state_name(HealthState state) {
       return "ended";
     case HealthState::kNotDecoding:
       return "not decoding";
+    case HealthState::kTagSizeMismatch:
+      return "tag size mismatch";
   }
   return "unknown";
 }
@@ -134,6 +137,15 @@ void HealthMonitor::judge_window(const HealthSample& from, const HealthSample& t
                      "sensor (more workers, or a lighter detector)",
                      behind, behind == 1 ? "" : "s", dt)});
   }
+  const uint64_t misfits = to.size_warnings - from.size_warnings;
+  if (misfits > 0) {
+    // The configured size is wrong: every pose of that tag is biased (the size check).
+    window_problems_.push_back(
+        {HealthState::kTagSizeMismatch,
+         fmt::format("{} detection{} in the last {:.1f} s measure another size than configured: "
+                     "{}; configure the measured size (the printed marker's outer size)",
+                     misfits, misfits == 1 ? "" : "s", dt, to.size_note)});
+  }
   const uint64_t missing = to.missing - from.missing;
   const uint64_t expected = decoded + missing;
   if (expected >= 100 &&
@@ -175,6 +187,10 @@ std::string HealthMonitor::ended_reason(const HealthSample& s) const {
                     s.model_note.empty() ? "" : ": ", s.model_note));
   }
   if (s.publish_failures > 0) add(fmt::format("{} LCM messages not published", s.publish_failures));
+  if (s.size_warnings > 0) {
+    add(fmt::format("{} detection{} measured another size than configured: {}", s.size_warnings,
+                    s.size_warnings == 1 ? "" : "s", s.size_note));
+  }
   if (s.dropped_behind > 0) {
     add(fmt::format("{} rotation{} dropped: detection was slower than the source", s.dropped_behind,
                     s.dropped_behind == 1 ? "" : "s"));

@@ -31,6 +31,8 @@ void fill_detection(const detector::Detection& d, lidartag::tag_detection_t& out
   out.fit_cost = d.fit_cost;
   out.time_first_s = d.time_first_s;
   out.time_center_s = d.time_center_s;
+  out.measured_size_m = d.measured_size_m;
+  out.size_warning = d.size_warning;
   out.time_last_s = d.time_last_s;
   out.decoded = true;
   out.track_id = -1;
@@ -41,6 +43,8 @@ void fill_detection(const detector::Detection& d, lidartag::tag_detection_t& out
   for (int i = 0; i < 3; ++i) out.track_position[i] = out.track_position_std[i] = 0.0;
   for (int i = 0; i < 4; ++i) out.track_orientation[i] = i == 0 ? 1.0 : 0.0;
   out.track_angle_std_deg = 0.0;
+  out.track_moving = false;
+  for (int i = 0; i < 3; ++i) out.track_velocity[i] = out.track_turn_deg_s[i] = 0.0;
 }
 
 void fill_detection(const detector::TrackedDetection& t, lidartag::tag_detection_t& out) {
@@ -62,6 +66,11 @@ void fill_detection(const detector::TrackedDetection& t, lidartag::tag_detection
   out.track_orientation[2] = k.orientation.y();
   out.track_orientation[3] = k.orientation.z();
   out.track_angle_std_deg = k.angle_std_deg;
+  out.track_moving = k.moving;
+  for (int i = 0; i < 3; ++i) {
+    out.track_velocity[i] = k.velocity_mps[i];
+    out.track_turn_deg_s[i] = k.turn_deg_s[i];
+  }
 }
 
 void fill_detections(const RotationResult& r, const std::string& sensor,

@@ -72,6 +72,9 @@ bool RotationPublisher::publish(const RotationResult& r, uint64_t dropped) {
     // scan's time, and a stamp that steps back, a looping replay, ends every track).
     tracker_->update(r.detection, r.stamp_ns, tracked_);
     fill_tracked_detections(tracked_, message_);
+    for (const detector::TrackedDetection& t : tracked_.tags) check_size(t.detection);
+  } else {
+    for (const detector::Detection& d : r.detection.detections) check_size(d);
   }
   const bool sent = bus_.publish(detections_channel_, message_);
   if (!sent) failures_.failed(detections_channel_);
@@ -97,6 +100,24 @@ bool RotationPublisher::publish(const RotationResult& r, uint64_t dropped) {
   }
   if (printer_ != nullptr) printer_->print(detections_line(sensor_.name, r));
   return sent;
+}
+
+void RotationPublisher::check_size(const detector::Detection& d) {
+  if (!d.size_warning) return;
+  size_warnings_.fetch_add(1, std::memory_order_relaxed);
+  std::lock_guard lock(size_mutex_);
+  last_size_.family = {};
+  d.family.copy(last_size_.family.data(), last_size_.family.size() - 1);
+  last_size_.id = d.id;
+  last_size_.size_m = d.size_m;
+  last_size_.measured_m = d.measured_size_m;
+}
+
+std::string RotationPublisher::size_note() const {
+  std::lock_guard lock(size_mutex_);
+  if (last_size_.id < 0) return "";
+  return fmt::format("{} id {} measures {:.3f} m, configured {:.3f} m", last_size_.family.data(),
+                     last_size_.id, last_size_.measured_m, last_size_.size_m);
 }
 
 std::vector<Percentiles> RotationPublisher::take_latencies() {

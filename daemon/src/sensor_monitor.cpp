@@ -367,6 +367,8 @@ SensorStatus SensorMonitor::status(int64_t now_ns, const PathGauges& gauges) {
   st.publish_failures = gauges.publish_failures;
   // Any LCM failure of the bus (the status messages too) means publishing fails now.
   h.publish_failures = std::max<uint64_t>(gauges.bus_failures, st.publish_failures);
+  h.size_warnings = gauges.size_warnings;
+  h.size_note = gauges.size_note;
   st.health = health_.update(h);
   st.progressing = progressing(now_ns, gauges.finished);
   st.buffer_occupancy = gauges.buffer_waiting;

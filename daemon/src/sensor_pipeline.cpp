@@ -369,6 +369,8 @@ SensorStatus SensorPipeline::status(int64_t now_ns) {
   gauges.buffer_waiting = buffer_.waiting();
   gauges.buffer_depth = buffer_.depth();
   gauges.finished = finished();
+  gauges.size_warnings = publisher_.size_warnings();
+  gauges.size_note = publisher_.size_note();
   SensorStatus st = monitor_.status(now_ns, gauges);
   st.stage_names = publisher_.stage_names();
   st.stages = publisher_.take_latencies();

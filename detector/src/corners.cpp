@@ -75,6 +75,28 @@ Eigen::Vector2d intersect(const Line2& a, const Line2& b) {
   return a.point + sr(0) * a.dir;
 }
 
+// The configured size an outline of side `side` shows: the nearest within size_tolerance (the
+// tag's own outline), else the largest smaller one whose board margin, up to board_margin_m a
+// side, makes up the rest (a tag on a board). -1 for none.
+int match_size(std::span<const double> sizes, double side, const CornerOptions& opt,
+               bool& on_board) {
+  on_board = false;
+  size_t best = 0;
+  for (size_t i = 1; i < sizes.size(); ++i)
+    if (std::abs(sizes[i] - side) < std::abs(sizes[best] - side)) best = i;
+  if (std::abs(sizes[best] - side) <= opt.size_tolerance * sizes[best])
+    return static_cast<int>(best);
+  int board = -1;
+  for (size_t i = 0; i < sizes.size(); ++i) {
+    const double t = sizes[i];
+    if (side > t && side <= t * (1.0 + opt.size_tolerance) + 2.0 * opt.board_margin_m &&
+        (board < 0 || t > sizes[static_cast<size_t>(board)]))
+      board = static_cast<int>(i);
+  }
+  on_board = board >= 0;
+  return board;
+}
+
 // The outline from a square fitted to the edge points (in the plane basis u, v around c) when no
 // pair of opposite sides has a line.
 Rejection square_outline(std::span<const Eigen::Vector2d> edge, const Eigen::Vector3d& c,
@@ -88,17 +110,16 @@ Rejection square_outline(std::span<const Eigen::Vector2d> edge, const Eigen::Vec
   so.min_points = 6;
   SquareFit fit;
   if (!fit_square_outline(edge, 0.5 * *lo * (1.0 - opt.size_tolerance),
-                          0.5 * *hi * (1.0 + opt.size_tolerance), so, fit))
+                          0.5 * (*hi * (1.0 + opt.size_tolerance) + 2.0 * opt.board_margin_m), so,
+                          fit))
     return Rejection::kCorners;
   const double side = 2.0 * fit.square.half;
   if (fit.rms_m > opt.square_fit_max_rms * side) return Rejection::kCorners;
   out.side_m = side;
-  size_t best = 0;
-  for (size_t i = 1; i < sizes.size(); ++i)
-    if (std::abs(sizes[i] - side) < std::abs(sizes[best] - side)) best = i;
-  if (std::abs(sizes[best] - side) > opt.size_tolerance * sizes[best]) return Rejection::kSize;
-  out.size_index = static_cast<int>(best);
-  out.size_m = sizes[best];
+  const int best = match_size(sizes, side, opt, out.on_board);
+  if (best < 0) return Rejection::kSize;
+  out.size_index = best;
+  out.size_m = sizes[static_cast<size_t>(best)];
   out.square_fit = true;
   for (int n : fit.per_side) out.sides_fitted += n > 0 ? 1 : 0;
   const Eigen::Vector2d eu(std::cos(fit.square.angle), std::sin(fit.square.angle));
@@ -219,14 +240,12 @@ Rejection find_corners(std::span<const ClusterPoint> points, const Plane& plane,
   if (pairs == 0)
     return opt.square_fit ? square_outline(ws.edge, c, u, v, sizes, opt, out) : Rejection::kCorners;
   out.side_m = sum / pairs;
-  size_t best = 0;
-  for (size_t i = 1; i < sizes.size(); ++i)
-    if (std::abs(sizes[i] - out.side_m) < std::abs(sizes[best] - out.side_m)) best = i;
-  if (std::abs(sizes[best] - out.side_m) > opt.size_tolerance * sizes[best])
-    return Rejection::kSize;
-  const double t = sizes[best];
-  out.size_index = static_cast<int>(best);
-  out.size_m = t;
+  const int best = match_size(sizes, out.side_m, opt, out.on_board);
+  if (best < 0) return Rejection::kSize;
+  // Missing sides are completed with the outline's size: the board's, for a tag on a board.
+  const double t = out.on_board ? out.side_m : sizes[static_cast<size_t>(best)];
+  out.size_index = best;
+  out.size_m = sizes[static_cast<size_t>(best)];
   // Complete the missing sides from the tag size: one side of a pair from the other, both sides
   // of an unseen pair centred on the points' extent.
   auto complete = [&](Line2& lo, Line2& hi, const Eigen::Vector2d& across, double lo_ext,

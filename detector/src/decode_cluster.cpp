@@ -51,7 +51,7 @@ ClusterDecode decode_cluster(std::span<const ClusterPoint> points, const RigidPo
                              const Eigen::Vector3d& unseen_axis, double t,
                              std::span<const RkhsDictionary> dictionaries,
                              std::span<const RkhsDictionary> decoys, const DecodeOptions& opt,
-                             ClusterDecodeWorkspace& ws) {
+                             ClusterDecodeWorkspace& ws, double board_slack_m) {
   ClusterDecode out;
   ws.hypotheses.clear();
   ws.shifts.clear();
@@ -85,8 +85,10 @@ ClusterDecode decode_cluster(std::span<const ClusterPoint> points, const RigidPo
   const double cell = t / dictionaries.front().width();
   const bool search = !unseen_axis.isZero();
   out.shift_searched = search;
-  const double s0 = search ? std::min(0.0, hi - t / 2) : 0.0;
-  const double s1 = search ? std::max(0.0, lo + t / 2) : 0.0;
+  // On a board (board_slack_m > 0) the points reach past the tag: it may sit anywhere the board
+  // holds it, up to board_slack_m either way.
+  const double s0 = !search ? 0.0 : board_slack_m > 0 ? -board_slack_m : std::min(0.0, hi - t / 2);
+  const double s1 = !search ? 0.0 : board_slack_m > 0 ? board_slack_m : std::max(0.0, lo + t / 2);
   ShiftedPoints shifted(ws, axis, intensity_levels(ws.pulled, ws.decode), t);
 
   // Every (shift, family) is a hypothesis; each family's best one keeps its evidence.

@@ -33,8 +33,10 @@ DetectorLimits derive_limits(const DetectorOptions& o,
   DetectorLimits l;
   l.t_max = *std::max_element(o.tag_sizes_m.begin(), o.tag_sizes_m.end());
   l.tau_m = static_cast<float>(o.cluster.linkage_scale * l.t_max * std::numbers::sqrt2 / 4);
-  l.max_pair_chord_m = static_cast<float>(l.t_max * std::numbers::sqrt2 * 1.1);
-  l.max_extent_m = static_cast<float>(l.t_max * std::numbers::sqrt2 * 1.25);
+  // The largest object a tag can be: its board, with the largest margin (corners.board_margin_m).
+  l.board_max = l.t_max + 2.0 * o.corners.board_margin_m;
+  l.max_pair_chord_m = static_cast<float>(l.board_max * std::numbers::sqrt2 * 1.1);
+  l.max_extent_m = static_cast<float>(l.board_max * std::numbers::sqrt2 * 1.25);
   l.min_points = 1 << 30;
   int psi = 1 << 30;  // eq. (6): at least 2 (d + 2) payload boundary points, smallest family
   for (const auto& d : dictionaries) {
@@ -226,7 +228,7 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
                              limits_.max_extent_m, b.points, b.ring_cols);
   diag.points = static_cast<int>(b.points.size());
   if (r != Rejection::kNone) return finish(Stage::kClustering, r);
-  r = check_point_counts(b.points, limits_.min_points, limits_.t_max, res, opt_.validation);
+  r = check_point_counts(b.points, limits_.min_points, limits_.board_max, res, opt_.validation);
   if (r != Rejection::kNone) return finish(Stage::kValidation, r);
   diag.boundary_points = count_boundary_points(b.points, opt_.validation);
   if (diag.boundary_points < limits_.min_track_boundary_points)
@@ -275,18 +277,39 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
   if (diag.coverage < opt_.pose.min_coverage) return finish(Stage::kPose, Rejection::kCoverage);
   IntensityLevels levels;
   if (opt_.pose.border_refine) levels = intensity_levels(b.points, b.decode.decode);
+  double measured_size_m = -1.0;          // the size check: what the black square's steps say
+  bool along_y = false, along_z = false;  // the in-plane axes the black square placed
   auto place = [&] {
     if (!opt_.pose.border_refine) return;
     const BorderFit border =
         place_on_border(b.points, fit.pose, t, dicts_, levels, BorderFitOptions{}, b.border);
     if (border.ok) fit.pose = border.pose;
+    measured_size_m = border.ok ? border.measured_size_m : -1.0;
+    along_y = border.ok && border.along_y;
+    along_z = border.ok && border.along_z;
   };
   place();
+  // A tag on a board (an outline larger than the tag) is where its black square is: a board in
+  // which no square of this size is measured (steps on two opposite sides or three) is not this
+  // tag (blank boards, signs, other prints).
+  if (outline.on_board &&
+      !(measured_size_m > 0 && std::abs(measured_size_m / t - 1.0) <= opt_.corners.size_tolerance))
+    return finish(Stage::kPose, Rejection::kSize);
   clock.lap(Stage::kPose);
 
   // Sec. VI: decoding, eqs. (18)-(22), over the shifts along an axis the outline did not place.
-  const ClusterDecode dec = decode_cluster(b.points, fit.pose, outline.unseen_axis, t, dicts_,
-                                           decoys_, opt_.decode, b.decode);
+  // On a board, the board's outline places the board: along an axis the black square could not
+  // place (a square mount's top and bottom, which horizontal rings do not cross), the tag may sit
+  // anywhere the board holds it.
+  Eigen::Vector3d unseen = outline.unseen_axis;
+  double board_slack_m = 0.0;
+  if (outline.on_board && along_y != along_z) {
+    unseen =
+        fit.pose.R.transpose() * (along_y ? Eigen::Vector3d::UnitZ() : Eigen::Vector3d::UnitY());
+    board_slack_m = 0.5 * (outline.side_m - t) + t / dicts_.front().width();
+  }
+  const ClusterDecode dec = decode_cluster(b.points, fit.pose, unseen, t, dicts_, decoys_,
+                                           opt_.decode, b.decode, board_slack_m);
   diag.score = dec.best.score;
   diag.margin = dec.best.margin_bits;
   clock.lap(Stage::kDecode);
@@ -297,7 +320,7 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
     place();
     clock.lap(Stage::kPose);
   }
-  const TagFrame frame = tag_frame(fit.pose, outline.unseen_axis, dec.shift);
+  const TagFrame frame = tag_frame(fit.pose, unseen, dec.shift);
   const int points = static_cast<int>(b.points.size());
   diag.candidate =
       add_candidate(dec, frame.center, frame.undecoded, t, points, fit.cost, diag.coverage, out);
@@ -307,6 +330,7 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
   candidate.time_first_s = times.first_s;
   candidate.time_center_s = times.center_s;
   candidate.time_last_s = times.last_s;
+  candidate.measured_size_m = measured_size_m;
   if (dec.best.rejection != Rejection::kNone || track_only)
     return finish(Stage::kDecode, dec.best.rejection);
 
@@ -317,6 +341,9 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
   det.time_first_s = times.first_s;
   det.time_center_s = times.center_s;
   det.time_last_s = times.last_s;
+  det.measured_size_m = measured_size_m;
+  det.size_warning =
+      measured_size_m > 0.0 && std::abs(measured_size_m / t - 1.0) > opt_.pose.size_warning_ratio;
   if (opt_.keep_tag_points) {
     det.first_point = static_cast<int>(out.tag_points.size());
     out.tag_points.insert(out.tag_points.end(), b.points.begin(), b.points.end());

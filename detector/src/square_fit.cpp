@@ -197,6 +197,11 @@ BorderFit refine_on_border(std::span<const BorderPoint> border, const RigidPose&
   out.points = f.points;
   for (int n : f.per_side) out.sides += n >= 2 ? 1 : 0;
   if (!f.ok) return out;
+  // The size the crossings say, from the placed square (the size check: a configured size the
+  // points contradict).
+  so.fit_size = true;
+  const SquareFit sized = fit_square(buffer, f.square, so);
+  if (sized.ok && sized.size_fitted) out.measured_half_m = sized.square.half;
   out.rms_m = f.rms_m;
   out.along_y = f.along_u;
   out.along_z = f.along_v;
@@ -227,7 +232,9 @@ BorderFit place_on_border(std::span<const ClusterPoint> points, const RigidPose&
     border_crossings(points, pose, levels, fam.reversed_border, 2.0 * cell, ws.border);
     opt.half_size = 0.5 * cell * fam.width_at_border;
     opt.corner_m = 0.5 * cell;
-    const BorderFit fit = refine_on_border(ws.border, pose, opt, ws.yz);
+    BorderFit fit = refine_on_border(ws.border, pose, opt, ws.yz);
+    if (fit.measured_half_m > 0.0)
+      fit.measured_size_m = fit.measured_half_m / (0.5 * fam.width_at_border) * fam.total_width;
     if (fit.ok && (!best.ok || fit.rms_m < best.rms_m)) best = fit;
   }
   return best;

@@ -86,12 +86,19 @@ struct Tracker::Track {
   // the configured family's best score, summed, and the number of those rotations.
   double other_sum = 0.0, own_sum = 0.0;
   int other_count = 0;
-  // The window: centres and frames turned into the track's frame (quarter turns taken out).
-  std::vector<Eigen::Vector3d> positions;
-  std::vector<Eigen::Quaterniond> frames;
+  // The window: the candidates' poses at their times, frames turned into the track's frame
+  // (quarter turns taken out); a ring of opt_.window.
+  std::vector<TimedPose> window;
   int window_count = 0, window_next = 0;
+  // The window's model: the pose at the newest candidate's time, and how it moves from there.
+  double ref_t_s = 0.0;
   Eigen::Vector3d ref_position = Eigen::Vector3d::Zero();
   Eigen::Quaterniond ref_frame = Eigen::Quaterniond::Identity();
+  Motion motion;
+  bool moving = false;
+  // The size check: measured sizes of its candidates, summed, and how many.
+  double size_sum = 0.0;
+  int size_count = 0;
   Eigen::Vector3d position_std = Eigen::Vector3d::Zero();
   double angle_std_deg = 0.0;
   int leader = -1;
@@ -105,6 +112,7 @@ struct Tracker::Track {
 Tracker::Tracker(TrackerOptions options, const DetectorOptions& detector)
     : opt_(std::move(options)),
       min_score_(detector.decode.min_score),
+      size_warning_ratio_(detector.pose.size_warning_ratio),
       vote_inset_(detector.decode.vote_inset_cells) {
   validate_tracker_options(opt_);
   int most = 0, cells = 0;
@@ -127,9 +135,9 @@ Tracker::Tracker(TrackerOptions options, const DetectorOptions& detector)
     t.score_sum.assign(static_cast<size_t>(most), 0.0);
     t.votes.assign(static_cast<size_t>(cells), 0.0f);
     t.counts.assign(static_cast<size_t>(cells), 0.0f);
-    t.positions.resize(static_cast<size_t>(opt_.window));
-    t.frames.resize(static_cast<size_t>(opt_.window));
+    t.window.resize(static_cast<size_t>(opt_.window));
   }
+  ordered_.reserve(static_cast<size_t>(opt_.window));
   pairs_.reserve(64);
   assigned_.reserve(64);
 }
@@ -139,6 +147,7 @@ Tracker::~Tracker() = default;
 void Tracker::reset() {
   for (Track& t : tracks_) t.live = false;
   have_stamp_ = false;
+  fleet_ = {};
 }
 
 namespace {
@@ -175,6 +184,7 @@ void Tracker::update(const ScanResult& result, int64_t stamp_ns, TrackerResult& 
 
 void Tracker::track(const ScanResult& result, int64_t stamp_ns, TrackerResult& out) {
   if (have_stamp_ && stamp_ns < last_stamp_ns_) reset();
+  if (!have_stamp_) epoch_ns_ = stamp_ns;
   have_stamp_ = true;
   last_stamp_ns_ = stamp_ns;
   // Stamps never decrease from here, so last_seen_ns <= stamp_ns: the unsigned difference is
@@ -188,26 +198,41 @@ void Tracker::track(const ScanResult& result, int64_t stamp_ns, TrackerResult& o
       t.live = false;
   }
 
-  // Every (candidate, track) pair inside both gates, cheapest first; each takes at most one.
+  update_fleet();
+
+  // Every (candidate, track) pair inside both gates, cheapest first; each takes at most one. A
+  // track is met where its motion puts it at the candidate's time.
   const auto& cands = result.candidates;
   pairs_.clear();
   assigned_.assign(cands.size(), -1);
-  const double max_angle = opt_.max_angle_deg * kDeg;
   for (size_t c = 0; c < cands.size(); ++c) {
     const Candidate& cand = cands[c];
     if (evidence(cand, result) == nullptr) continue;
     const Eigen::Matrix3d frame = cand.undecoded_orientation.normalized().toRotationMatrix();
+    const double t_c = time_of(cand, stamp_ns);
     for (size_t k = 0; k < tracks_.size(); ++k) {
       const Track& t = tracks_[k];
       if (!t.live || t.family != cand.family_index || std::abs(t.size_m - cand.size_m) > 1e-9)
         continue;
-      const double d = (cand.position - t.ref_position).norm();
-      if (d > opt_.max_distance_m) continue;
+      // A track seen once has no motion of its own: the other tags' when they show it, else
+      // gates as wide as the sensor's motion allows.
+      const Motion& m = t.window_count == 1 && fleet_.known ? fleet_ : t.motion;
+      const double dt = t_c - t.ref_t_s;
+      const TimedPose at = predict({t.ref_t_s, t.ref_position, t.ref_frame}, m, dt);
+      double max_distance = opt_.max_distance_m, max_angle = opt_.max_angle_deg * kDeg;
+      if (opt_.follow_motion && !m.known) {
+        const double turned = opt_.max_turn_deg_s * kDeg * std::abs(dt);
+        max_distance +=
+            std::min(opt_.max_speed_mps * std::abs(dt) + turned * at.position.norm(), t.size_m / 2);
+        max_angle += std::min(turned, 30.0 * kDeg);
+      }
+      const double d = (cand.position - at.position).norm();
+      if (d > max_distance) continue;
       int delta = 0;
-      const double angle = aligned_angle(t.ref_frame.toRotationMatrix(), frame, delta);
+      const double angle = aligned_angle(at.frame.toRotationMatrix(), frame, delta);
       if (angle > max_angle) continue;
-      pairs_.push_back({d / opt_.max_distance_m + angle / max_angle, static_cast<int>(c),
-                        static_cast<int>(k), delta});
+      pairs_.push_back(
+          {d / max_distance + angle / max_angle, static_cast<int>(c), static_cast<int>(k), delta});
     }
   }
   std::sort(pairs_.begin(), pairs_.end(),
@@ -245,6 +270,28 @@ void Tracker::track(const ScanResult& result, int64_t stamp_ns, TrackerResult& o
   report(result, out);
 }
 
+double Tracker::time_of(const Candidate& c, int64_t stamp_ns) const {
+  const double t = static_cast<double>(stamp_ns - epoch_ns_) * 1e-9 + c.time_center_s;
+  return std::isfinite(t) ? t : static_cast<double>(stamp_ns - epoch_ns_) * 1e-9;
+}
+
+void Tracker::update_fleet() {
+  // The track with the longest window that fits its own motion tells how the world moves
+  // through the sensor's frame; a tie goes to a tag standing still.
+  fleet_ = {};
+  if (!opt_.follow_motion) return;
+  int best = 2;
+  bool best_moving = true;
+  for (const Track& t : tracks_) {
+    if (!t.live || t.window_count < 3) continue;
+    if (t.window_count > best || (t.window_count == best && best_moving && !t.moving)) {
+      best = t.window_count;
+      best_moving = t.moving;
+      fleet_ = t.motion;
+    }
+  }
+}
+
 const FamilyEvidence* Tracker::evidence(const Candidate& c, const ScanResult& result) const {
   if (c.family_index < 0 || static_cast<size_t>(c.family_index) >= families_.size()) return nullptr;
   const Family& fam = families_[static_cast<size_t>(c.family_index)];
@@ -277,6 +324,10 @@ void Tracker::start(Track& t, const Candidate& c) {
   t.window_count = t.window_next = 0;
   t.ref_position = c.position;
   t.ref_frame = c.undecoded_orientation.normalized();
+  t.motion = {};
+  t.moving = false;
+  t.size_sum = 0.0;
+  t.size_count = 0;
   t.leader = -1;
   t.confirmed = false;
 }
@@ -284,39 +335,35 @@ void Tracker::start(Track& t, const Candidate& c) {
 void Tracker::add(Track& t, const Candidate& c, const ScanResult& result, int64_t stamp_ns) {
   ++t.rotations;
   t.last_seen_ns = stamp_ns;
-  // The window: the frame turned into the track's frame, its sign next to the reference's.
-  const Eigen::Quaterniond aligned(c.undecoded_orientation.normalized().toRotationMatrix() *
-                                   quarter_turn(t.delta));
-  Eigen::Quaterniond q = aligned;
-  if (q.dot(t.ref_frame) < 0.0) q.coeffs() *= -1.0;
+  if (c.measured_size_m > 0.0) {
+    t.size_sum += c.measured_size_m;
+    ++t.size_count;
+  }
+  // The window: the frame turned into the track's frame, at the candidate's time.
   const auto w = static_cast<size_t>(t.window_next);
-  t.positions[w] = c.position;
-  t.frames[w] = q;
+  t.window[w] = {time_of(c, stamp_ns), c.position,
+                 Eigen::Quaterniond(c.undecoded_orientation.normalized().toRotationMatrix() *
+                                    quarter_turn(t.delta))};
   t.window_next = (t.window_next + 1) % opt_.window;
   t.window_count = std::min(t.window_count + 1, opt_.window);
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  Eigen::Vector4d qsum = Eigen::Vector4d::Zero();
-  for (int i = 0; i < t.window_count; ++i) {
-    mean += t.positions[static_cast<size_t>(i)];
-    qsum += t.frames[static_cast<size_t>(i)].coeffs();
-  }
-  mean /= t.window_count;
-  Eigen::Vector3d var = Eigen::Vector3d::Zero();
-  double angle2 = 0.0;
-  const Eigen::Quaterniond qmean =
-      Eigen::Quaterniond(Eigen::Vector4d(qsum.normalized())).normalized();
-  for (int i = 0; i < t.window_count; ++i) {
-    var += (t.positions[static_cast<size_t>(i)] - mean).cwiseAbs2();
-    const double a = t.frames[static_cast<size_t>(i)].angularDistance(qmean);
-    angle2 += a * a;
-  }
-  t.ref_position = mean;
-  t.ref_frame = qmean;
-  t.position_std = (var / t.window_count).cwiseSqrt();
-  t.angle_std_deg = std::sqrt(angle2 / t.window_count) / kDeg;
-  // Then the evidence, voted in the window's mean frame. A track-only candidate (too few boundary
-  // points for a detection of its own, eq. (6)) is evidence like any other: the track's own gates
-  // decide.
+  ordered_.clear();
+  for (int i = t.window_count; i > 0; --i)
+    ordered_.push_back(
+        t.window[static_cast<size_t>((t.window_next - i + opt_.window) % opt_.window)]);
+  // Its model: the mean, or a constant motion when that explains it clearly better.
+  const MotionFit fit =
+      opt_.follow_motion ? fit_motion(ordered_, fleet_)
+                         : fit_motion(ordered_, Motion{}, std::numeric_limits<double>::infinity());
+  t.ref_t_s = fit.pose.t_s;
+  t.ref_position = fit.pose.position;
+  t.ref_frame = fit.pose.frame;
+  t.motion = fit.motion;
+  t.moving = fit.moving;
+  t.position_std = fit.position_std_m;
+  t.angle_std_deg = fit.angle_std_deg;
+  // Then the evidence, voted in the window's frame at this candidate's time. A track-only
+  // candidate (too few boundary points for a detection of its own, eq. (6)) is evidence like any
+  // other: the track's own gates decide.
   add_evidence(t, c, result);
 }
 
@@ -399,6 +446,18 @@ void Tracker::fill_info(const Track& t, TrackInfo& info) const {
   info.position_std_m = t.position_std;
   info.angle_std_deg = t.angle_std_deg;
   info.window_rotations = t.window_count;
+  info.measured_size_m = t.size_count > 0 ? t.size_sum / t.size_count : -1.0;
+  info.size_warning = info.measured_size_m > 0.0 &&
+                      std::abs(info.measured_size_m / t.size_m - 1.0) > size_warning_ratio_;
+  info.moving = t.moving;
+  if (t.moving) {
+    // The centre's velocity now: the turn moving it, and the drift.
+    info.velocity_mps = t.motion.turn.cross(t.ref_position) + t.motion.velocity;
+    info.turn_deg_s = t.motion.turn / kDeg;
+  } else {
+    info.velocity_mps.setZero();
+    info.turn_deg_s.setZero();
+  }
 }
 
 void Tracker::report(const ScanResult& result, TrackerResult& out) const {
@@ -442,6 +501,9 @@ void Tracker::report(const ScanResult& result, TrackerResult& out) const {
     d.time_first_s = c.time_first_s;
     d.time_center_s = c.time_center_s;
     d.time_last_s = c.time_last_s;
+    d.measured_size_m = c.measured_size_m;
+    d.size_warning = c.measured_size_m > 0.0 &&
+                     std::abs(c.measured_size_m / c.size_m - 1.0) > size_warning_ratio_;
     // The track's function in the candidate's frame: quarter turns q - delta.
     const int q = ((t.leader & 3) - t.delta) & 3;
     const Eigen::Matrix3d r =

@@ -94,6 +94,8 @@ struct PyDetection {
   double score = 0, margin = 0, fit_cost = 0;
   int points = 0;
   double time_first_s = 0, time_center_s = 0, time_last_s = 0;
+  double measured_size_m = -1;
+  bool size_warning = false;
 };
 
 struct PyResult {
@@ -128,6 +130,8 @@ PyDetection convert(const det::Detection& d) {
   p.time_first_s = d.time_first_s;
   p.time_center_s = d.time_center_s;
   p.time_last_s = d.time_last_s;
+  p.measured_size_m = d.measured_size_m;
+  p.size_warning = d.size_warning;
   return p;
 }
 
@@ -219,10 +223,19 @@ marker, white ring included).)")
                     "When they crossed the point nearest its centre (seconds after the stamp).")
       .def_readonly("time_last_s", &PyDetection::time_last_s,
                     "When they crossed its last point (seconds after the stamp).")
+      .def_readonly("measured_size_m", &PyDetection::measured_size_m,
+                    "The size check: the marker's size its points measure (its black square), "
+                    "metres; -1 when they do not tell it.")
+      .def_readonly("size_warning", &PyDetection::size_warning,
+                    "measured_size_m differs from size_m (the configured size) by more than "
+                    "pose.size_warning_ratio: the configured size is wrong and the pose biased.")
       .def("__repr__", [](const PyDetection& d) {
         return "<lidartag.Detection " + d.family + " id " + std::to_string(d.id) + " at [" +
                std::to_string(d.position.x()) + ", " + std::to_string(d.position.y()) + ", " +
-               std::to_string(d.position.z()) + "] m, score " + std::to_string(d.score) + ">";
+               std::to_string(d.position.z()) + "] m, score " + std::to_string(d.score) +
+               (d.size_warning ? ", SIZE: measures " + std::to_string(d.measured_size_m) + " m"
+                               : "") +
+               ">";
       });
 
   py::class_<PyResult>(m, "DetectionResult",

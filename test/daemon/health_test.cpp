@@ -183,6 +183,39 @@ TEST(Health, RisingPublishFailuresArePublishFailing) {
   EXPECT_NE(h.reason.find("1 LCM message not published"), std::string::npos) << h.reason;
 }
 
+// The size check: detections whose points measure another size than configured make the state
+// "tag size mismatch" (a biased pose is not all well), with the tag and both sizes; below every
+// data-path problem; and the final status of a replay names it.
+TEST(Health, DetectionsOfTheWrongSizeAreATagSizeMismatch) {
+  HealthMonitor m({});
+  Sensor sensor;
+  judge(m, sensor, 2);
+  sensor.s.size_warnings = 9;
+  sensor.s.size_note = "tag16h5 id 0 measures 0.800 m, configured 0.750 m";
+  Health h = judge(m, sensor, 1);
+  EXPECT_EQ(h.state, HealthState::kTagSizeMismatch);
+  EXPECT_FALSE(h.healthy());
+  EXPECT_EQ(health_state_name(h.state), "tag size mismatch");
+  EXPECT_NE(h.reason.find("9 detections in the last 2.0 s measure another size than configured: "
+                          "tag16h5 id 0 measures 0.800 m, configured 0.750 m"),
+            std::string::npos)
+      << h.reason;
+  // No new warning in a window: healthy again.
+  EXPECT_EQ(judge(m, sensor, 1).state, HealthState::kHealthy);
+  // Dropped rotations are more severe; both are in the reason.
+  sensor.s.size_warnings += 1;
+  sensor.s.dropped_behind += 2;
+  h = judge(m, sensor, 1);
+  EXPECT_EQ(h.state, HealthState::kFallingBehind);
+  EXPECT_NE(h.reason.find("1 detection in the last"), std::string::npos) << h.reason;
+  sensor.s.ended = true;
+  h = m.update(sensor.s);
+  EXPECT_EQ(h.state, HealthState::kEnded);
+  EXPECT_NE(h.reason.find("10 detections measured another size than configured: tag16h5 id 0"),
+            std::string::npos)
+      << h.reason;
+}
+
 TEST(Health, ModelProblemsAreModelMismatch) {
   HealthMonitor m({});
   Sensor sensor;

@@ -125,6 +125,9 @@ TEST(Messages, TrackedDetectionsCarryTheTrackFieldsThroughMemq) {
   a.track.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(0.25, Eigen::Vector3d::UnitZ()));
   a.track.position_std_m = {0.001, 0.002, 0.003};
   a.track.angle_std_deg = 0.4;
+  a.track.moving = true;
+  a.track.velocity_mps = {-1.0, 0.25, 0.0};
+  a.track.turn_deg_s = {0.0, 0.0, -30.0};
   detector::TrackedDetection b = a;
   b.decoded = false;
   b.detection.id = 9;
@@ -156,12 +159,18 @@ TEST(Messages, TrackedDetectionsCarryTheTrackFieldsThroughMemq) {
   EXPECT_EQ(t.track_orientation[3], a.track.orientation.z());
   EXPECT_EQ(t.track_position_std[2], 0.003);
   EXPECT_EQ(t.track_angle_std_deg, 0.4);
+  EXPECT_TRUE(t.track_moving);
+  EXPECT_EQ(t.track_velocity[0], -1.0);
+  EXPECT_EQ(t.track_velocity[1], 0.25);
+  EXPECT_EQ(t.track_turn_deg_s[2], -30.0);
   EXPECT_FALSE(got.detections[1].decoded);
   EXPECT_EQ(got.detections[1].id, 9);
   EXPECT_EQ(got.detections[1].track_id, 13);
   EXPECT_EQ(got.detections[2].track_id, -1);
   EXPECT_FALSE(got.detections[2].confirmed);
   EXPECT_EQ(got.detections[2].track_rotations, 0);
+  EXPECT_FALSE(got.detections[2].track_moving);
+  EXPECT_EQ(got.detections[2].track_turn_deg_s[2], 0.0);
 }
 
 TEST(Messages, EmptyRotationIsStillAMessage) {

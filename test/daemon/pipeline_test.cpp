@@ -267,6 +267,48 @@ TEST(Pipeline, TheTrackerFollowsEachTagAcrossRotationsUnlessTurnedOff) {
   }
 }
 
+// The size check through the daemon: the demo's 0.8 m tag configured as 0.75 m is published with
+// size_warning and the size its points measure, and the final status names the mismatch; at the
+// right sizes nothing is warned about.
+TEST(Pipeline, ATagSizeTheTagsPointsContradictIsWarnedAboutInMessagesAndStatus) {
+  REQUIRE_DEMO();
+  SensorStatus last;
+  const Recorder wrong = run_pipeline(demo_options({"detector.tag_sizes_m=[0.75, 0.6]"}),
+                                      std::chrono::milliseconds::zero(), &last);
+  int warned = 0, found = 0;
+  for (size_t i = 0; i < wrong.messages.size(); ++i) {
+    if (wrong.channels[i] != "LIDARTAG_DETECTIONS") continue;
+    const auto m = decode<lidartag::tag_detections_t>(wrong.messages[i]);
+    for (const auto& d : m.detections) {
+      if (d.id != 0) continue;
+      ++found;
+      EXPECT_EQ(d.size_m, 0.75);
+      EXPECT_NEAR(d.measured_size_m, 0.8, 0.016);  // within 2 %
+      warned += d.size_warning ? 1 : 0;
+    }
+  }
+  EXPECT_GE(found, 8);
+  EXPECT_EQ(warned, found);
+  EXPECT_EQ(last.health.state, HealthState::kEnded);
+  EXPECT_NE(last.health.reason.find("measured another size than configured: tag16h5 id 0 "
+                                    "measures 0.8"),
+            std::string::npos)
+      << last.health.reason;
+  SensorStatus right_status;
+  const Recorder right =
+      run_pipeline(demo_options({}), std::chrono::milliseconds::zero(), &right_status);
+  for (size_t i = 0; i < right.messages.size(); ++i) {
+    if (right.channels[i] != "LIDARTAG_DETECTIONS") continue;
+    const auto m = decode<lidartag::tag_detections_t>(right.messages[i]);
+    for (const auto& d : m.detections) {
+      EXPECT_FALSE(d.size_warning) << "id " << d.id << " measures " << d.measured_size_m;
+      EXPECT_NEAR(d.measured_size_m, d.size_m, 0.02 * d.size_m);
+    }
+  }
+  EXPECT_EQ(right_status.health.reason.find("another size"), std::string::npos)
+      << right_status.health.reason;
+}
+
 TEST(Pipeline, LoopSeamPartialsAreCountedNotPublishedAndTheRateStaysTheSensors) {
   REQUIRE_DEMO();
   // The demo (10 whole rotations and a partial at each end, 600 rpm) looped at the recorded pace

@@ -110,6 +110,23 @@ TEST(Corners, SideLengthFarFromEverySizeIsRejected) {
   TagOutline o;
   const std::vector<double> sizes = {0.5};
   EXPECT_EQ(find_corners(pts, plane_of(tag), sizes, CornerOptions{}, ws, o), Rejection::kSize);
+  // Larger than a configured size by up to two board margins (0.2 m a side by default): that tag
+  // on a board (the detector then requires its black square); the largest size that fits.
+  for (const std::vector<double>& on_board : {std::vector<double>{0.9}, {0.5, 0.8, 0.9}}) {
+    ASSERT_EQ(find_corners(pts, plane_of(tag), on_board, CornerOptions{}, ws, o), Rejection::kNone);
+    EXPECT_TRUE(o.on_board);
+    EXPECT_EQ(o.size_m, 0.9);
+    EXPECT_NEAR(o.side_m, 1.2, 0.05);  // the board's side
+  }
+  // Within the size tolerance: the tag's own outline.
+  ASSERT_EQ(find_corners(pts, plane_of(tag), std::vector<double>{1.1}, CornerOptions{}, ws, o),
+            Rejection::kNone);
+  EXPECT_FALSE(o.on_board);
+  // No margin allowed: the wrong size.
+  CornerOptions no_boards;
+  no_boards.board_margin_m = 0.0f;
+  EXPECT_EQ(find_corners(pts, plane_of(tag), std::vector<double>{0.9}, no_boards, ws, o),
+            Rejection::kSize);
   const std::vector<ClusterPoint> few(pts.begin(), pts.begin() + 3);
   EXPECT_EQ(find_corners(few, plane_of(tag), sizes, CornerOptions{}, ws, o), Rejection::kCorners);
 }

@@ -225,6 +225,112 @@ TEST(DetectorEndToEnd, Vlp32cFindsA12mTagFaceOnAndTurnedUpTo16m) {
     }
 }
 
+// The size check (issue 33): every detection measures the marker from its black square's
+// outline; given its right size, the measure is within 2 % and nothing is warned about; given a
+// size 5 % or more off (the issue's 0.75 m and 0.89 m for a 0.8 m tag), every detection is warned
+// about and still measures the printed size.
+TEST(DetectorEndToEnd, ASizeThePointsContradictIsWarnedAboutWithTheMeasuredSize) {
+  struct Case {
+    velodyne::Model model;
+    double distance;
+    int angle;
+    double printed;
+  };
+  const Case cases[] = {{velodyne::Model::kVLP32C, 4.0, 0, 0.8},
+                        {velodyne::Model::kVLP32C, 8.0, 45, 0.8},
+                        {velodyne::Model::kVLP16, 5.0, 45, 1.2}};
+  for (const Case& c : cases) {
+    const sim::Simulator simulator(
+        eval::accuracy_scene(c.model, c.distance, c.angle, 11, c.printed));
+    for (const double typed : {c.printed, 0.94 * c.printed, 1.06 * c.printed, 0.75, 0.89}) {
+      if (c.printed != 0.8 && (typed == 0.75 || typed == 0.89)) continue;
+      SCOPED_TRACE(::testing::Message()
+                   << velodyne::model_spec(c.model).name << " " << c.distance << " m " << c.angle
+                   << " deg, " << c.printed << " m typed " << typed);
+      eval::SimScans scans(simulator);
+      DetectorOptions o;
+      o.tag_sizes_m = {typed};
+      Detector det(o);
+      ScanResult result;
+      int found = 0, warned = 0;
+      scans.run(4, 5, [&](const Scan& s, size_t) {
+        det.detect(s, result);
+        for (const Detection& d : result.detections) {
+          if (d.id != 11) continue;
+          ++found;
+          warned += d.size_warning ? 1 : 0;
+          EXPECT_NEAR(d.measured_size_m, c.printed, 0.02 * c.printed);
+          EXPECT_EQ(d.size_m, typed);
+        }
+      });
+      // 11 % too large (the board's outline), the fit of eq. (9) fails in some rotations.
+      EXPECT_GE(found, typed == 0.89 ? 1 : 3);
+      EXPECT_EQ(warned, typed == c.printed ? 0 : found);
+    }
+  }
+}
+
+// Tags on boards (issue 33): a 0.4 m tag36h11 on boards with 5, 10 and 20 cm margins (outlines
+// 25-100 % larger than the tag), diamond and square mounted, is found with its ID and placed by
+// its black square as without a margin; a blank board of those sizes is no tag; with
+// corners.board_margin_m 0 the margined tags are rejected for their size, as before.
+TEST(DetectorEndToEnd, ATagOnABoardWithAMarginIsFoundAndABlankBoardIsNot) {
+  for (const double margin : {0.0, 0.05, 0.1, 0.2})
+    for (const int mount : {45, 0}) {
+      SCOPED_TRACE(::testing::Message() << "margin " << margin << " m, mount " << mount);
+      sim::Scene scene = eval::accuracy_scene(velodyne::Model::kVLP32C, 3.0, 0, 17, 0.4);
+      scene.tags[0].family = "tag36h11";
+      scene.tags[0].rotation_deg = mount;
+      scene.tags[0].board.margin = margin;
+      const sim::Simulator simulator(scene);
+      DetectorOptions o;
+      o.tag_sizes_m = {0.4};
+      o.families = {"tag36h11"};
+      DetectorOptions no_boards = o;
+      no_boards.corners.board_margin_m = 0.0f;
+      Detector det(o), strict(no_boards);
+      ScanResult result;
+      std::vector<std::vector<Detection>> found;
+      int strict_found = 0;
+      eval::SimScans scans(simulator);
+      const sim::Truth truth = scans.run(4, 9, [&](const Scan& s, size_t) {
+        det.detect(s, result);
+        found.push_back(result.detections);
+        strict.detect(s, result);
+        strict_found += static_cast<int>(result.detections.size());
+      });
+      int right = 0;
+      for (size_t k = 0; k < found.size() && k < truth.rotations.size(); ++k)
+        for (const Detection& d : found[k]) {
+          EXPECT_EQ(d.id, 17);
+          EXPECT_LT((d.position - truth.rotations[k].tags.front().position).norm(), 0.01);
+          EXPECT_NEAR(d.measured_size_m, 0.4, 0.01);
+          right += d.id == 17 ? 1 : 0;
+        }
+      EXPECT_GE(right, static_cast<int>(found.size()) - 1);
+      if (margin >= 0.05) {
+        EXPECT_EQ(strict_found, 0);
+      }
+    }
+  // Boards that are not tags (checkerboards of 0.61 and 0.85 m, boards with holes, signs) and
+  // clutter (blank boards of 0.6-1.2 m) take the board rule for a 0.4 m tag: none is a tag.
+  DetectorOptions small;
+  small.tag_sizes_m = {0.4};
+  small.families = {"tag36h11", "tag16h5"};
+  Detector det(small);
+  ScanResult result;
+  for (const char* capture : {"boards.pcap", "clutter.pcap"}) {
+    velodyne::CaptureReader reader(LIDARTAG_SOURCE_DIR "/pcaps/" + std::string(capture), {});
+    int rotations = 0;
+    while (const Scan* scan = reader.next()) {
+      det.detect(*scan, result);
+      ++rotations;
+      EXPECT_TRUE(result.detections.empty()) << capture << " rotation " << rotations;
+    }
+    EXPECT_GE(rotations, 10);
+  }
+}
+
 TEST(DetectorEndToEnd, Vls128AndVlp16FindATagAt4m) {
   for (auto model : {velodyne::Model::kVLS128, velodyne::Model::kVLP16}) {
     const CellResult c = run_cell(model, 4.0, 0, 9, 2);

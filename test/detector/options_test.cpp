@@ -166,8 +166,10 @@ TEST(Options, DerivedLimitsAreArgumentsNotOptions) {
   const DetectorLimits& l = det.limits();
   EXPECT_DOUBLE_EQ(l.t_max, 1.2);
   EXPECT_NEAR(l.tau_m, 1.2 * std::sqrt(2.0) / 4, 1e-6);
-  EXPECT_NEAR(l.max_pair_chord_m, 1.1 * 1.2 * std::sqrt(2.0), 1e-5);
-  EXPECT_NEAR(l.max_extent_m, 1.25 * 1.2 * std::sqrt(2.0), 1e-5);
+  // The largest object a tag can be is its board: 1.2 m and a 0.2 m margin on each side.
+  EXPECT_NEAR(l.board_max, 1.6, 1e-6);
+  EXPECT_NEAR(l.max_pair_chord_m, 1.1 * 1.6 * std::sqrt(2.0), 1e-5);
+  EXPECT_NEAR(l.max_extent_m, 1.25 * 1.6 * std::sqrt(2.0), 1e-5);
   EXPECT_EQ(l.min_points, 64);           // 1 return x 8 x 8 cells of tag16h5
   EXPECT_EQ(l.min_boundary_points, 12);  // eq. (6): 2 (4 + 2)
   EXPECT_NEAR(l.min_ring_width_m, 0.25 * 0.6, 1e-6);

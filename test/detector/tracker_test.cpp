@@ -44,6 +44,7 @@ struct Cand {
   bool shift_searched = false;
   bool track_only = false;
   double size = 1.2;
+  double measured = -1.0;  // the size its points measure (-1: not told)
   // Where the tag showing the fitting function really is (in `frame`); unset: at `position`. The
   // candidate's points are given in its own frame, as the detector gives them, so a tag that is
   // not where the candidate's pose says puts its points in other cells of that frame.
@@ -72,6 +73,7 @@ void add(ScanResult& r, const RkhsDictionary& dict, const Cand& c) {
   d.fit_cost = 1.0;
   d.shift_searched = c.shift_searched;
   d.track_only = c.track_only;
+  d.measured_size_m = c.measured;
   d.first_evidence = static_cast<int>(r.family_evidence.size());
   d.evidence_count = 1;
   FamilyEvidence& e = r.family_evidence.emplace_back();
@@ -253,6 +255,142 @@ TEST_F(TrackerTest, MovingBeyondTheGatesStartsANewTrackWithoutTheOldEvidence) {
   EXPECT_EQ(out.tracks, 3);  // the old ones live until max_age_s
 }
 
+// A tag `p0` (frame `f0`) fixed in the world, seen after the sensor turned `deg` about its z.
+Cand turned(Cand c, const Eigen::Vector3d& p0, const Eigen::Matrix3d& f0, double deg) {
+  const Eigen::Matrix3d r = Eigen::AngleAxisd(-deg * kPi / 180, Eigen::Vector3d::UnitZ())
+                                .toRotationMatrix();  // the world turns the other way
+  c.position = r * p0;
+  c.frame = r * f0;
+  return c;
+}
+
+// A sensor yawing at 30 deg/s moves two tags at 7 m by 0.37 m and 3 degrees a rotation, beyond
+// both gates: each track follows its tag with the motion of its window, the evidence of every
+// rotation is summed, and the tracks say how the world turns (the sensor's turn, reversed).
+TEST_F(TrackerTest, ATurningSensorKeepsOneTrackPerTagAndConfirmsIt) {
+  Tracker tracker({}, det_opt);
+  Cand a, b;
+  b.code = 9;
+  const Eigen::Vector3d pa{7.0, 1.5, 0.0}, pb{6.5, -2.0, 0.2};
+  for (int k = 0; k < 12; ++k) {
+    step(tracker, {turned(a, pa, a.frame, 3.0 * k), turned(b, pb, b.frame, 3.0 * k)});
+    ASSERT_EQ(out.seen.size(), 2u) << k;
+    EXPECT_EQ(out.tracks, 2) << k;
+    for (const TrackInfo& t : out.seen) {
+      EXPECT_LT(t.track_id, 2) << k;  // the first two tracks, never a new one
+      EXPECT_EQ(t.rotations, k + 1);
+      EXPECT_EQ(t.confirmed, k >= 2) << k;
+      if (k >= 2) {
+        EXPECT_TRUE(t.moving);
+        EXPECT_NEAR(t.turn_deg_s.z(), -30.0, 1e-6) << k;
+      }
+    }
+    ASSERT_EQ(out.tags.size(), k >= 2 ? 2u : 0u);
+    for (const TrackedDetection& t : out.tags)
+      EXPECT_EQ(t.detection.id, t.track.track_id == 0 ? 3 : 9);
+  }
+  // The track's pose is the tag where it is now, not the mean of where it was.
+  const TrackInfo* t = seen_at(turned(a, pa, a.frame, 33.0).position);
+  ASSERT_NE(t, nullptr);
+  EXPECT_NEAR((t->position - turned(a, pa, a.frame, 33.0).position).norm(), 0.0, 1e-6);
+  EXPECT_NEAR(t->velocity_mps.norm(), 30.0 * kPi / 180 * pa.norm(), 1e-6);
+}
+
+// Without tracker.follow_motion, the same sensor starts a new track every rotation (the tag is
+// 0.37 m from the window's mean) and never confirms the ambiguous tag.
+TEST_F(TrackerTest, WithoutFollowMotionATurningSensorStartsATrackEveryRotation) {
+  TrackerOptions o;
+  o.follow_motion = false;
+  Tracker tracker(o, det_opt);
+  Cand a;
+  const Eigen::Vector3d pa{7.0, 1.5, 0.0};
+  for (int k = 0; k < 6; ++k) {
+    step(tracker, {turned(a, pa, a.frame, 3.0 * k)});
+    ASSERT_EQ(out.seen.size(), 1u);
+    EXPECT_EQ(out.seen[0].track_id, k);
+    EXPECT_FALSE(out.seen[0].moving);
+    EXPECT_TRUE(out.tags.empty());
+  }
+}
+
+// While the sensor turns, a tag that leaves its predicted path (moved by hand, or another tag of
+// the same code) starts a new track: evidence of two places is never summed.
+TEST_F(TrackerTest, ATagThatLeavesItsPredictedPathStartsANewTrack) {
+  Tracker tracker({}, det_opt);
+  Cand a;
+  const Eigen::Vector3d pa{7.0, 1.5, 0.0};
+  for (int k = 0; k < 6; ++k) step(tracker, {turned(a, pa, a.frame, 3.0 * k)});
+  ASSERT_EQ(out.seen[0].track_id, 0);
+  // 0.25 m off where the turn puts it.
+  Cand moved = turned(a, pa, a.frame, 18.0);
+  moved.position.z() += 0.25;
+  moved.code = 9;
+  step(tracker, {moved});
+  ASSERT_EQ(out.seen.size(), 1u);
+  EXPECT_EQ(out.seen[0].track_id, 1);
+  EXPECT_EQ(out.seen[0].rotations, 1);
+  EXPECT_EQ(out.seen[0].id, 9);
+}
+
+// A track seen once, with no other track that knows the motion, meets its next candidate within
+// gates grown by the sensor's largest motion (2 m/s and 45 deg/s: 0.75 m at 7 m in 0.1 s), at
+// most half the tag's size: a 1.2 m tag 0.5 m on is the same track, a 0.2 m tag 0.3 m on is not.
+TEST_F(TrackerTest, AYoungTracksGatesGrowWithTheSensorsMotionUpToHalfTheTagsSize) {
+  det_opt.tag_sizes_m = {1.2, 0.2};
+  Tracker tracker({}, det_opt);
+  Cand big, small;
+  big.position = {7.0, 2.0, 0.0};
+  small.position = {7.0, -2.0, 0.0};
+  small.size = 0.2;
+  small.code = 9;
+  step(tracker, {big, small});
+  ASSERT_EQ(out.seen.size(), 2u);
+  big.position.y() += 0.5;
+  small.position.y() += 0.3;
+  step(tracker, {big, small});
+  const TrackInfo* b = seen_at(big.position);
+  const TrackInfo* s = seen_at(small.position);
+  ASSERT_TRUE(b && s);
+  EXPECT_EQ(b->track_id, 0);
+  EXPECT_EQ(b->rotations, 2);
+  EXPECT_EQ(s->track_id, 2);  // a new one
+  EXPECT_EQ(s->rotations, 1);
+  // 0.7 m on for the big tag: beyond half its size, a new track too.
+  big.position.y() += 0.7;
+  step(tracker, {big});
+  EXPECT_EQ(out.seen[0].track_id, 3);
+}
+
+// The size check over a track: the mean of its candidates' measured sizes (those that measured
+// one), warned about beyond pose.size_warning_ratio; a tag reported by its track alone carries
+// its rotation's measure and warning.
+TEST_F(TrackerTest, ATracksMeasuredSizeIsTheMeanOfItsCandidatesAndWarnedAboutWhenOff) {
+  Tracker tracker({}, det_opt);  // pose.size_warning_ratio 0.03
+  Cand c;                        // 1.2 m, ambiguous alone: reported by its track once confirmed
+  const double measured[] = {1.25, -1.0, 1.27, 1.26};
+  for (double m : measured) {
+    c.measured = m;
+    step(tracker, {c});
+  }
+  ASSERT_EQ(out.seen.size(), 1u);
+  EXPECT_NEAR(out.seen[0].measured_size_m, 1.26, 1e-12);
+  EXPECT_TRUE(out.seen[0].size_warning);
+  ASSERT_EQ(out.tags.size(), 1u);
+  EXPECT_FALSE(out.tags[0].decoded);
+  EXPECT_EQ(out.tags[0].detection.measured_size_m, 1.26);
+  EXPECT_TRUE(out.tags[0].detection.size_warning);
+  // Within 3 %: no warning.
+  Tracker right({}, det_opt);
+  c.position.y() += 3.0;
+  for (double m : {1.21, 1.19, 1.22}) {
+    c.measured = m;
+    step(right, {c});
+  }
+  EXPECT_FALSE(out.seen[0].size_warning);
+  EXPECT_FALSE(out.tags[0].detection.size_warning);
+  EXPECT_NEAR(out.seen[0].measured_size_m, 1.2066666666666666, 1e-9);
+}
+
 TEST_F(TrackerTest, QuarterTurnsOfTheEstimatedFrameAreAlignedToTheTrack) {
   Tracker tracker({}, det_opt);
   Cand c;
@@ -294,10 +432,11 @@ TEST_F(TrackerTest, MeanPoseAndSpreadOverTheWindow) {
   Tracker tracker(o, det_opt);
   Cand c;
   // Over the last 4: x alternates 6.00 / 6.02 (std 1 cm), y fixed, z 0, 0, 0.04, 0.
-  const double xs[] = {5.5, 6.0, 6.02, 6.0, 6.02};
+  const double xs[] = {4.5, 6.0, 6.02, 6.0, 6.02};
   const double zs[] = {0.0, 0.0, 0.0, 0.04, 0.0};
-  // The first is 0.5 m from the others: they start another track. Its frames alternate +-1 degree
-  // about the normal.
+  // The first is 1.5 m from the others (farther than a young track's gates reach): they start
+  // another track. Its frames alternate +-1 degree about the normal. Scatter, not motion: the
+  // mean.
   for (int k = 0; k < 5; ++k) {
     c.position = {xs[k], 0.0, zs[k]};
     c.frame = facing() * Eigen::AngleAxisd((k % 2 ? 1 : -1) * kPi / 180, Eigen::Vector3d::UnitX())
@@ -314,6 +453,7 @@ TEST_F(TrackerTest, MeanPoseAndSpreadOverTheWindow) {
   EXPECT_NEAR(t.position_std_m.y(), 0.0, 1e-12);
   EXPECT_NEAR(t.position_std_m.z(), std::sqrt(3 * 0.0001 + 0.0009) / 2, 1e-9);
   EXPECT_NEAR(t.angle_std_deg, 1.0, 1e-6);
+  EXPECT_FALSE(t.moving);
 }
 
 TEST_F(TrackerTest, TracksAgeOutAndAReplayStartingAgainResetsThem) {

@@ -192,3 +192,23 @@ def test_each_detection_carries_the_time_the_beams_crossed_it(demo_rotations, tr
             assert 1e-3 < d.time_last_s - d.time_first_s < 10e-3
             checked += 1
     assert checked == 2 * len(complete)
+
+
+def test_a_size_the_points_contradict_is_warned_about(demo_rotations):
+    # The size check: the demo's 0.8 m tag given as 0.75 m measures 0.8 m and is warned about;
+    # given its size, the measure agrees and nothing is warned about.
+    wrong = lidartag.Detector({"tag_sizes_m": [0.75, 0.6], "families": ["tag16h5"]})
+    right = lidartag.Detector(DEMO_SIZES)
+    warned = 0
+    for rotation in demo_rotations:
+        if not rotation.complete:
+            continue
+        for d in wrong.detect(rotation):
+            if d.id == 0:
+                assert d.size_m == 0.75 and d.measured_size_m == pytest.approx(0.8, rel=0.02)
+                assert d.size_warning and "SIZE: measures 0." in repr(d)
+                warned += 1
+        for d in right.detect(rotation):
+            assert not d.size_warning
+            assert d.measured_size_m == pytest.approx(d.size_m, rel=0.02)
+    assert warned == 10

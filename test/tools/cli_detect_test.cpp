@@ -127,6 +127,37 @@ TEST(CliDetect, TableSummarisesTheRotations) {
   EXPECT_EQ(merged.out.find('\r'), std::string::npos);
 }
 
+// The size check (issue 33): the demo's 0.8 m tag given as 0.75 m is still found, every rotation
+// says what its points measure, the summary says which size to give, and --json carries the
+// measure and the warning (its summary line on stderr); the right size warns of nothing.
+TEST(CliDetect, ASizeThePointsContradictIsWarnedAboutWithTheSizeToGive) {
+  const Result r = run_tool("detect " + kDemo + " --tag-size 0.75", false);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("SIZE: its points measure 0.8"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("warning: tag16h5 id 0 measures 0.8"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("not the 0.750 m given (in 10 of the 10 rotations it was found in)"),
+            std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("give --tag-size 0.80"), std::string::npos) << r.out;
+  const auto json = lidartag::testing::run_split(std::string(LIDARTAG_CLI) + " detect " + kDemo +
+                                                 " --tag-size 0.75 --json");
+  ASSERT_EQ(json.exit_code, 0) << json.err;
+  std::istringstream lines(json.out);
+  int warned = 0;
+  for (std::string line; std::getline(lines, line);) {
+    const nlohmann::json rotation = nlohmann::json::parse(line);
+    for (const auto& d : rotation["detections"]) {
+      EXPECT_NEAR(d["measured_size_m"].get<double>(), 0.8, 0.016) << line;
+      warned += d["size_warning"].get<bool>() ? 1 : 0;
+    }
+  }
+  EXPECT_EQ(warned, 10);
+  EXPECT_NE(json.err.find("warning: tag16h5 id 0 measures 0.8"), std::string::npos) << json.err;
+  const Result right = run_tool("detect " + kDemo + " --tag-size 0.8 --tag-size 0.6", false);
+  EXPECT_EQ(right.out.find("SIZE"), std::string::npos) << right.out;
+  EXPECT_EQ(right.out.find("warning"), std::string::npos) << right.out;
+}
+
 TEST(CliDetect, ConfigFileSetsTheDetector) {
   TempDir dir;
   {

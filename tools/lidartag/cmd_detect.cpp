@@ -120,6 +120,9 @@ nlohmann::json track_json(const det::TrackInfo& t) {
   o["orientation"] = quaternion(t.orientation);
   o["position_std"] = vec(t.position_std_m);
   o["angle_std_deg"] = t.angle_std_deg;
+  o["moving"] = t.moving;
+  o["velocity"] = vec(t.velocity_mps);
+  o["turn_deg_s"] = vec(t.turn_deg_s);
   return o;
 }
 
@@ -156,6 +159,10 @@ nlohmann::json rotation_json(const Scan& scan, const Reported& rep, bool cluster
     o["time_first_s"] = d.time_first_s;
     o["time_center_s"] = d.time_center_s;
     o["time_last_s"] = d.time_last_s;
+    // The size check: what the points say the marker measures (null: they do not tell it).
+    o["measured_size_m"] =
+        d.measured_size_m > 0 ? nlohmann::json(d.measured_size_m) : nlohmann::json(nullptr);
+    o["size_warning"] = d.size_warning;
     if (t != nullptr) {
       o["decoded"] = t->decoded;
       if (t->track.track_id >= 0) o["track"] = track_json(t->track);
@@ -199,15 +206,23 @@ void print_detection(const det::Detection& d, const det::TrackedDetection* t) {
       d.family, d.id, d.size_m, d.position.x(), d.position.y(), d.position.z(), q.w(), q.x(), q.y(),
       q.z(), d.score, d.margin, d.points,
       t != nullptr && !t->decoded ? "  (by its track: not decoded alone)" : "");
+  if (d.size_warning)
+    fmt::print(
+        "    SIZE: its points measure {:.3f} m, not the {:.3f} m given: the pose is biased\n",
+        d.measured_size_m, d.size_m);
   if (t == nullptr || t->track.track_id < 0) return;
   const det::TrackInfo& k = t->track;
   fmt::print(
-      "    track {}: {}, {} rotation{}, margin {:.2f} cells; mean of {}: [{:8.3f} {:8.3f} {:8.3f}] "
+      "    track {}: {}, {} rotation{}, margin {:.2f} cells; {} of {}: [{:8.3f} {:8.3f} {:8.3f}] "
       "m, spread {:.1f} {:.1f} {:.1f} mm {:.2f} deg\n",
       k.track_id, k.confirmed ? "confirmed" : "unconfirmed", k.rotations,
-      k.rotations == 1 ? "" : "s", k.margin_cells, k.window_rotations, k.position.x(),
-      k.position.y(), k.position.z(), 1e3 * k.position_std_m.x(), 1e3 * k.position_std_m.y(),
-      1e3 * k.position_std_m.z(), k.angle_std_deg);
+      k.rotations == 1 ? "" : "s", k.margin_cells, k.moving ? "motion" : "mean", k.window_rotations,
+      k.position.x(), k.position.y(), k.position.z(), 1e3 * k.position_std_m.x(),
+      1e3 * k.position_std_m.y(), 1e3 * k.position_std_m.z(), k.angle_std_deg);
+  if (k.moving)
+    fmt::print("    moving at [{:.3f} {:.3f} {:.3f}] m/s, turning [{:.1f} {:.1f} {:.1f}] deg/s\n",
+               k.velocity_mps.x(), k.velocity_mps.y(), k.velocity_mps.z(), k.turn_deg_s.x(),
+               k.turn_deg_s.y(), k.turn_deg_s.z());
 }
 
 // With `clusters` (--clusters), every cluster with enough features to be a tag, explained.
@@ -261,6 +276,20 @@ struct Totals {
   bool tracker = false;
   std::map<long, size_t> wrong_size_cm;  // sides measured of clusters rejected for their size
   std::vector<double> sizes_m;           // the sizes asked for
+  // The size check, per tag: detections warned about, and their measured sizes summed.
+  struct SizeCheck {
+    double size_m = 0.0, measured_sum = 0.0;
+    size_t warned = 0;
+  };
+  std::map<std::pair<std::string, int>, SizeCheck> size_checks;
+
+  void check_size(const det::Detection& d) {
+    if (!d.size_warning) return;
+    SizeCheck& c = size_checks[{std::string(d.family), d.id}];
+    c.size_m = d.size_m;
+    c.measured_sum += d.measured_size_m;
+    ++c.warned;
+  }
 
   void add(const Reported& rep) {
     const det::ScanResult& r = *rep.result;
@@ -269,11 +298,15 @@ struct Totals {
       tracker = true;
       tracker_ms += rep.tracked->time_ms;
       for (const auto& t : rep.tracked->tags) {
+        check_size(t.detection);
         ++found[{std::string(t.detection.family), t.detection.id}];
         if (!t.decoded) ++tracked_only[{std::string(t.detection.family), t.detection.id}];
       }
     } else {
-      for (const auto& d : r.detections) ++found[{std::string(d.family), d.id}];
+      for (const auto& d : r.detections) {
+        check_size(d);
+        ++found[{std::string(d.family), d.id}];
+      }
     }
     for (size_t s = 0; s < ms.size(); ++s) ms[s] += r.timing_ms[s];
     for (size_t k = 0; k < rejected.size(); ++k) rejected[k] += r.rejected[k];
@@ -281,6 +314,20 @@ struct Totals {
       if (d.rejection == det::Rejection::kSize && d.side_m > 0)
         ++wrong_size_cm[std::lround(d.side_m * 100)];
     worst_ms = std::max(worst_ms, r.total_ms());
+  }
+
+  // The size check's verdict (after the summary; on stderr with --json): a tag whose points
+  // measure another size than the one given, with the size to give.
+  void print_size_warnings(std::FILE* out) const {
+    for (const auto& [tag, c] : size_checks) {
+      const size_t n = found.count(tag) ? found.at(tag) : c.warned;
+      fmt::print(out,
+                 "warning: {} id {} measures {:.3f} m, not the {:.3f} m given (in {} of the {} "
+                 "rotations it was found in): its pose is biased; give --tag-size {:.3f} (the "
+                 "printed marker's outer size)\n",
+                 tag.first, tag.second, c.measured_sum / static_cast<double>(c.warned), c.size_m,
+                 c.warned, n, c.measured_sum / static_cast<double>(c.warned));
+    }
   }
 
   void print() const {
@@ -293,6 +340,7 @@ struct Totals {
         fmt::print(" ({} confirmed by its track only)", t->second);
     }
     if (!found.empty()) fmt::print(" rotations\n");
+    print_size_warnings(stdout);
     if (skipped > 0)
       fmt::print("skipped {} incomplete rotation{} (--partial detects in them)\n", skipped,
                  skipped == 1 ? "" : "s");
@@ -384,10 +432,12 @@ int run_detect(const DetectArgs& args) {
     progress.done();
     warn_model_mismatch(reader, args.capture);
     if (!args.json) totals.print();
+    if (args.json) totals.print_size_warnings(stderr);
     require_rotations(reader, args.capture, n, totals.skipped, "detects in them");
     return 0;
   }
   if (!args.json) totals.print();
+  if (args.json) totals.print_size_warnings(stderr);
   return 0;
 }
 

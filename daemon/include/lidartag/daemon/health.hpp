@@ -29,6 +29,8 @@ enum class HealthState : uint8_t {
   kEnded = 11,  // the source ended (replay done, or stopped) and everything was published; the
                 // reason adds what went wrong over the whole run
   kNotDecoding = 12,  // data packets arrive but none was decoded over a whole window
+  // tags found whose points measure another size than the configured one (a biased pose)
+  kTagSizeMismatch = 13,
 };
 std::string_view health_state_name(HealthState state);
 
@@ -62,6 +64,10 @@ struct HealthSample {
   std::string model_problem;      // the model decoded does not fit the packets; empty if it does
   std::string model_note;  // the capture reader's own account (CaptureReader::model_mismatch())
   std::vector<uint32_t> senders;  // distinct data-packet sender addresses seen lately
+  // Detections whose measured size contradicts the configured one (Detection::size_warning),
+  // and the latest of them ("tag16h5 id 3 measures 0.800 m, configured 0.750 m").
+  uint64_t size_warnings = 0;
+  std::string size_note;
 };
 
 struct Health {

@@ -5,6 +5,7 @@
 // rotations) sees every rotation here, in order, before its messages are filled.
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cstdint>
@@ -66,6 +67,10 @@ class RotationPublisher {
   const std::vector<std::string>& stage_names() const { return stage_names_; }
   // Percentiles since the previous call, one per stage (any thread).
   std::vector<Percentiles> take_latencies();
+  // The size check: detections published whose points measure another size than the configured
+  // one (Detection::size_warning), and the latest of them in words (any thread).
+  uint64_t size_warnings() const { return size_warnings_.load(std::memory_order_relaxed); }
+  std::string size_note() const;
 
  private:
   const SensorOptions& sensor_;
@@ -78,7 +83,17 @@ class RotationPublisher {
   lidartag::tag_points_t tag_points_message_;
   lidartag::point_cloud_t cloud_message_;
   std::optional<detector::Tracker> tracker_;  // tracker.enabled
-  detector::TrackerResult tracked_;           // reused: no allocation once grown
+  // The size check's latest warning (the family's name copied: no allocation while publishing).
+  struct SizeSeen {
+    std::array<char, 32> family{};
+    int id = -1;
+    double size_m = 0.0, measured_m = 0.0;
+  };
+  void check_size(const detector::Detection& d);
+  std::atomic<uint64_t> size_warnings_{0};
+  mutable std::mutex size_mutex_;
+  SizeSeen last_size_;
+  detector::TrackerResult tracked_;  // reused: no allocation once grown
   std::vector<std::string> stage_names_;
   std::vector<std::unique_ptr<LatencyWindow>> windows_;
 };

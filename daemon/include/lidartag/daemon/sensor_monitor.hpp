@@ -35,7 +35,9 @@ struct PathGauges {
   uint64_t publish_failures = 0;  // this sensor's LCM messages not published
   uint64_t bus_failures = 0;      // the bus's, status messages included
   size_t buffer_waiting = 0, buffer_depth = 0;
-  bool finished = false;  // the source ended and everything was published
+  bool finished = false;       // the source ended and everything was published
+  uint64_t size_warnings = 0;  // detections whose measured size contradicts the configured one
+  std::string size_note;       // the latest of them
 };
 
 class SensorMonitor {

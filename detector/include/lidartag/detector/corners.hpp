@@ -26,6 +26,13 @@ struct CornerOptions {
   // Largest relative difference between the measured side length and the nearest configured tag
   // size. Default 0.2: ring crossings end up to one point spacing inside the true edge.
   float size_tolerance = 0.2f;
+  // A tag on a larger board (issue 33): an outline larger than a configured size by up to twice
+  // this (a bare margin on each side of the print), beyond size_tolerance, is taken as that tag on
+  // its board, and the tag is placed inside it by its black square (pose.border_refine, which
+  // must then find the square with the configured size, or the cluster is rejected as the wrong
+  // size). Metres; default 0.2 (Tier IV's calibration targets: a 0.6 m tag on a 0.8 m board);
+  // 0: the outline must be the tag's.
+  float board_margin_m = 0.2f;
   // A fitted side must be within this angle (degrees) of the rectangle's side. Default 20.
   float max_side_angle_deg = 20.0f;
   // When no pair of opposite sides has a line (3-5 rings across a tag, or rings on two adjacent
@@ -48,6 +55,7 @@ struct TagOutline {
   double angle_deg = 0;     // in-plane rotation of the outline modulo 90 degrees, [0, 90)
   int sides_fitted = 0;     // sides with a RANSAC line (4 for a diamond, 2 for a square)
   bool square_fit = false;  // placed by the square fit (CornerOptions::square_fit), not by lines
+  bool on_board = false;    // larger than the tag beyond size_tolerance: a board with a margin
   // When neither side of a pair was seen (a square mount: top and bottom), the outline is placed
   // mid-way along this unit axis (sensor frame) and its position along it is uncertain; decoding
   // resolves it. Zero when every side was seen.

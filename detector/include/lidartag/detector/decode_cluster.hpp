@@ -64,11 +64,13 @@ struct ClusterDecode {
 // tag size; `unseen_axis` (sensor frame, unit, or zero) the axis along which the outline could not
 // place the tag (TagOutline::unseen_axis). At most opt.max_points points (evenly spaced) are
 // decoded. The evidence of each configured family's best hypothesis is left in ws.families, the
-// best hypothesis' cell votes in ws.votes and ws.vote_counts.
+// best hypothesis' cell votes in ws.votes and ws.vote_counts. `board_slack_m` (a tag on a
+// larger board, whose points reach past it): shifts along the unseen axis up to this far either
+// way; 0: only where the points stay inside the tag.
 ClusterDecode decode_cluster(std::span<const ClusterPoint> points, const RigidPose& pose,
                              const Eigen::Vector3d& unseen_axis, double t,
                              std::span<const RkhsDictionary> dictionaries,
                              std::span<const RkhsDictionary> decoys, const DecodeOptions& opt,
-                             ClusterDecodeWorkspace& ws);
+                             ClusterDecodeWorkspace& ws, double board_slack_m = 0.0);
 
 }  // namespace lidartag::detector

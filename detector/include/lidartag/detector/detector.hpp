@@ -26,9 +26,10 @@ namespace lidartag::detector {
 // What the detector derives from its options once; passed to the stages as arguments.
 struct DetectorLimits {
   double t_max = 0.0;             // the largest tag size, metres
+  double board_max = 0.0;         // t_max + 2 corners.board_margin_m: the largest board
   float tau_m = 0.0f;             // eq. (2): linkage_scale * t_max * sqrt(2) / 4
-  float max_pair_chord_m = 0.0f;  // ring runs paired as one object: 1.1 x t_max's diagonal
-  float max_extent_m = 0.0f;      // clusters split above 1.25 x t_max's diagonal
+  float max_pair_chord_m = 0.0f;  // ring runs paired as one object: 1.1 x board_max's diagonal
+  float max_extent_m = 0.0f;      // clusters split above 1.25 x board_max's diagonal
   int min_points = 0;             // eq. (3) with min_returns_per_cell, smallest over the families
   int min_boundary_points = 0;    // eq. (6) with boundary_scale, smallest over the families
   int min_track_boundary_points = 0;  // the same with track_boundary_scale (at most the above)

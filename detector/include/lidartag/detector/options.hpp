@@ -129,6 +129,7 @@ void visit_options(V& v, DetectorOptions& o) {
     s.field("min_line_points", o.corners.min_line_points, at_least(2), "points");
     s.field("corner_exclusion", o.corners.corner_exclusion, half_open(0.0f, 0.5f), "sides");
     s.field("size_tolerance", o.corners.size_tolerance, above(0.0f), "");
+    s.field("board_margin_m", o.corners.board_margin_m, at_least(0.0f), "m");
     s.field("max_side_angle_deg", o.corners.max_side_angle_deg, open_closed(0.0f, 90.0f), "deg");
     s.field("square_fit", o.corners.square_fit, Any{}, "");
     s.field("square_fit_max_rms", o.corners.square_fit_max_rms, open(0.0f, 1.0f), "sides");
@@ -147,6 +148,7 @@ void visit_options(V& v, DetectorOptions& o) {
     s.field("polish_evaluations", o.pose.polish_evaluations, at_least(0), "evaluations");
     s.field("polish_max_points", o.pose.polish_max_points, at_least(0), "points");
     s.field("border_refine", o.pose.border_refine, Any{}, "");
+    s.field("size_warning_ratio", o.pose.size_warning_ratio, open(0.0, 1.0), "");
     s.field("retry_mean_cost_m", o.pose.retry_mean_cost_m, at_least(0.0), "m");
   });
   v.section("decode", [&](V& s) {

@@ -49,6 +49,14 @@ struct Detection {
   // first and last points, and the point nearest its centre (what a moving sensor's pose is
   // interpolated at; a rotation lasts 100 ms at 600 rpm).
   double time_first_s = 0.0, time_center_s = 0.0, time_last_s = 0.0;
+  // The size check (issue 33): the marker's size its points measure (its black square fitted
+  // freely to where the rings step from the white ring to the black border, then scaled by the
+  // family's layout), metres; -1 when the points do not tell it (steps on fewer than two
+  // opposite sides, or pose.border_refine off). size_warning: it differs from size_m, the
+  // configured size that matched, by more than pose.size_warning_ratio (the pose and the cells
+  // are placed with the configured size: a wrong one biases them).
+  double measured_size_m = -1.0;
+  bool size_warning = false;
   // Its `points` points in ScanResult::tag_points start here; -1 without keep_tag_points.
   int first_point = -1;
 };
@@ -111,6 +119,8 @@ struct Candidate {
   Eigen::Vector3d position = Eigen::Vector3d::Zero();
   // Firing times of its points, as Detection's (first, nearest the centre, last).
   double time_first_s = 0.0, time_center_s = 0.0, time_last_s = 0.0;
+  // The size its points measure, as Detection's (-1: not told).
+  double measured_size_m = -1.0;
   // The fitted frame before the quarter turns are known (eq. (9) is blind to them): the tag frame
   // of function f = 4 k + q is undecoded_orientation * Rx(-q * 90 deg) (x the tag's normal).
   Eigen::Quaterniond undecoded_orientation = Eigen::Quaterniond::Identity();

@@ -83,6 +83,11 @@ struct BorderFit {
   int sides = 0;                          // sides of the square with at least 2 of them
   double rms_m = 0.0;                     // their rms distance to the square after the fit
   bool along_y = false, along_z = false;  // the in-plane directions the fit could place
+  // The black square's half side fitted freely to the same crossings (they lie on two opposite
+  // sides or on three), metres; -1 when they do not tell it. place_on_border turns it into the
+  // marker's size (measured_size_m): what the points say the printed tag measures.
+  double measured_half_m = -1.0;
+  double measured_size_m = -1.0;
 };
 
 struct BorderFitOptions {

@@ -1,12 +1,13 @@
 // Evidence over rotations (issue 11, item 3): the clusters that reached decoding are associated
-// across rotations by position and orientation; while a tag stays put, the votes of its cells
-// are summed (each rotation's points, ScanResult::vote_points, voted in the track's mean frame),
-// so that a tag whose single rotations are ambiguous gets an
-// ID once the summed evidence tells its code apart from every other. A candidate that moved
-// farther than the association gates from a track starts a new one: evidence is never mixed
-// between two places. Pure: ScanResults in, tracks out; no I/O, no allocation once its buffers
-// have grown (the tracks are a fixed pool sized at construction). docs/detector.md, "Evidence over
-// rotations".
+// across rotations by position and orientation; the votes of a tag's cells are summed (each
+// rotation's points, ScanResult::vote_points, voted in the track's frame at that rotation), so
+// that a tag whose single rotations are ambiguous gets an ID once the summed evidence tells its
+// code apart from every other. A sensor that moves moves every tag through its frame: each track
+// follows its tag with a constant turn rate and velocity (track_motion.hpp, issue 33), and a new
+// track takes the motion of the others. A candidate farther than the association gates from
+// where its track was predicted starts a new one: evidence is never mixed between two places. Pure:
+// ScanResults in, tracks out; no I/O, no allocation once its buffers have grown (the tracks are a
+// fixed pool sized at construction). docs/detector.md, "Evidence over rotations".
 #pragma once
 
 #include <Eigen/Core>
@@ -18,6 +19,7 @@
 #include "lidartag/detector/options.hpp"
 #include "lidartag/detector/result.hpp"
 #include "lidartag/detector/rkhs_decoder.hpp"
+#include "lidartag/detector/track_motion.hpp"
 
 namespace lidartag::detector {
 
@@ -27,19 +29,32 @@ struct TrackerOptions {
   // Run the tracker (lidartagd, `lidartag detect`). Default true. Off: every rotation is reported
   // alone, as the detector gives it.
   bool enabled = true;
-  // Association gates, against a track's reference pose (the mean of its window): a candidate
-  // joins a track when its centre is within max_distance_m and its orientation within
-  // max_angle_deg of it (up to quarter turns about the normal, which the code decides). Defaults
-  // 0.1 m and 10 degrees: single-rotation poses of a 1.2 m tag scatter by a few millimetres and
-  // well below a degree (1-3 mm and 0.4 deg at 6 m on a VLP-16), and two tags cannot be closer
-  // than their size. A tag or sensor that moves more than this from where the track has been (the
-  // mean of its window) starts a new track; a slow drift is followed. A track-only candidate
-  // (Candidate::track_only: fewer boundary points than eq. (6) asks for a detection of one
-  // rotation) is evidence like any other: it joins or starts a track and adds its votes, and the
-  // confirmation gates below decide (a VLP-16 at 10 m sees a 1.2 m tag at 45 degrees with 9-11
+  // Association gates, against a track's pose predicted to the candidate's time (the window's
+  // model: its mean while the tag stands still in the sensor's frame, else a constant turn rate
+  // and velocity fitted to it): a candidate joins a track when its centre is within
+  // max_distance_m and its orientation within max_angle_deg of it (up to quarter turns about the
+  // normal, which the code decides). Defaults 0.1 m and 10 degrees: single-rotation poses of a
+  // 1.2 m tag scatter by a few millimetres and well below a degree (1-3 mm and 0.4 deg at 6 m on
+  // a VLP-16), and two tags cannot be closer than their size. A tag that leaves its predicted
+  // path by more than this (moved by hand, or another tag) starts a new track. A track-only
+  // candidate (Candidate::track_only: fewer boundary points than eq. (6) asks for a detection of
+  // one rotation) is evidence like any other: it joins or starts a track and adds its votes, and
+  // the confirmation gates below decide (a VLP-16 at 10 m sees a 1.2 m tag at 45 degrees with 9-11
   // boundary points in most rotations of some heights: docs/detector.md).
   double max_distance_m = 0.1;
   double max_angle_deg = 10.0;
+  // Follow a moving sensor (or tag): each track's window is fitted with a constant turn rate and
+  // velocity when that explains its poses better than standing still, and predicted to each new
+  // rotation. Default true. Off: tracks are the window's mean, and a sensor that moves more than
+  // the gates per rotation starts a new track every rotation.
+  bool follow_motion = true;
+  // How fast the sensor may move, for a track seen once while no other track knows the motion:
+  // its gates grow by max_speed_mps and max_turn_deg_s times the time since (the turn moving the
+  // tag by its range times the angle), at most half the tag's size (two tags are at least their
+  // size apart). Defaults 2 m/s and 45 deg/s (a robot driving and turning briskly; a VLP-16's tag
+  // at 7 m then moves up to 0.75 m a rotation, capped at 0.6 m for a 1.2 m tag).
+  double max_speed_mps = 2.0;
+  double max_turn_deg_s = 45.0;
   // Confirmation. The evidence of a track is, per cell of the marker, the votes of the points
   // that fell well inside the cell (decode.vote_inset_cells from its borders) of the track's mean
   // pose over the window (not the rotation's own, which scatters more) over every rotation:
@@ -78,6 +93,9 @@ void visit_tracker_options(V& v, TrackerOptions& o) {
   v.field("max_distance_m", o.max_distance_m, above(0.0), "m");
   // Below 45 degrees: quarter turns about the normal must stay apart.
   v.field("max_angle_deg", o.max_angle_deg, open(0.0, 45.0), "deg");
+  v.field("follow_motion", o.follow_motion, Any{}, "");
+  v.field("max_speed_mps", o.max_speed_mps, closed(0.0, 100.0), "m/s");
+  v.field("max_turn_deg_s", o.max_turn_deg_s, closed(0.0, 3600.0), "deg/s");
   v.field("min_margin_cells", o.min_margin_cells, above(0.0), "cells");
   v.field("full_cell_votes", o.full_cell_votes, at_least(1.0), "votes");
   v.field("min_rotations", o.min_rotations, at_least(1), "rotations");
@@ -100,14 +118,26 @@ struct TrackInfo {
   int id = -1;                // the code of the leading function
   double margin_cells = 0.0;  // summed margin of the leading function over the best other one
   double mean_score = 0.0;    // mean normalised score of the leading function
-  // Mean pose over the window (tag frame -> sensor frame, the leading function's quarter turns)
-  // and its spread: standard deviation of the centre per sensor axis, metres, and RMS angle of the
-  // orientations from their mean, degrees. window_rotations of them.
+  // The window's pose at this rotation's candidate time (tag frame -> sensor frame, the leading
+  // function's quarter turns): its mean, or its fitted motion's pose when it moves; and the
+  // spread about that: standard deviation of the centre per sensor axis, metres, and RMS angle of
+  // the orientations, degrees. window_rotations of them.
   Eigen::Vector3d position = Eigen::Vector3d::Zero();
   Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();
   Eigen::Vector3d position_std_m = Eigen::Vector3d::Zero();
   double angle_std_deg = 0.0;
   int window_rotations = 0;
+  // The tag moves through the sensor's frame (TrackerOptions::follow_motion): at `velocity_mps`
+  // (its centre's, now) and turning at `turn_deg_s` (about the sensor's axes): the sensor's own
+  // motion, reversed, when the tag stands still.
+  bool moving = false;
+  Eigen::Vector3d velocity_mps = Eigen::Vector3d::Zero();
+  Eigen::Vector3d turn_deg_s = Eigen::Vector3d::Zero();
+  // The size check over the track: the mean of its candidates' measured sizes
+  // (Detection::measured_size_m; -1: none measured), and whether it differs from the configured
+  // size by more than the detector's pose.size_warning_ratio.
+  double measured_size_m = -1.0;
+  bool size_warning = false;
 };
 
 // One tag of a rotation as reported with the tracker: every detection of the rotation, as the
@@ -164,6 +194,9 @@ class Tracker {
     int candidate, track, delta;
   };
   void track(const ScanResult& result, int64_t stamp_ns, TrackerResult& out);
+  // The candidate's time on the tracker's clock (its centre's firing time), seconds.
+  double time_of(const Candidate& c, int64_t stamp_ns) const;
+  void update_fleet();
   // The candidate's evidence for its family, when it is complete and consistent; else null.
   const FamilyEvidence* evidence(const Candidate& c, const ScanResult& result) const;
   void start(Track& t, const Candidate& c);
@@ -173,13 +206,17 @@ class Tracker {
   void report(const ScanResult& result, TrackerResult& out) const;
 
   TrackerOptions opt_;
-  double min_score_ = 0.8;    // the detector's decode.min_score
-  double vote_inset_ = 0.05;  // the detector's decode.vote_inset_cells
+  double min_score_ = 0.8;            // the detector's decode.min_score
+  double size_warning_ratio_ = 0.03;  // the detector's pose.size_warning_ratio
+  double vote_inset_ = 0.05;          // the detector's decode.vote_inset_cells
   std::vector<Family> families_;
   std::vector<Track> tracks_;  // the pool, max_tracks of them
   std::vector<Pair> pairs_;
   std::vector<int> assigned_;  // per candidate of the rotation: the track it joined, or -1
   std::vector<float> values_, tables_, scores_;  // scoring scratch
+  std::vector<TimedPose> ordered_;               // a window, oldest first
+  Motion fleet_;          // the motion of the tags that show it best (the sensor's, reversed)
+  int64_t epoch_ns_ = 0;  // the tracker's clock starts at the first stamp
   int64_t last_stamp_ns_ = 0;
   bool have_stamp_ = false;
   int next_id_ = 0;
