@@ -39,7 +39,7 @@
 #include "bench_args.hpp"
 #include "lidartag/detector/detector.hpp"
 #include "lidartag/detector/tracker.hpp"
-#include "lidartag/driver/io/capture_reader.hpp"
+#include "lidartag/driver/velodyne/io/capture_reader.hpp"
 #include "sim_scans.hpp"
 
 namespace {

@@ -9,6 +9,7 @@
 
 #include "../test/driver/synthetic_stream.hpp"
 #include "lidartag/driver/scan_batcher.hpp"
+#include "lidartag/driver/velodyne/decoder.hpp"
 
 namespace lidartag::velodyne {
 namespace {
@@ -59,7 +60,7 @@ void BM_DecodeAndAssemble(benchmark::State& state, Model m, ReturnMode mode) {
   Decoder decoder(Calibration::builtin(m));
   SensorClock clock;
   PacketColumns out;
-  ScanBatcher batcher(f.spec, mode, {});
+  driver::ScanBatcher batcher = velodyne::make_batcher(f.spec, mode);
   std::array<Scan, 2> scans;
   size_t current = 0;
   size_t packets = 0, points = 0;

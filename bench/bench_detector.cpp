@@ -27,7 +27,7 @@
 #include "lidartag/detector/clustering.hpp"
 #include "lidartag/detector/detector.hpp"
 #include "lidartag/detector/edge_features.hpp"
-#include "lidartag/driver/io/capture_reader.hpp"
+#include "lidartag/driver/velodyne/io/capture_reader.hpp"
 
 namespace {
 

@@ -8,13 +8,14 @@
 #include <string>
 #include <vector>
 
-#include "lidartag/driver/encoder.hpp"
-#include "lidartag/driver/io/capture_reader.hpp"
 #include "lidartag/driver/io/pcap_source.hpp"
 #include "lidartag/driver/io/pcap_writer.hpp"
+#include "lidartag/driver/velodyne/encoder.hpp"
+#include "lidartag/driver/velodyne/io/capture_reader.hpp"
 
 namespace {
 
+using namespace lidartag::driver;
 using namespace lidartag::velodyne;
 using namespace std::chrono_literals;
 

@@ -40,8 +40,8 @@
 #include "bench_args.hpp"
 #include "lidartag/detector/detector.hpp"
 #include "lidartag/detector/tracker.hpp"
-#include "lidartag/driver/io/capture_reader.hpp"
-#include "lidartag/driver/sensor_model.hpp"
+#include "lidartag/driver/velodyne/io/capture_reader.hpp"
+#include "lidartag/driver/velodyne/sensor_model.hpp"
 #include "sim_scans.hpp"
 
 namespace {

@@ -8,7 +8,7 @@
 #include <span>
 #include <string>
 
-#include "lidartag/driver/io/capture_reader.hpp"
+#include "lidartag/driver/velodyne/io/capture_reader.hpp"
 
 namespace {
 

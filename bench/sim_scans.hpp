@@ -14,11 +14,11 @@
 #include <vector>
 
 #include "lidartag/detector/detector.hpp"
-#include "lidartag/driver/calibration.hpp"
-#include "lidartag/driver/decoder.hpp"
-#include "lidartag/driver/packet.hpp"
 #include "lidartag/driver/scan_batcher.hpp"
-#include "lidartag/driver/sensor_clock.hpp"
+#include "lidartag/driver/velodyne/calibration.hpp"
+#include "lidartag/driver/velodyne/decoder.hpp"
+#include "lidartag/driver/velodyne/packet.hpp"
+#include "lidartag/driver/velodyne/sensor_clock.hpp"
 #include "lidartag/sim/sensor_sim.hpp"
 #include "lidartag/sim/simulator.hpp"
 
@@ -42,9 +42,9 @@ class SimScans final {
     const auto& spec = velodyne::model_spec(sensor.model);
     velodyne::Decoder decoder(calibration_);
     velodyne::SensorClock clock;
-    velodyne::BatcherOptions bo;
+    driver::BatcherOptions bo;
     bo.cut_azimuth_deg = sensor.cut_azimuth_deg;
-    velodyne::ScanBatcher batcher(spec, sensor.return_mode, bo);
+    driver::ScanBatcher batcher = velodyne::make_batcher(spec, sensor.return_mode, bo);
     on_scan_ = &on_scan;
     index_ = 0;
     sim::Truth truth =

@@ -8,9 +8,9 @@
 #include <cstdint>
 
 #include "fuzz_util.hpp"
-#include "lidartag/driver/decoder.hpp"
-#include "lidartag/driver/encoder.hpp"
-#include "lidartag/driver/io/calibration_file.hpp"
+#include "lidartag/driver/velodyne/decoder.hpp"
+#include "lidartag/driver/velodyne/encoder.hpp"
+#include "lidartag/driver/velodyne/io/calibration_file.hpp"
 
 using namespace lidartag;
 

@@ -11,8 +11,8 @@
 #include <string>
 
 #include "fuzz_util.hpp"
-#include "lidartag/driver/decoder.hpp"
-#include "lidartag/driver/sensor_clock.hpp"
+#include "lidartag/driver/velodyne/decoder.hpp"
+#include "lidartag/driver/velodyne/sensor_clock.hpp"
 
 using namespace lidartag;
 
@@ -64,8 +64,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   velodyne::ModelCheck check;
   velodyne::SensorClock clock;
   fuzz::RecordSource source({data, size});
-  velodyne::RawPacket raw;
-  while (source.next(raw, std::chrono::milliseconds(0)) == velodyne::ReadStatus::kPacket) {
+  driver::RawPacket raw;
+  while (source.next(raw, std::chrono::milliseconds(0)) == driver::ReadStatus::kPacket) {
     if (raw.destination_port == velodyne::kDefaultPositionPort) {
       velodyne::PositionPacket position;
       if (velodyne::parse_position_packet(raw.payload, position) == velodyne::PositionStatus::kOk)

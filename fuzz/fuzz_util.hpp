@@ -13,8 +13,8 @@
 #include <string>
 #include <string_view>
 
-#include "lidartag/driver/packet.hpp"
 #include "lidartag/driver/packet_source.hpp"
+#include "lidartag/driver/velodyne/packet.hpp"
 
 namespace lidartag::fuzz {
 
@@ -70,13 +70,13 @@ class MemFile {
 // payload. make_seeds writes real captures in this form.
 inline constexpr size_t kRecordHeader = 7;
 
-class RecordSource final : public velodyne::PacketSource {
+class RecordSource final : public driver::PacketSource {
  public:
   explicit RecordSource(std::span<const uint8_t> data, int64_t start_ns = 1'700'000'000'000'000'000)
       : data_(data), time_ns_(start_ns) {}
 
-  velodyne::ReadStatus next(velodyne::RawPacket& out, std::chrono::milliseconds) override {
-    if (data_.size() < kRecordHeader) return velodyne::ReadStatus::kEnd;
+  driver::ReadStatus next(driver::RawPacket& out, std::chrono::milliseconds) override {
+    if (data_.size() < kRecordHeader) return driver::ReadStatus::kEnd;
     const uint8_t kind = data_[0];
     const uint32_t step_us = velodyne::read_u32(data_.data() + 1);
     const size_t length =
@@ -90,14 +90,14 @@ class RecordSource final : public velodyne::PacketSource {
     data_ = data_.subspan(kRecordHeader + length);
     ++stats_.packets;
     stats_.bytes += length;
-    return velodyne::ReadStatus::kPacket;
+    return driver::ReadStatus::kPacket;
   }
-  velodyne::SourceStats stats() const override { return stats_; }
+  driver::SourceStats stats() const override { return stats_; }
 
  private:
   std::span<const uint8_t> data_;
   int64_t time_ns_;
-  velodyne::SourceStats stats_{};
+  driver::SourceStats stats_{};
 };
 
 }  // namespace lidartag::fuzz

@@ -10,8 +10,8 @@
 
 #include "fuzz_util.hpp"
 #include "lidartag/daemon/lcm_log_source.hpp"
-#include "lidartag/driver/io/capture_reader.hpp"
 #include "lidartag/driver/io/errors.hpp"
+#include "lidartag/driver/velodyne/io/capture_reader.hpp"
 #include "read_rotations.hpp"
 
 using namespace lidartag;
@@ -22,13 +22,13 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   std::unique_ptr<daemon::LcmLogSource> owned;
   try {
     owned = std::make_unique<daemon::LcmLogSource>(path, daemon::LcmLogSourceOptions{});
-  } catch (const velodyne::IoError&) {
+  } catch (const driver::IoError&) {
     return 0;
   }
   const daemon::LcmLogSource* source = owned.get();
   velodyne::CaptureReader reader(std::move(owned), velodyne::CaptureReaderOptions{});
   (void)fuzz::read_rotations(reader, size);
-  const velodyne::SourceStats s = reader.source_stats();
+  const driver::SourceStats s = reader.source_stats();
   fuzz::check(s.packets + s.ignored + s.malformed == source->events(),
               "events neither delivered, ignored nor malformed");
   const velodyne::CaptureCounts& c = reader.counts();

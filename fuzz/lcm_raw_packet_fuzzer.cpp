@@ -37,18 +37,18 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   log.insert(log.end(), channel.begin(), channel.end());
   log.insert(log.end(), data, data + size);
   daemon::LcmLogSource source(file.write(log), daemon::LcmLogSourceOptions{});
-  velodyne::RawPacket packet;
-  const velodyne::ReadStatus status = source.next(packet, std::chrono::milliseconds(0));
-  const velodyne::SourceStats s = source.stats();
+  driver::RawPacket packet;
+  const driver::ReadStatus status = source.next(packet, std::chrono::milliseconds(0));
+  const driver::SourceStats s = source.stats();
   fuzz::check(source.events() == 1, "the event was not read");
-  if (status == velodyne::ReadStatus::kPacket) {
+  if (status == driver::ReadStatus::kPacket) {
     fuzz::check(s.packets == 1 && s.malformed == 0, "a packet delivered and not counted");
     fuzz::check(packet.payload.size() <= size, "a payload larger than the message");
     fuzz::check(packet.destination_port > 0, "port 0 delivered");
-    fuzz::check(packet.receive_time_ns >= 0 && packet.receive_time_ns < velodyne::kMaxReceiveTimeNs,
+    fuzz::check(packet.receive_time_ns >= 0 && packet.receive_time_ns < driver::kMaxReceiveTimeNs,
                 "a receive time out of range");
   } else {
-    fuzz::check(status == velodyne::ReadStatus::kEnd, "neither a packet nor the end");
+    fuzz::check(status == driver::ReadStatus::kEnd, "neither a packet nor the end");
     fuzz::check(s.malformed == 1 && s.packets == 0, "a message refused and not counted");
   }
   return 0;

@@ -29,11 +29,11 @@
 #include "io/veloview_xml.hpp"
 #include "lidartag/daemon/config.hpp"
 #include "lidartag/detector/tag_family.hpp"
-#include "lidartag/driver/calibration.hpp"
-#include "lidartag/driver/encoder.hpp"
-#include "lidartag/driver/io/capture_reader.hpp"
 #include "lidartag/driver/io/pcap_source.hpp"
-#include "lidartag/driver/io/pcd.hpp"
+#include "lidartag/driver/velodyne/calibration.hpp"
+#include "lidartag/driver/velodyne/encoder.hpp"
+#include "lidartag/driver/velodyne/io/capture_reader.hpp"
+#include "lidartag/driver/velodyne/io/pcd.hpp"
 #include "lidartag/raw_packet_t.hpp"
 #include "lidartag/sim/simulator.hpp"
 
@@ -71,10 +71,10 @@ void write_file(const fs::path& path, const std::string& text) {
 }
 
 std::vector<Packet> read_capture(const std::string& path) {
-  velodyne::PcapSource source(path);
+  driver::PcapSource source(path);
   std::vector<Packet> packets;
-  velodyne::RawPacket p;
-  while (source.next(p, std::chrono::milliseconds(0)) == velodyne::ReadStatus::kPacket)
+  driver::RawPacket p;
+  while (source.next(p, std::chrono::milliseconds(0)) == driver::ReadStatus::kPacket)
     packets.push_back(
         {{p.payload.begin(), p.payload.end()}, p.receive_time_ns, p.destination_port});
   return packets;

@@ -9,8 +9,8 @@
 #include <cstdint>
 
 #include "fuzz_util.hpp"
-#include "lidartag/driver/decoder.hpp"
-#include "lidartag/driver/sensor_model.hpp"
+#include "lidartag/driver/velodyne/decoder.hpp"
+#include "lidartag/driver/velodyne/sensor_model.hpp"
 
 using namespace lidartag;
 
@@ -19,8 +19,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   std::array<size_t, 256> votes{};
   size_t laid_out = 0, probe_size = 0;
   fuzz::RecordSource source({data, size});
-  velodyne::RawPacket raw;
-  while (source.next(raw, std::chrono::milliseconds(0)) == velodyne::ReadStatus::kPacket) {
+  driver::RawPacket raw;
+  while (source.next(raw, std::chrono::milliseconds(0)) == driver::ReadStatus::kPacket) {
     if (raw.destination_port != velodyne::kDefaultDataPort) continue;
     check.add(raw.payload);
     if (raw.payload.size() != velodyne::kDataPacketSize) continue;
@@ -45,9 +45,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   }
   if (const auto m = check.timing_model()) {
     const double period = check.packet_period_us();
-    const double expected_period =
-        velodyne::model_spec(*m).packet_period_us(check.return_mode().value_or(
-            velodyne::ReturnMode::kStrongest));
+    const double expected_period = velodyne::model_spec(*m).packet_period_us(
+        check.return_mode().value_or(velodyne::ReturnMode::kStrongest));
     fuzz::check(std::abs(period - expected_period) < 0.03 * expected_period,
                 "the timing's model does not fit the period measured");
   }

@@ -8,8 +8,8 @@
 #include <string>
 
 #include "fuzz_util.hpp"
-#include "lidartag/driver/io/capture_reader.hpp"
 #include "lidartag/driver/io/errors.hpp"
+#include "lidartag/driver/velodyne/io/capture_reader.hpp"
 #include "read_rotations.hpp"
 
 using namespace lidartag;
@@ -20,7 +20,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   std::unique_ptr<velodyne::CaptureReader> reader;
   try {
     reader = std::make_unique<velodyne::CaptureReader>(path, velodyne::CaptureReaderOptions{});
-  } catch (const velodyne::IoError&) {
+  } catch (const driver::IoError&) {
     return 0;  // not a capture libpcap opens, or a link type without IPv4: refused, named
   }
   (void)fuzz::read_rotations(*reader, size);

@@ -7,7 +7,7 @@
 
 #include "fuzz_util.hpp"
 #include "lidartag/driver/io/errors.hpp"
-#include "lidartag/driver/io/pcd.hpp"
+#include "lidartag/driver/velodyne/io/pcd.hpp"
 
 using namespace lidartag;
 
@@ -17,7 +17,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   velodyne::PcdCloud cloud;
   try {
     cloud = velodyne::read_pcd(path);
-  } catch (const velodyne::IoError&) {
+  } catch (const driver::IoError&) {
     return 0;
   }
   fuzz::check(cloud.columns.size() == cloud.fields.size(), "columns != fields");

@@ -9,8 +9,8 @@
 #include <string_view>
 
 #include "fuzz_util.hpp"
-#include "lidartag/driver/packet.hpp"
-#include "lidartag/driver/sensor_clock.hpp"
+#include "lidartag/driver/velodyne/packet.hpp"
+#include "lidartag/driver/velodyne/sensor_clock.hpp"
 
 using namespace lidartag;
 

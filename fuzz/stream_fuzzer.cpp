@@ -13,7 +13,7 @@
 #include <string>
 
 #include "fuzz_util.hpp"
-#include "lidartag/driver/io/capture_reader.hpp"
+#include "lidartag/driver/velodyne/io/capture_reader.hpp"
 #include "read_rotations.hpp"
 
 using namespace lidartag;
@@ -27,7 +27,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       std::make_unique<fuzz::RecordSource>(std::span<const uint8_t>(data, size)), options);
   const auto [rotations, complete] = fuzz::read_rotations(reader, size);
   const velodyne::CaptureCounts& c = reader.counts();
-  const velodyne::SourceStats source = reader.source_stats();
+  const driver::SourceStats source = reader.source_stats();
   uint64_t errors = 0;
   for (uint64_t e : c.decode_errors) errors += e;
   fuzz::check(c.data_packets + c.position_packets == source.packets,
@@ -36,7 +36,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
               "data packets not counted exactly once");
   fuzz::check(c.position_ok + c.position_errors == c.position_packets,
               "position packets not counted exactly once");
-  const velodyne::BatcherStats b = reader.batcher_stats();
+  const driver::BatcherStats b = reader.batcher_stats();
   fuzz::check(b.rotations == rotations, "rotations delivered != rotations counted");
   fuzz::check(b.complete == complete && b.complete + b.incomplete == b.rotations,
               "complete + incomplete != rotations");

@@ -15,7 +15,7 @@
 #include <utility>
 
 #include "lidartag/driver/io/pcap_source.hpp"
-#include "lidartag/driver/packet.hpp"
+#include "lidartag/driver/velodyne/packet.hpp"
 
 namespace lidartag::load {
 
@@ -74,13 +74,13 @@ sockaddr_in address(const std::string& ip, uint16_t port) {
 }  // namespace
 
 Capture load_capture(const std::string& path, uint16_t data_port, uint16_t position_port) {
-  v::PcapSourceOptions o;
+  lidartag::driver::PcapSourceOptions o;
   o.data_port = data_port;
   o.position_port = position_port;
-  v::PcapSource source(path, o);
+  lidartag::driver::PcapSource source(path, o);
   std::vector<Capture::Packet> all;
-  v::RawPacket p;
-  while (source.next(p, std::chrono::milliseconds(0)) == v::ReadStatus::kPacket) {
+  lidartag::driver::RawPacket p;
+  while (source.next(p, std::chrono::milliseconds(0)) == lidartag::driver::ReadStatus::kPacket) {
     const bool position = p.destination_port == position_port;
     if (!position && p.payload.size() != v::kDataPacketSize) continue;
     if (position && p.payload.size() != v::kPositionPacketSize) continue;

@@ -124,7 +124,7 @@ auto replay_rate() {
 auto ipv4_or_empty() {
   return [](const std::string& s) {
     uint32_t address = 0;
-    return s.empty() || velodyne::parse_ipv4_address(s, address)
+    return s.empty() || driver::parse_ipv4_address(s, address)
                ? std::string()
                : std::string("not an IPv4 address (dotted quad)");
   };
@@ -436,7 +436,7 @@ void visit_sensor(V& v, SensorOptions& o) {
   v.field("channel_prefix", o.channel_prefix, printable(true));
   v.field("model", o.model);
   v.field("calibration", o.calibration);
-  velodyne::visit_batcher_options(v, o.batcher);  // the driver's own tables, at this level
+  driver::visit_batcher_options(v, o.batcher);  // the driver's own tables, at this level
   velodyne::visit_decoder_options(v, o.decoder);
   v.section("source", [&](V& s) {
     SourceOptions& src = o.source;

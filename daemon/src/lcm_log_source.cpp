@@ -13,7 +13,7 @@
 
 namespace lidartag::daemon {
 
-using velodyne::ReadStatus;
+using driver::ReadStatus;
 
 namespace {
 
@@ -49,10 +49,10 @@ LcmLogSource::LcmLogSource(const std::string& path, LcmLogSourceOptions options)
       options_(std::move(options)),
       log_(std::make_unique<lcm::LogFile>(path, "r")),
       schedule_(options_.rate > 0 ? options_.rate : 1.0) {
-  if (!log_->good()) throw velodyne::IoError("cannot open LCM log '" + path + "'");
+  if (!log_->good()) throw driver::IoError("cannot open LCM log '" + path + "'");
   std::error_code ec;
   file_size_ = static_cast<long>(std::filesystem::file_size(path, ec));
-  if (options_.rate < 0) throw velodyne::IoError("LCM log replay rate must be >= 0");
+  if (options_.rate < 0) throw driver::IoError("LCM log replay rate must be >= 0");
 }
 
 LcmLogSource::~LcmLogSource() = default;
@@ -115,7 +115,7 @@ bool LcmLogSource::read_one() {
     if (used < 0 || message_.nbytes < 0 ||
         static_cast<size_t>(message_.nbytes) != message_.data.size() || message_.port <= 0 ||
         message_.port > 65535 || message_.receive_time_ns < 0 ||
-        message_.receive_time_ns >= velodyne::kMaxReceiveTimeNs) {
+        message_.receive_time_ns >= driver::kMaxReceiveTimeNs) {
       ++stats_.malformed;
       continue;
     }
@@ -132,14 +132,14 @@ bool LcmLogSource::read_one() {
   }
 }
 
-ReadStatus LcmLogSource::next(velodyne::RawPacket& out, std::chrono::milliseconds timeout) {
+ReadStatus LcmLogSource::next(driver::RawPacket& out, std::chrono::milliseconds timeout) {
   if (!pending_) {
     if (!read_one()) {
       if (!options_.loop || !have_first_) return ReadStatus::kEnd;
       // Next pass: reopen, and shift times so that they keep growing (below 2 kMaxReceiveTimeNs:
       // the loop ends after ~136 years of replay rather than overflow).
       const int64_t step = last_ns_ - first_ns_ + last_interval_ns_;
-      if (shift_ns_ > velodyne::kMaxReceiveTimeNs - step) return ReadStatus::kEnd;
+      if (shift_ns_ > driver::kMaxReceiveTimeNs - step) return ReadStatus::kEnd;
       shift_ns_ += step;
       have_first_ = false;
       log_ = std::make_unique<lcm::LogFile>(path_, "r");
@@ -153,7 +153,7 @@ ReadStatus LcmLogSource::next(velodyne::RawPacket& out, std::chrono::millisecond
     pending_ = true;
   }
   if (options_.rate > 0) {
-    const auto now = velodyne::ReplaySchedule::Clock::now();
+    const auto now = driver::ReplaySchedule::Clock::now();
     const auto due = schedule_.due(time_ns_, now);
     if (due - now > timeout) {
       std::this_thread::sleep_for(timeout);

@@ -52,7 +52,7 @@ Group multicast_group(const LcmUrl& url) {
   const std::string_view address = target.substr(0, colon);
   Group group;
   group.port = 7667;
-  if (!velodyne::parse_ipv4_address(address, group.address) || (group.address >> 28) != 0xE) {
+  if (!driver::parse_ipv4_address(address, group.address) || (group.address >> 28) != 0xE) {
     fail(url, fmt::format("'{}' is not an IPv4 multicast group (224.0.0.0 to 239.255.255.255)",
                           clip_text(address)));
   }
@@ -171,7 +171,7 @@ void check_multicast_route(const LcmUrl& url) {
     fail(url, fmt::format("no route to the multicast group {} ({}): add one, e.g. 'sudo ip route "
                           "add 224.0.0.0/4 dev lo' for this host only, or dev eth0 (the robot's "
                           "network) to reach other machines; see docs/daemon.md",
-                          velodyne::ipv4_to_string(group.address), std::strerror(error)));
+                          driver::ipv4_to_string(group.address), std::strerror(error)));
   }
 }
 

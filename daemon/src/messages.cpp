@@ -229,7 +229,7 @@ void fill_status(const SensorStatus& s, int64_t utime, double uptime_s, lidartag
   }
 }
 
-void fill_raw_packet(const velodyne::RawPacket& p, const std::string& sensor,
+void fill_raw_packet(const driver::RawPacket& p, const std::string& sensor,
                      lidartag::raw_packet_t& out) {
   out.utime = p.receive_time_ns / 1000;
   out.receive_time_ns = p.receive_time_ns;

@@ -37,8 +37,8 @@ bool same_timing(velodyne::Model a, velodyne::Model b, velodyne::ReturnMode mode
 // and at least every 100 ms) for the status.
 struct SensorMonitor::Snapshot {
   velodyne::CaptureCounts counts;
-  velodyne::SourceStats source;
-  velodyne::BatcherStats batcher;
+  driver::SourceStats source;
+  driver::BatcherStats batcher;
   std::optional<velodyne::Model> model;
   std::optional<velodyne::ReturnMode> mode;
   velodyne::TimeSource time_source = velodyne::TimeSource::kHost;
@@ -91,7 +91,7 @@ void SensorMonitor::started(int64_t now) {
 
 // ---- Published by the data path --------------------------------------------------------------
 
-void SensorMonitor::note_sender(const velodyne::RawPacket& p) {
+void SensorMonitor::note_sender(const driver::RawPacket& p) {
   if (p.destination_port != sensor_.source.data_port) return;
   Senders& s = *senders_;
   ++s.data_packets;

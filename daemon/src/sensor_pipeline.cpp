@@ -31,7 +31,7 @@ bool is_replay(const SourceOptions& s) {
 
 std::optional<uint32_t> sender(const SourceOptions& s) {
   uint32_t address = 0;
-  if (!s.sensor_address.empty() && velodyne::parse_ipv4_address(s.sensor_address, address)) {
+  if (!s.sensor_address.empty() && driver::parse_ipv4_address(s.sensor_address, address)) {
     return address;
   }
   return std::nullopt;
@@ -59,12 +59,12 @@ std::vector<uint32_t> steer_senders(const SensorOptions& sensor, const DaemonOpt
   return senders;
 }
 
-std::unique_ptr<velodyne::PacketSource> open_source(const SensorOptions& sensor,
-                                                    const DaemonOptions& options) {
+std::unique_ptr<driver::PacketSource> open_source(const SensorOptions& sensor,
+                                                  const DaemonOptions& options) {
   const SourceOptions& s = sensor.source;
   switch (s.kind) {
     case SourceKind::kUdp: {
-      velodyne::UdpSourceOptions o;
+      driver::UdpSourceOptions o;
       o.bind_address = s.bind_address;
       o.data_port = s.data_port;
       o.position_port = s.position_port;
@@ -72,28 +72,28 @@ std::unique_ptr<velodyne::PacketSource> open_source(const SensorOptions& sensor,
       o.receive_buffer_bytes = s.receive_buffer_bytes;
       o.reuse_address = s.share_port;  // daemon-setup: exclusive unless the config shares
       o.steer_senders = steer_senders(sensor, options);
-      return std::make_unique<velodyne::UdpSource>(o);
+      return std::make_unique<driver::UdpSource>(o);
     }
     case SourceKind::kInterface: {
-      velodyne::LiveSourceOptions o;
+      driver::LiveSourceOptions o;
       o.interface = s.interface;
       o.data_port = s.data_port;
       o.position_port = s.position_port;
       o.sensor_ipv4 = sender(s);
       o.promiscuous = s.promiscuous;
       o.buffer_bytes = s.receive_buffer_bytes;
-      return std::make_unique<velodyne::LiveSource>(o);
+      return std::make_unique<driver::LiveSource>(o);
     }
     case SourceKind::kPcap: {
-      velodyne::PcapSourceOptions o;
+      driver::PcapSourceOptions o;
       o.data_port = s.data_port;
       o.position_port = s.position_port;
       o.sensor_ipv4 = sender(s);
-      o.pacing = s.rate > 0 ? velodyne::ReplayPacing::kCaptureTime
-                            : velodyne::ReplayPacing::kAsFastAsPossible;
+      o.pacing =
+          s.rate > 0 ? driver::ReplayPacing::kCaptureTime : driver::ReplayPacing::kAsFastAsPossible;
       o.rate = s.rate > 0 ? s.rate : 1.0;
       o.loop = s.loop;
-      return std::make_unique<velodyne::PcapSource>(s.file, o);
+      return std::make_unique<driver::PcapSource>(s.file, o);
     }
     case SourceKind::kLcm: {
       LcmLogSourceOptions o;
@@ -196,7 +196,7 @@ SensorPipeline::SensorPipeline(const SensorOptions& sensor, const DaemonOptions&
     detectors_.push_back(std::make_unique<detector::Detector>(options.detector));
   }
   // Every packet passes here on the receiving thread: senders are noted, raw packets published.
-  TapSource::RawTap tap = [this](const velodyne::RawPacket& p) {
+  TapSource::RawTap tap = [this](const driver::RawPacket& p) {
     monitor_.note_sender(p);
     if (options_.lcm.publish_raw) {
       fill_raw_packet(p, sensor_.name, raw_message_);

@@ -14,8 +14,8 @@
 #include <filesystem>
 
 #include "lidartag/daemon/lcm_url.hpp"
-#include "lidartag/driver/io/calibration_file.hpp"
 #include "lidartag/driver/io/udp_frame.hpp"
+#include "lidartag/driver/velodyne/io/calibration_file.hpp"
 
 namespace lidartag::daemon {
 
@@ -229,7 +229,7 @@ bool is_multicast(uint32_t address) {
 // Binds a probe socket the way UdpSource will, and closes it.
 void check_udp_port(const std::string& key, const SourceOptions& src, uint16_t port) {
   uint32_t address = 0;
-  if (!velodyne::parse_ipv4_address(src.bind_address, address)) return;  // config-checked
+  if (!driver::parse_ipv4_address(src.bind_address, address)) return;  // config-checked
   const bool shared = src.share_port || is_multicast(address);
   const int fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
   if (fd < 0) throw SetupError(key, "cannot open a UDP socket: " + errno_text(errno));
@@ -278,8 +278,8 @@ void check_port_overlap(const DaemonOptions& options) {
       const bool overlap = a.bind_address == b.bind_address || a.bind_address == "0.0.0.0" ||
                            b.bind_address == "0.0.0.0";
       uint32_t address_a = 0, address_b = 0;
-      velodyne::parse_ipv4_address(a.bind_address, address_a);
-      velodyne::parse_ipv4_address(b.bind_address, address_b);
+      driver::parse_ipv4_address(a.bind_address, address_a);
+      driver::parse_ipv4_address(b.bind_address, address_b);
       const bool shared =
           (a.share_port || is_multicast(address_a)) && (b.share_port || is_multicast(address_b));
       if (!overlap || shared) continue;

@@ -18,11 +18,11 @@ int64_t steady_ns() {
 namespace {
 
 // The writer, its setup error naming the setting.
-velodyne::PcapWriter open_record_file(const std::string& path) {
+driver::PcapWriter open_record_file(const std::string& path) {
   try {
-    return velodyne::PcapWriter(path, /*follow_links=*/false);
-  } catch (const velodyne::IoError& e) {
-    throw velodyne::IoError(std::string("record_pcap: ") + e.what());
+    return driver::PcapWriter(path, /*follow_links=*/false);
+  } catch (const driver::IoError& e) {
+    throw driver::IoError(std::string("record_pcap: ") + e.what());
   }
 }
 
@@ -31,12 +31,12 @@ velodyne::PcapWriter open_record_file(const std::string& path) {
 PcapRecorder::PcapRecorder(const std::string& path)
     : path_(path), writer_(open_record_file(path)), next_flush_ns_(steady_ns() + kFlushPeriodNs) {}
 
-void PcapRecorder::write(const velodyne::RawPacket& packet) noexcept {
+void PcapRecorder::write(const driver::RawPacket& packet) noexcept {
   std::lock_guard lock(mutex_);
   ++received_;
   if (writer_.failed()) return;
   const uint32_t source =
-      packet.source_ipv4 != 0 ? packet.source_ipv4 : velodyne::PcapWriter::kDefaultSourceIpv4;
+      packet.source_ipv4 != 0 ? packet.source_ipv4 : driver::PcapWriter::kDefaultSourceIpv4;
   // kClosed and kTooLarge cannot happen here (closed after the sources stopped; UDP payloads fit):
   // both leave the packet out of the file, which missed() counts.
   (void)writer_.append_udp(packet.payload, packet.receive_time_ns, packet.destination_port, source);
@@ -52,7 +52,7 @@ void PcapRecorder::close() noexcept {
   std::lock_guard lock(mutex_);
   try {
     writer_.close();
-  } catch (const velodyne::IoError&) {
+  } catch (const driver::IoError&) {
     // In writer_.error(), reported below.
   }
   check_failure();
@@ -90,21 +90,21 @@ std::string PcapRecorder::error() const {
   return error_text();
 }
 
-TapSource::TapSource(std::unique_ptr<velodyne::PacketSource> inner, PcapRecorder* recorder,
+TapSource::TapSource(std::unique_ptr<driver::PacketSource> inner, PcapRecorder* recorder,
                      RawTap raw_tap)
     : inner_(std::move(inner)), recorder_(recorder), raw_tap_(std::move(raw_tap)) {}
 
-velodyne::ReadStatus TapSource::next(velodyne::RawPacket& out, std::chrono::milliseconds timeout) {
-  if (stop_.load(std::memory_order_relaxed)) return velodyne::ReadStatus::kEnd;
+driver::ReadStatus TapSource::next(driver::RawPacket& out, std::chrono::milliseconds timeout) {
+  if (stop_.load(std::memory_order_relaxed)) return driver::ReadStatus::kEnd;
   const auto status = inner_->next(out, std::min<std::chrono::milliseconds>(timeout, 100ms));
-  if (status != velodyne::ReadStatus::kPacket) return status;
+  if (status != driver::ReadStatus::kPacket) return status;
   packets_.fetch_add(1, std::memory_order_relaxed);
   if (recorder_ != nullptr) recorder_->write(out);
   if (raw_tap_) raw_tap_(out);
   return status;
 }
 
-velodyne::SourceStats TapSource::stats() const {
+driver::SourceStats TapSource::stats() const {
   return inner_->stats();
 }
 

@@ -1,13 +1,15 @@
 #include "lidartag/driver/scan_batcher.hpp"
 
-namespace lidartag::velodyne {
+namespace lidartag::driver {
 
-ScanBatcher::ScanBatcher(const ModelSpec& spec, ReturnMode mode, BatcherOptions options)
-    : spec_(spec),
+ScanBatcher::ScanBatcher(const SensorLayout& layout, uint8_t return_mode, int returns,
+                         BatcherOptions options)
+    : layout_(layout),
       options_(options),
-      screen_(spec, options.flush_timeout_s),
-      assembler_(spec, mode, options, window_, stats_),
-      stash_(std::make_unique<HeldPacket>()) {}
+      window_(layout_.max_payload_bytes),
+      screen_(layout_, options.flush_timeout_s),
+      assembler_(layout_, return_mode, returns, options, window_, stats_),
+      stash_(std::make_unique<HeldPacket>(layout_.max_payload_bytes)) {}
 
 ScanBatcher::~ScanBatcher() = default;
 
@@ -18,10 +20,10 @@ bool ScanBatcher::catch_up(Scan& scan) {
   if (!stashed_) return false;
   stashed_ = false;
   // add_one() copies what it keeps (window, candidates), so the stash is free again after it.
-  return add_one(stash_->columns, scan);
+  return add_one(stash_->columns(), scan);
 }
 
-bool ScanBatcher::add(const PacketColumns& pk, Scan& scan) {
+bool ScanBatcher::add(const ColumnPacket& pk, Scan& scan) {
   if (catch_up(scan)) {
     // This call delivers already (one rotation per call): the packet waits for the next.
     stash_->hold(pk);
@@ -59,7 +61,7 @@ bool ScanBatcher::idle(double silent_s, Scan& scan) {
 
 // ---- A packet: screened, then into the window ------------------------------------------------
 
-bool ScanBatcher::add_one(const PacketColumns& pk, Scan& scan) {
+bool ScanBatcher::add_one(const ColumnPacket& pk, Scan& scan) {
   if (pk.columns <= 0 || pk.decoder == nullptr) {
     ++stats_.inconsistent;  // not a parsed packet
     return pump(scan);
@@ -84,7 +86,7 @@ bool ScanBatcher::add_one(const PacketColumns& pk, Scan& scan) {
     case StreamScreen::Verdict::kAccept:
       // The stream is alive: what looked like the start of another one was not.
       stats_.inconsistent += static_cast<uint64_t>(screen_.clear_candidates());
-      if (pk.mode != assembler_.mode()) {
+      if (pk.return_mode != assembler_.mode()) {
         if (screen_.has_head() && pk.stamp_ns < screen_.head().stamp_ns) {
           ++stats_.reordered;  // a late packet of the old mode
           ++stats_.late_packets;
@@ -110,7 +112,7 @@ bool ScanBatcher::add_one(const PacketColumns& pk, Scan& scan) {
   return pump(scan);
 }
 
-void ScanBatcher::take(const PacketColumns& pk) {
+void ScanBatcher::take(const ColumnPacket& pk) {
   bool reordered = false;
   if (!window_.insert(pk, reordered)) return;  // cannot happen: pump() keeps it at its depth
   if (reordered) ++stats_.reordered;
@@ -128,7 +130,7 @@ bool ScanBatcher::pump(Scan& scan) {
 
 bool ScanBatcher::release_oldest(Scan& scan, bool may_end) {
   const int slot = window_.pop_oldest();
-  const PacketColumns& pk = window_.packet(slot);
+  const ColumnPacket& pk = window_.packet(slot);
   screen_.released(pk);
   if (assembler_.add_packet(pk, slot, scan, may_end)) {
     pending_slot_ = slot;  // its columns after the end wait for the next scan
@@ -187,10 +189,10 @@ bool ScanBatcher::adopt_new_stream(Scan& scan) {
   // Several packets agree with each other and none of the old stream came meanwhile. Right after
   // the stream in time: its azimuth jumped (a field of view restricted between packets), the
   // rotation goes on. Otherwise the sensor restarted, its clock jumped or a replay looped.
-  const PacketColumns& first = screen_.candidate(0);
+  const ColumnPacket& first = screen_.candidate(0);
   const double dt_us = static_cast<double>(first.stamp_ns - screen_.head().stamp_ns) * 1e-3;
   const bool continues = screen_.has_head() && dt_us > 0 &&
-                         dt_us <= kNewStreamPackets * spec_.packet_period_us(first.mode);
+                         dt_us <= kNewStreamPackets * layout_.packet_period_us(first.returns);
   if (!continues) return close_stream(scan, true);
   insert_candidates();
   return false;
@@ -198,9 +200,9 @@ bool ScanBatcher::adopt_new_stream(Scan& scan) {
 
 void ScanBatcher::insert_candidates() {
   for (int i = 0; i < screen_.candidates(); ++i) {
-    const PacketColumns& pk = screen_.candidate(i);
-    if (pk.mode != assembler_.mode()) {
-      assembler_.set_mode(pk.mode);
+    const ColumnPacket& pk = screen_.candidate(i);
+    if (pk.return_mode != assembler_.mode()) {
+      assembler_.set_mode(pk.return_mode, pk.returns);
       ++stats_.mode_changes;
     }
     take(pk);
@@ -208,4 +210,4 @@ void ScanBatcher::insert_candidates() {
   (void)screen_.clear_candidates();
 }
 
-}  // namespace lidartag::velodyne
+}  // namespace lidartag::driver

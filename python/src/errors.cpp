@@ -6,7 +6,7 @@
 #include "lidartag/detector/cloud_scan.hpp"
 #include "lidartag/detector/detector.hpp"
 #include "lidartag/detector/tag_family.hpp"
-#include "lidartag/driver/io/calibration_file.hpp"
+#include "lidartag/driver/velodyne/io/calibration_file.hpp"
 #include "lidartag/sim/scene.hpp"
 #include "lidartag/sim/truth.hpp"
 
@@ -18,7 +18,7 @@ void bind_errors(py::module_& m) {
                                              "A file, configuration or scene lidartag cannot use.",
                                              PyExc_RuntimeError, nullptr);
   m.add_object("Error", py::handle(base));
-  py::register_exception<velodyne::IoError>(m, "IoError", base);
+  py::register_exception<driver::IoError>(m, "IoError", base);
   py::register_exception<velodyne::CalibrationError>(m, "CalibrationError", base);
   py::register_exception<daemon::ConfigError>(m, "ConfigError", base);
   py::register_exception<detector::OptionsError>(m, "OptionsError", base);

@@ -35,10 +35,10 @@ class LcmLog {
   explicit LcmLog(const std::string& path) : path_(path) {
     std::error_code ec;
     if (!std::filesystem::is_regular_file(path, ec))
-      throw velodyne::IoError("no such LCM log: '" + path + "'");
+      throw driver::IoError("no such LCM log: '" + path + "'");
     file_size_ = static_cast<long>(std::filesystem::file_size(path, ec));
     log_ = std::make_unique<lcm::LogFile>(path, "r");
-    if (!log_->good()) throw velodyne::IoError("cannot open LCM log '" + path + "'");
+    if (!log_->good()) throw driver::IoError("cannot open LCM log '" + path + "'");
   }
 
   LogEvent next() {

@@ -14,11 +14,11 @@
 
 #include "bindings.hpp"
 #include "lidartag/detector/cloud_scan.hpp"
-#include "lidartag/driver/io/capture_reader.hpp"
 #include "lidartag/driver/io/errors.hpp"
-#include "lidartag/driver/io/pcd.hpp"
 #include "lidartag/driver/io/udp_frame.hpp"
-#include "lidartag/driver/sensor_model.hpp"
+#include "lidartag/driver/velodyne/io/capture_reader.hpp"
+#include "lidartag/driver/velodyne/io/pcd.hpp"
+#include "lidartag/driver/velodyne/sensor_model.hpp"
 
 namespace lidartag::python {
 namespace {
@@ -188,7 +188,7 @@ class Reader {
  public:
   struct Options {
     std::optional<std::string> model, calibration, sensor;
-    double cut_deg = velodyne::BatcherOptions{}.cut_azimuth_deg;
+    double cut_deg = driver::BatcherOptions{}.cut_azimuth_deg;
     bool partial = false;
     uint16_t data_port = velodyne::kDefaultDataPort;
     uint16_t position_port = velodyne::kDefaultPositionPort;
@@ -200,7 +200,7 @@ class Reader {
     const auto model = model_option(o.model);
     std::error_code ec;
     if (!std::filesystem::is_regular_file(path, ec))
-      throw velodyne::IoError("no such file: '" + path + "'");
+      throw driver::IoError("no such file: '" + path + "'");
     if (is_pcd(path)) {
       pcd_ = rotation_of_pcd(path, model, o.rings, o.resolution_deg);
       return;
@@ -210,7 +210,7 @@ class Reader {
     options.source.position_port = o.position_port;
     if (o.sensor && !o.sensor->empty()) {
       uint32_t address = 0;
-      if (!velodyne::parse_ipv4_address(*o.sensor, address))
+      if (!driver::parse_ipv4_address(*o.sensor, address))
         throw py::value_error("not an IPv4 address: '" + *o.sensor + "'");
       options.source.sensor_ipv4 = address;
     }
@@ -254,19 +254,19 @@ class Reader {
     if (ended_) return;
     ended_ = true;
     const std::string cut = reader_->source_error();
-    if (!cut.empty()) throw velodyne::IoError(cut);
+    if (!cut.empty()) throw driver::IoError(cut);
     if (rotations_ > 0) return;
     if (skipped_ > 0) {
-      throw velodyne::IoError("'" + path_ + "': no complete rotation, only " +
-                              std::to_string(skipped_) + " incomplete one" +
-                              (skipped_ == 1 ? "" : "s") +
-                              " (a truncated or very short capture?); partial=True reads them");
+      throw driver::IoError("'" + path_ + "': no complete rotation, only " +
+                            std::to_string(skipped_) + " incomplete one" +
+                            (skipped_ == 1 ? "" : "s") +
+                            " (a truncated or very short capture?); partial=True reads them");
     }
-    throw velodyne::IoError("'" + path_ +
-                            "': no rotation: " + std::to_string(reader_->counts().data_packets) +
-                            " data packets, " + std::to_string(reader_->counts().decoded) +
-                            " decoded, " + std::to_string(reader_->source_stats().truncated) +
-                            " truncated records (check data_port, sensor, model)");
+    throw driver::IoError("'" + path_ +
+                          "': no rotation: " + std::to_string(reader_->counts().data_packets) +
+                          " data packets, " + std::to_string(reader_->counts().decoded) +
+                          " decoded, " + std::to_string(reader_->source_stats().truncated) +
+                          " truncated records (check data_port, sensor, model)");
   }
 
   py::dict counts() const {

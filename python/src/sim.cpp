@@ -12,16 +12,16 @@
 #include <vector>
 
 #include "bindings.hpp"
-#include "lidartag/driver/io/capture_reader.hpp"
 #include "lidartag/driver/io/pcap_writer.hpp"
 #include "lidartag/driver/packet_source.hpp"
+#include "lidartag/driver/velodyne/io/capture_reader.hpp"
 #include "lidartag/sim/simulator.hpp"
 
 namespace lidartag::python {
 namespace {
 
 // Packets kept in memory, replayed as a PacketSource.
-class MemorySource final : public velodyne::PacketSource {
+class MemorySource final : public driver::PacketSource {
  public:
   struct Packet {
     std::vector<uint8_t> payload;
@@ -30,23 +30,23 @@ class MemorySource final : public velodyne::PacketSource {
   };
   explicit MemorySource(std::vector<Packet> packets) : packets_(std::move(packets)) {}
 
-  velodyne::ReadStatus next(velodyne::RawPacket& out, std::chrono::milliseconds) override {
-    if (next_ == packets_.size()) return velodyne::ReadStatus::kEnd;
+  driver::ReadStatus next(driver::RawPacket& out, std::chrono::milliseconds) override {
+    if (next_ == packets_.size()) return driver::ReadStatus::kEnd;
     const Packet& p = packets_[next_++];
     out.payload = p.payload;
     out.receive_time_ns = p.time_ns;
-    out.source_ipv4 = velodyne::PcapWriter::kDefaultSourceIpv4;
+    out.source_ipv4 = driver::PcapWriter::kDefaultSourceIpv4;
     out.destination_port = p.port;
     ++stats_.packets;
     stats_.bytes += p.payload.size();
-    return velodyne::ReadStatus::kPacket;
+    return driver::ReadStatus::kPacket;
   }
-  velodyne::SourceStats stats() const override { return stats_; }
+  driver::SourceStats stats() const override { return stats_; }
 
  private:
   std::vector<Packet> packets_;
   size_t next_ = 0;
-  velodyne::SourceStats stats_{};
+  driver::SourceStats stats_{};
 };
 
 struct SimOutput {
@@ -71,7 +71,7 @@ SimOutput simulate(const std::string& scene_text, bool is_path, const std::strin
   SimOutput result;
   sim::Truth truth;
   if (!out.empty()) {
-    velodyne::PcapWriter writer(out);
+    driver::PcapWriter writer(out);
     truth = simulator.run(
         n, s,
         [&](std::span<const uint8_t> payload, int64_t time_ns, uint16_t port) {

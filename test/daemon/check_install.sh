@@ -36,10 +36,11 @@ for f in README.md daemon.md driver.md detector.md simulator.md; do
   [ -f "$docs/$f" ] || { echo "missing: share/doc/lidartag/$f" >&2; status=1; }
 done
 # Libraries, headers and the CMake package.
-for lib in velodyne driver_io families detector sim config; do
+for lib in assembly velodyne driver_io velodyne_io families detector sim config; do
   find_one "liblidartag_$lib.a" >/dev/null
 done
-for header in driver/scan.hpp driver/io/capture_reader.hpp driver/io/pcd.hpp \
+for header in driver/scan.hpp driver/columns.hpp driver/velodyne/io/capture_reader.hpp \
+  driver/velodyne/io/pcd.hpp driver/io/pcap_source.hpp \
   detector/detector.hpp detector/cloud_scan.hpp sim/simulator.hpp daemon/config.hpp; do
   find_one "include/lidartag/$header" >/dev/null
 done

@@ -126,9 +126,9 @@ TEST(Config, EveryDetectorOptionIsMapped) {
 }
 
 TEST(Config, EveryDriverOptionIsMappedByItsRuleTable) {
-  EXPECT_EQ(field_count<velodyne::BatcherOptions>(),
-            count_table<velodyne::BatcherOptions>([](auto& v, auto& o) {
-              velodyne::visit_batcher_options(v, o);
+  EXPECT_EQ(field_count<driver::BatcherOptions>(),
+            count_table<driver::BatcherOptions>([](auto& v, auto& o) {
+              driver::visit_batcher_options(v, o);
             }).settings);
   EXPECT_EQ(field_count<velodyne::DecoderOptions>(),
             count_table<velodyne::DecoderOptions>([](auto& v, auto& o) {

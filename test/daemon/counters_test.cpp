@@ -74,7 +74,7 @@ Stream sensor_stream(Model model, double seconds, velodyne::testing::StreamOptio
 std::string write_pcap(const std::vector<Packet>& packets, const std::string& name) {
   const std::string path = ::testing::TempDir() + "/lidartag_counters_" +
                            std::to_string(::getpid()) + "_" + name + ".pcap";
-  velodyne::PcapWriter writer(path);
+  driver::PcapWriter writer(path);
   for (const auto& p : packets) {
     writer.write_udp(p.bytes, p.time_ns, velodyne::kDefaultDataPort, p.source);
   }

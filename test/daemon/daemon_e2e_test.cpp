@@ -323,10 +323,10 @@ TEST(Replay, RecordWritesTheReceivedPacketsToAPcap) {
             {}, temp("record"));
   ASSERT_EQ(p.wait(120s), 0) << p.err();
   auto count = [](const std::string& path) {
-    velodyne::PcapSource source(path);
-    velodyne::RawPacket packet;
+    driver::PcapSource source(path);
+    driver::RawPacket packet;
     size_t n = 0;
-    while (source.next(packet, 10ms) == velodyne::ReadStatus::kPacket) ++n;
+    while (source.next(packet, 10ms) == driver::ReadStatus::kPacket) ++n;
     return n;
   };
   EXPECT_GT(count(kDemo), 0u);

@@ -48,10 +48,10 @@ struct FakeNotifySocket : lidartag::testing::FakeNotifySocket {
 };
 
 size_t packets_in(const std::string& path) {
-  velodyne::PcapSource source(path);
-  velodyne::RawPacket packet;
+  driver::PcapSource source(path);
+  driver::RawPacket packet;
   size_t n = 0;
-  while (source.next(packet, 10ms) == velodyne::ReadStatus::kPacket) ++n;
+  while (source.next(packet, 10ms) == driver::ReadStatus::kPacket) ++n;
   return n;
 }
 

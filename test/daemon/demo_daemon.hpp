@@ -39,9 +39,9 @@ inline uint16_t free_udp_port() {
 // `from`: the sender's address (host byte order; any loopback address), 0: the kernel's choice.
 inline size_t send_demo(uint16_t data_port, uint16_t position_port, uint32_t from = 0) {
   using namespace std::chrono_literals;
-  velodyne::PcapSourceOptions pacing;
-  pacing.pacing = velodyne::ReplayPacing::kCaptureTime;
-  velodyne::PcapSource source(kDemo, pacing);
+  driver::PcapSourceOptions pacing;
+  pacing.pacing = driver::ReplayPacing::kCaptureTime;
+  driver::PcapSource source(kDemo, pacing);
   const int fd = socket(AF_INET, SOCK_DGRAM, 0);
   if (from != 0) {
     sockaddr_in local{};
@@ -55,15 +55,15 @@ inline size_t send_demo(uint16_t data_port, uint16_t position_port, uint32_t fro
   sockaddr_in to{};
   to.sin_family = AF_INET;
   to.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  velodyne::RawPacket packet;
+  driver::RawPacket packet;
   size_t sent = 0;
   const auto start = std::chrono::steady_clock::now();
   while (std::chrono::steady_clock::now() - start < 30s) {
     const auto status = source.next(packet, 100ms);
-    if (status == velodyne::ReadStatus::kTimeout) continue;
-    if (status != velodyne::ReadStatus::kPacket) break;
+    if (status == driver::ReadStatus::kTimeout) continue;
+    if (status != driver::ReadStatus::kPacket) break;
     to.sin_port =
-        htons(packet.destination_port == velodyne::kDefaultDataPort ? data_port : position_port);
+        htons(packet.destination_port == driver::kDefaultDataPort ? data_port : position_port);
     if (sendto(fd, packet.payload.data(), packet.payload.size(), 0,
                reinterpret_cast<sockaddr*>(&to),
                sizeof(to)) == static_cast<ssize_t>(packet.payload.size())) {

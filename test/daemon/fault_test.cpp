@@ -152,10 +152,10 @@ TEST(FileSizeLimit, RecordPastTheLimitIsAWriteErrorNotAKill) {
   EXPECT_NE(p.err().find("final status"), std::string::npos) << p.err();
   EXPECT_NE(p.err().find("recording " + record + " failed"), std::string::npos) << p.err();
   // Whole records only: the file reads to its end without a truncated record.
-  velodyne::PcapSource source(record);
-  velodyne::RawPacket packet;
+  driver::PcapSource source(record);
+  driver::RawPacket packet;
   size_t packets = 0;
-  while (source.next(packet, 0ms) == velodyne::ReadStatus::kPacket) ++packets;
+  while (source.next(packet, 0ms) == driver::ReadStatus::kPacket) ++packets;
   EXPECT_GT(packets, 10u);
   EXPECT_EQ(source.stats().truncated, 0u);
   EXPECT_EQ(source.error(), "");

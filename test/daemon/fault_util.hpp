@@ -8,6 +8,7 @@
 #include <sys/mount.h>
 
 #include <chrono>
+#include <cstring>
 #include <filesystem>
 #include <lcm/lcm-cpp.hpp>
 #include <optional>
@@ -108,11 +109,11 @@ inline std::optional<lidartag::status_t> last_status(const std::string& log) {
 
 // The first `seconds` of the demo as a capture of its own.
 inline void cut_demo(const std::string& path, double seconds) {
-  velodyne::PcapSource source(kDemo);
-  velodyne::PcapWriter writer(path);
-  velodyne::RawPacket p;
+  driver::PcapSource source(kDemo);
+  driver::PcapWriter writer(path);
+  driver::RawPacket p;
   int64_t first = -1;
-  while (source.next(p, 0ms) == velodyne::ReadStatus::kPacket) {
+  while (source.next(p, 0ms) == driver::ReadStatus::kPacket) {
     if (first < 0) first = p.receive_time_ns;
     if (static_cast<double>(p.receive_time_ns - first) * 1e-9 > seconds) break;
     writer.write_udp(p.payload, p.receive_time_ns, p.destination_port);

@@ -31,7 +31,7 @@ void write_event(lcm::LogFile& log, const std::string& channel, const std::vecto
 }
 
 std::vector<uint8_t> encoded(int64_t time_ns, uint16_t port, std::vector<uint8_t> payload) {
-  velodyne::RawPacket p;
+  driver::RawPacket p;
   p.payload = payload;
   p.receive_time_ns = time_ns;
   p.destination_port = port;
@@ -62,16 +62,16 @@ std::string make_log() {
 
 TEST(LcmLogSource, DeliversGoodPacketsAndCountsMalformedOnes) {
   LcmLogSource source(make_log(), {});
-  velodyne::RawPacket p;
-  ASSERT_EQ(source.next(p, 10ms), velodyne::ReadStatus::kPacket);
+  driver::RawPacket p;
+  ASSERT_EQ(source.next(p, 10ms), driver::ReadStatus::kPacket);
   EXPECT_EQ(p.receive_time_ns, 1'000'000'000);
   EXPECT_EQ(p.destination_port, 2368);
   EXPECT_EQ(std::vector<uint8_t>(p.payload.begin(), p.payload.end()),
             (std::vector<uint8_t>{1, 2, 3}));
-  ASSERT_EQ(source.next(p, 10ms), velodyne::ReadStatus::kPacket);
+  ASSERT_EQ(source.next(p, 10ms), driver::ReadStatus::kPacket);
   EXPECT_EQ(p.destination_port, 8308);
   EXPECT_EQ(p.payload.size(), 2u);
-  EXPECT_EQ(source.next(p, 10ms), velodyne::ReadStatus::kEnd);
+  EXPECT_EQ(source.next(p, 10ms), driver::ReadStatus::kEnd);
   EXPECT_EQ(source.stats().packets, 2u);
   EXPECT_EQ(source.stats().malformed, 3u);
   EXPECT_EQ(source.stats().ignored, 1u);
@@ -82,9 +82,9 @@ TEST(LcmLogSource, LoopKeepsTimeGrowing) {
   o.loop = true;
   LcmLogSource source(make_log(), o);
   std::vector<int64_t> times;
-  velodyne::RawPacket p;
+  driver::RawPacket p;
   for (int i = 0; i < 6; ++i) {
-    ASSERT_EQ(source.next(p, 10ms), velodyne::ReadStatus::kPacket);
+    ASSERT_EQ(source.next(p, 10ms), driver::ReadStatus::kPacket);
     times.push_back(p.receive_time_ns);
   }
   EXPECT_TRUE(std::is_sorted(times.begin(), times.end()));
@@ -96,11 +96,11 @@ TEST(LcmLogSource, PacedReplayWaits) {
   LcmLogSourceOptions o;
   o.rate = 1.0;
   LcmLogSource source(make_log(), o);
-  velodyne::RawPacket p;
-  ASSERT_EQ(source.next(p, 10ms), velodyne::ReadStatus::kPacket);
+  driver::RawPacket p;
+  ASSERT_EQ(source.next(p, 10ms), driver::ReadStatus::kPacket);
   // The second packet is due 300 ms after the first: not within 10 ms.
-  EXPECT_EQ(source.next(p, 10ms), velodyne::ReadStatus::kTimeout);
-  ASSERT_EQ(source.next(p, 1000ms), velodyne::ReadStatus::kPacket);
+  EXPECT_EQ(source.next(p, 10ms), driver::ReadStatus::kTimeout);
+  ASSERT_EQ(source.next(p, 1000ms), driver::ReadStatus::kPacket);
   EXPECT_EQ(p.destination_port, 8308);
 }
 
@@ -114,15 +114,15 @@ TEST(LcmLogSource, ImpossibleReceiveTimesAreCountedAsMalformed) {
     write_event(log, "LIDARTAG_RAW", encoded(std::numeric_limits<int64_t>::max(), 2368, {1}), 1);
     write_event(log, "LIDARTAG_RAW", encoded(std::numeric_limits<int64_t>::min(), 2368, {2}), 2);
     write_event(log, "LIDARTAG_RAW", encoded(-1, 2368, {3}), 3);
-    write_event(log, "LIDARTAG_RAW", encoded(velodyne::kMaxReceiveTimeNs, 2368, {4}), 4);
+    write_event(log, "LIDARTAG_RAW", encoded(driver::kMaxReceiveTimeNs, 2368, {4}), 4);
     write_event(log, "LIDARTAG_RAW", encoded(1'700'000'000'000'000'000, 2368, {5}), 5);
   }
   LcmLogSourceOptions o;
   o.loop = true;
   LcmLogSource source(path, o);
-  velodyne::RawPacket p;
+  driver::RawPacket p;
   for (int pass = 0; pass < 3; ++pass) {
-    ASSERT_EQ(source.next(p, 10ms), velodyne::ReadStatus::kPacket);
+    ASSERT_EQ(source.next(p, 10ms), driver::ReadStatus::kPacket);
     EXPECT_EQ(p.payload[0], 5);
     EXPECT_GE(p.receive_time_ns, 1'700'000'000'000'000'000);
   }
@@ -152,17 +152,17 @@ TEST(LcmLogSource, RandomlyCorruptedMessagesAreCountedNeverFatal) {
     }
   }
   LcmLogSource source(path, {});
-  velodyne::RawPacket p;
+  driver::RawPacket p;
   uint64_t delivered = 0;
   for (int k = 0; k <= events; ++k) {
     const auto status = source.next(p, 10ms);
-    if (status == velodyne::ReadStatus::kEnd) break;
-    ASSERT_EQ(status, velodyne::ReadStatus::kPacket);
+    if (status == driver::ReadStatus::kEnd) break;
+    ASSERT_EQ(status, driver::ReadStatus::kPacket);
     ++delivered;
     EXPECT_TRUE(p.destination_port > 0);
-    EXPECT_TRUE(p.receive_time_ns >= 0 && p.receive_time_ns < velodyne::kMaxReceiveTimeNs);
+    EXPECT_TRUE(p.receive_time_ns >= 0 && p.receive_time_ns < driver::kMaxReceiveTimeNs);
   }
-  EXPECT_EQ(source.next(p, 10ms), velodyne::ReadStatus::kEnd);
+  EXPECT_EQ(source.next(p, 10ms), driver::ReadStatus::kEnd);
   EXPECT_EQ(delivered + source.stats().malformed, static_cast<uint64_t>(events));
   EXPECT_GT(delivered, 0u);
   EXPECT_GT(source.stats().malformed, 0u);
@@ -174,14 +174,14 @@ TEST(LcmLogSource, LogCutInsideAnEventEndsAndIsCountedAsTruncated) {
   const auto size = std::filesystem::file_size(path);
   std::filesystem::resize_file(path, size - 4);  // the last event loses its last bytes
   LcmLogSource source(path, {});
-  velodyne::RawPacket p;
-  ASSERT_EQ(source.next(p, 10ms), velodyne::ReadStatus::kPacket);
-  EXPECT_EQ(source.next(p, 10ms), velodyne::ReadStatus::kEnd);
+  driver::RawPacket p;
+  ASSERT_EQ(source.next(p, 10ms), driver::ReadStatus::kPacket);
+  EXPECT_EQ(source.next(p, 10ms), driver::ReadStatus::kEnd);
   EXPECT_EQ(source.stats().packets, 1u);
   EXPECT_EQ(source.stats().truncated, 1u);
   // A whole log is not truncated.
   LcmLogSource whole(make_log(), {});
-  while (whole.next(p, 10ms) == velodyne::ReadStatus::kPacket) {
+  while (whole.next(p, 10ms) == driver::ReadStatus::kPacket) {
   }
   EXPECT_EQ(whole.stats().truncated, 0u);
 }
@@ -206,9 +206,9 @@ std::string log_ending_in_a_huge_claim() {
 
 TEST(LcmLogSource, AnEventClaimingMoreThanTheFileHoldsEndsTheReplayAsTruncated) {
   LcmLogSource source(log_ending_in_a_huge_claim(), {});
-  velodyne::RawPacket p;
+  driver::RawPacket p;
   int packets = 0;
-  while (source.next(p, 10ms) == velodyne::ReadStatus::kPacket) ++packets;
+  while (source.next(p, 10ms) == driver::ReadStatus::kPacket) ++packets;
   EXPECT_EQ(packets, 2);  // make_log's two good packets, then the end
   EXPECT_EQ(source.stats().truncated, 1u);
   EXPECT_EQ(source.events(), 6u);  // the huge one is not an event read
@@ -224,8 +224,8 @@ int replay_under_a_1_gib_limit(const std::string& path) {
   limit.rlim_cur = limit.rlim_max = 1UL << 30;
   if (::setrlimit(RLIMIT_AS, &limit) != 0) return 3;
   LcmLogSource source(path, {});
-  velodyne::RawPacket p;
-  while (source.next(p, 10ms) == velodyne::ReadStatus::kPacket) {
+  driver::RawPacket p;
+  while (source.next(p, 10ms) == driver::ReadStatus::kPacket) {
   }
   return source.stats().truncated == 1 ? 0 : 2;
 }
@@ -237,7 +237,7 @@ TEST(LcmLogSourceDeathTest, AHugeClaimUnderAnAddressSpaceLimitEndsTheReplayNorma
 #endif
 
 TEST(LcmLogSource, MissingFileIsASetupError) {
-  EXPECT_THROW(LcmLogSource("/nonexistent/x.lcmlog", {}), velodyne::IoError);
+  EXPECT_THROW(LcmLogSource("/nonexistent/x.lcmlog", {}), driver::IoError);
 }
 
 }  // namespace

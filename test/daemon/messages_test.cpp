@@ -403,7 +403,7 @@ TEST(Messages, StatusStatesMatchTheLcmConstants) {
 
 TEST(Messages, RawPacketKeepsBytesPortAndTime) {
   const std::vector<uint8_t> payload = {1, 2, 3, 250};
-  velodyne::RawPacket p;
+  driver::RawPacket p;
   p.payload = payload;
   p.receive_time_ns = 1700000000123456789;
   p.source_ipv4 = 0xC0A801C9;

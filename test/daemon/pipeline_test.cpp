@@ -17,7 +17,7 @@
 
 #include "lcm_bytes.hpp"
 #include "lidartag/daemon/sensor_pipeline.hpp"
-#include "lidartag/driver/io/capture_reader.hpp"
+#include "lidartag/driver/velodyne/io/capture_reader.hpp"
 
 namespace lidartag::daemon {
 namespace {

@@ -25,10 +25,10 @@ std::string temp_path(const std::string& name) {
 }
 
 size_t packets_in(const std::string& path, std::vector<int64_t>* times = nullptr) {
-  velodyne::PcapSource source(path);
-  velodyne::RawPacket packet;
+  driver::PcapSource source(path);
+  driver::RawPacket packet;
   size_t n = 0;
-  while (source.next(packet, 10ms) == velodyne::ReadStatus::kPacket) {
+  while (source.next(packet, 10ms) == driver::ReadStatus::kPacket) {
     ++n;
     if (times != nullptr) times->push_back(packet.receive_time_ns);
   }
@@ -50,7 +50,7 @@ TEST(PcapRecorder, AFullDiskStopsRecordingOnceAndCountsWhatIsNotInTheFile) {
     PcapRecorder recorder(path);
     test::FileSizeLimit limit(1'000'000);  // about 790 packets
     for (uint64_t i = 0; i < kPackets; ++i) {
-      velodyne::RawPacket p;
+      driver::RawPacket p;
       p.payload = payload;
       p.receive_time_ns = static_cast<int64_t>(i) * 1'000'000'000;
       p.destination_port = 2368;
@@ -89,7 +89,7 @@ TEST(PcapRecorder, EverythingWrittenIsInTheFileAfterClose) {
   PcapRecorder recorder(path);
   const std::vector<uint8_t> payload(100, 1);
   for (int i = 0; i < 10; ++i) {
-    velodyne::RawPacket p;
+    driver::RawPacket p;
     p.payload = payload;
     p.destination_port = 2368;
     recorder.write(p);

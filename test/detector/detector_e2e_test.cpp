@@ -11,7 +11,7 @@
 
 #include "../../bench/sim_scans.hpp"
 #include "lidartag/detector/detector.hpp"
-#include "lidartag/driver/io/capture_reader.hpp"
+#include "lidartag/driver/velodyne/io/capture_reader.hpp"
 
 namespace lidartag::detector {
 namespace {

@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "lidartag/detector/detector.hpp"
-#include "lidartag/driver/io/capture_reader.hpp"
+#include "lidartag/driver/velodyne/io/capture_reader.hpp"
 
 namespace lidartag::tags {
 namespace {

@@ -13,7 +13,7 @@
 #include "../../bench/sim_scans.hpp"
 #include "lidartag/detector/detector.hpp"
 #include "lidartag/detector/tracker.hpp"
-#include "lidartag/driver/io/capture_reader.hpp"
+#include "lidartag/driver/velodyne/io/capture_reader.hpp"
 #include "lidartag/sim/sensor_sim.hpp"
 
 namespace lidartag::detector {

@@ -5,8 +5,8 @@
 #include <cstdint>
 #include <vector>
 
-#include "lidartag/driver/encoder.hpp"
-#include "lidartag/driver/sensor_model.hpp"
+#include "lidartag/driver/velodyne/encoder.hpp"
+#include "lidartag/driver/velodyne/sensor_model.hpp"
 
 namespace lidartag::velodyne::testing {
 

@@ -8,6 +8,7 @@
 #include "lidartag/driver/assembly/reorder_window.hpp"
 #include "lidartag/driver/assembly/rotation_assembler.hpp"
 #include "lidartag/driver/assembly/stream_screen.hpp"
+#include "lidartag/driver/velodyne/decoder.hpp"
 #include "synthetic_stream.hpp"
 
 namespace lidartag::velodyne {
@@ -16,6 +17,7 @@ namespace {
 // A VLP-16 stream at 600 rpm, parsed packet by packet (their bytes stay in `stream`).
 struct Parsed {
   const ModelSpec& spec = model_spec(Model::kVLP16);
+  const driver::SensorLayout layout = sensor_layout(spec);
   Decoder decoder{Calibration::builtin(Model::kVLP16)};
   SensorClock clock;
   std::vector<testing::StreamPacket> stream;
@@ -33,7 +35,7 @@ struct Parsed {
 
 TEST(ReorderWindow, KeepsPacketsSortedByTimeAndSaysWhichCameLate) {
   Parsed p(6);
-  ReorderWindow w;
+  driver::ReorderWindow w(p.layout.max_payload_bytes);
   bool reordered = true;
   ASSERT_TRUE(w.insert(p[0], reordered));
   EXPECT_FALSE(reordered);
@@ -59,21 +61,21 @@ TEST(ReorderWindow, KeepsPacketsSortedByTimeAndSaysWhichCameLate) {
 }
 
 TEST(ReorderWindow, AFullSetOfSlotsRefusesAndAFreedSlotIsUsedAgain) {
-  Parsed p(ReorderWindow::kSlots + 1);
-  ReorderWindow w;
+  Parsed p(driver::ReorderWindow::kSlots + 1);
+  driver::ReorderWindow w(p.layout.max_payload_bytes);
   bool reordered = false;
-  for (int i = 0; i < ReorderWindow::kSlots; ++i) ASSERT_TRUE(w.insert(p[i], reordered));
-  EXPECT_FALSE(w.insert(p[ReorderWindow::kSlots], reordered));
+  for (int i = 0; i < driver::ReorderWindow::kSlots; ++i) ASSERT_TRUE(w.insert(p[i], reordered));
+  EXPECT_FALSE(w.insert(p[driver::ReorderWindow::kSlots], reordered));
   w.free(w.pop_oldest());
-  EXPECT_TRUE(w.insert(p[ReorderWindow::kSlots], reordered));
+  EXPECT_TRUE(w.insert(p[driver::ReorderWindow::kSlots], reordered));
 }
 
 TEST(StreamScreen, DuplicatesLatePacketsStraysAndANewStream) {
   Parsed p(12);
-  StreamScreen screen(p.spec, 0.25);
-  ReorderWindow w;
+  driver::StreamScreen screen(p.layout, 0.25);
+  driver::ReorderWindow w(p.layout.max_payload_bytes);
   bool reordered = false;
-  using V = StreamScreen::Verdict;
+  using V = driver::StreamScreen::Verdict;
   EXPECT_EQ(screen.screen(p[0], w, std::nullopt), V::kAccept);  // no stream yet
   for (int i = 0; i < 4; ++i) {
     ASSERT_EQ(screen.screen(p[i], w, std::nullopt), V::kAccept) << i;
@@ -92,26 +94,26 @@ TEST(StreamScreen, DuplicatesLatePacketsStraysAndANewStream) {
   PacketColumns stray = p[4];
   for (auto& a : stray.column_azimuth_deg) a = static_cast<float>(std::fmod(a + 90.0f, 360.0f));
   EXPECT_EQ(screen.screen(stray, w, std::nullopt), V::kSuspect);
-  EXPECT_EQ(screen.add_candidate(stray), StreamScreen::Candidate::kHeld);
+  EXPECT_EQ(screen.add_candidate(stray), driver::StreamScreen::Candidate::kHeld);
   // The stream goes on: its next packet fits, the candidate is forgotten by the caller.
   EXPECT_EQ(screen.screen(p[4], w, std::nullopt), V::kAccept);
   EXPECT_EQ(screen.clear_candidates(), 1);
   // Candidates that continue each other make a new stream's three packets.
   Parsed other(6, {.start_azimuth_deg = 270.0, .start_ns = p[0].stamp_ns + 5'000'000'000LL});
-  for (int i = 0; i < StreamScreen::kNewStreamPackets; ++i) {
+  for (int i = 0; i < driver::StreamScreen::kNewStreamPackets; ++i) {
     EXPECT_EQ(screen.screen(other[i], w, std::nullopt), V::kSuspect);
-    EXPECT_EQ(screen.add_candidate(other[i]), StreamScreen::Candidate::kHeld);
+    EXPECT_EQ(screen.add_candidate(other[i]), driver::StreamScreen::Candidate::kHeld);
   }
-  EXPECT_EQ(screen.candidates(), StreamScreen::kNewStreamPackets);
+  EXPECT_EQ(screen.candidates(), driver::StreamScreen::kNewStreamPackets);
   EXPECT_EQ(screen.candidate(0).stamp_ns, other[0].stamp_ns);
   // A fourth is not held (the caller adopts the three first).
-  EXPECT_EQ(screen.add_candidate(other[3]), StreamScreen::Candidate::kDropped);
+  EXPECT_EQ(screen.add_candidate(other[3]), driver::StreamScreen::Candidate::kDropped);
 }
 
 TEST(StreamScreen, AStrayPacketThatFittedIsRecognisedByTheNextOne) {
   Parsed p(100);
-  StreamScreen screen(p.spec, 0.25);
-  ReorderWindow w;
+  driver::StreamScreen screen(p.layout, 0.25);
+  driver::ReorderWindow w(p.layout.max_payload_bytes);
   bool reordered = false;
   for (int i = 0; i < 3; ++i) {
     w.insert(p[i], reordered);
@@ -119,12 +121,13 @@ TEST(StreamScreen, AStrayPacketThatFittedIsRecognisedByTheNextOne) {
   }
   // A stray packet 106 ms ahead that happens to point where the stream would then: taken.
   const PacketColumns& stray = p[80];
-  ASSERT_EQ(screen.screen(stray, w, std::nullopt), StreamScreen::Verdict::kAccept);
+  ASSERT_EQ(screen.screen(stray, w, std::nullopt), driver::StreamScreen::Verdict::kAccept);
   w.insert(stray, reordered);
   screen.taken(stray);
   // The stream's next packet fits the packet before the stray one, not the stray one (it is 77
   // packet periods before it: no reordered packet is that late).
-  EXPECT_EQ(screen.screen(p[3], w, std::nullopt), StreamScreen::Verdict::kAcceptHeadWasStray);
+  EXPECT_EQ(screen.screen(p[3], w, std::nullopt),
+            driver::StreamScreen::Verdict::kAcceptHeadWasStray);
   w.remove(screen.head().stamp_ns);
   screen.drop_head();
   EXPECT_EQ(screen.head().stamp_ns, p[2].stamp_ns);
@@ -133,12 +136,13 @@ TEST(StreamScreen, AStrayPacketThatFittedIsRecognisedByTheNextOne) {
 
 // Packets straight into the assembler (no window): every rotation it ends, and its counts.
 struct Assembly {
-  ReorderWindow held;
-  BatcherStats stats;
-  RotationAssembler assembler;
+  driver::ReorderWindow held;
+  driver::BatcherStats stats;
+  driver::RotationAssembler assembler;
   std::vector<Scan> scans;
-  explicit Assembly(const ModelSpec& spec, BatcherOptions o = {})
-      : assembler(spec, ReturnMode::kStrongest, o, held, stats) {
+  explicit Assembly(const driver::SensorLayout& layout, driver::BatcherOptions o = {})
+      : held(layout.max_payload_bytes),
+        assembler(layout, static_cast<uint8_t>(ReturnMode::kStrongest), 1, o, held, stats) {
     scans.emplace_back();
   }
   void add(const PacketColumns& pk) {
@@ -150,9 +154,9 @@ struct Assembly {
 
 TEST(RotationAssembler, EndsRotationsAtTheCutAndCountsLossInBothSidesOfIt) {
   Parsed p(250);  // VLP-16: 75.4 packets per rotation
-  BatcherOptions o;
+  driver::BatcherOptions o;
   o.cut_azimuth_deg = 90.0;
-  Assembly a(p.spec, o);
+  Assembly a(p.layout, o);
   // Lose the packets around the second cut: the loss straddles it.
   const int n = static_cast<int>(p.packets.size());
   int crossing = -1;
@@ -185,12 +189,12 @@ TEST(RotationAssembler, EndsRotationsAtTheCutAndCountsLossInBothSidesOfIt) {
 
 TEST(RotationAssembler, AJumpEndsTheRotationAndAFieldOfViewGapDoesNot) {
   Parsed p(40);
-  Assembly a(p.spec);
+  Assembly a(p.layout);
   for (int i = 0; i < 10; ++i) a.add(p[i]);
   // A pause outside the field of view: time jumps 30 packet periods, azimuth goes on.
   for (int i = 10; i < 20; ++i) {
     PacketColumns pk = p[i];
-    pk.stamp_ns += 30 * static_cast<int64_t>(p.spec.packet_period_us(pk.mode) * 1e3);
+    pk.stamp_ns += 30 * static_cast<int64_t>(p.spec.packet_period_us(pk.mode()) * 1e3);
     a.add(pk);
   }
   EXPECT_EQ(a.stats.fov_gaps, 1u);

@@ -8,9 +8,9 @@
 #include <memory>
 
 #include "driver/keep_all.hpp"
-#include "lidartag/driver/decoder.hpp"
 #include "lidartag/driver/io/pcap_source.hpp"
 #include "lidartag/driver/scan_batcher.hpp"
+#include "lidartag/driver/velodyne/decoder.hpp"
 
 namespace lidartag::velodyne {
 namespace {
@@ -32,7 +32,7 @@ struct Decoded {
   double raw_rpm = 0;               // mean azimuth advance over the packet clock
   std::vector<size_t> raw_returns;  // non-zero distances per laser
   std::vector<size_t> raw_cells;    // cells per laser
-  BatcherStats stats;
+  driver::BatcherStats stats;
   std::unique_ptr<KeepAll> sink;
 };
 
@@ -43,10 +43,10 @@ Decoded decode_capture(const std::string& path) {
   std::vector<std::vector<uint8_t>> data;
   std::vector<int64_t> times;
   {
-    PcapSource src(path);
-    RawPacket pk;
+    driver::PcapSource src(path);
+    driver::RawPacket pk;
     ModelCheck check;
-    while (src.next(pk, std::chrono::milliseconds(0)) == ReadStatus::kPacket) {
+    while (src.next(pk, std::chrono::milliseconds(0)) == driver::ReadStatus::kPacket) {
       if (pk.payload.size() == kDataPacketSize) {
         check.add(pk.payload);
         data.emplace_back(pk.payload.begin(), pk.payload.end());
@@ -69,9 +69,9 @@ Decoded decode_capture(const std::string& path) {
   Decoder decoder(Calibration::builtin(d.model));
   SensorClock clock;
   d.sink = std::make_unique<KeepAll>();
-  BatcherOptions bo;
+  driver::BatcherOptions bo;
   bo.cut_azimuth_deg = kCut;
-  ScanBatcher batcher(spec, d.mode, bo);
+  driver::ScanBatcher batcher = velodyne::make_batcher(spec, d.mode, bo);
   DecodedPacket out;
   double prev_az = -1;
   std::vector<double> steps;

@@ -4,8 +4,8 @@
 #include <cmath>
 #include <numbers>
 
-#include "lidartag/driver/decoder.hpp"
-#include "lidartag/driver/encoder.hpp"
+#include "lidartag/driver/velodyne/decoder.hpp"
+#include "lidartag/driver/velodyne/encoder.hpp"
 
 namespace lidartag::velodyne {
 namespace {

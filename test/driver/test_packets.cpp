@@ -3,8 +3,8 @@
 
 #include <random>
 
-#include "lidartag/driver/decoder.hpp"
-#include "lidartag/driver/sensor_clock.hpp"
+#include "lidartag/driver/velodyne/decoder.hpp"
+#include "lidartag/driver/velodyne/sensor_clock.hpp"
 #include "synthetic_stream.hpp"
 
 namespace lidartag::velodyne {
@@ -45,7 +45,7 @@ TEST(DecodeErrors, CorruptFlagAzimuthAndModeAreRejected) {
   p = good;
   p[kReturnModeOffset] = 0x00;  // old firmware: no return-mode byte, strongest
   EXPECT_EQ(d.decode(p, clock, 0, out), DecodeStatus::kOk);
-  EXPECT_EQ(out.mode, ReturnMode::kStrongest);
+  EXPECT_EQ(out.mode(), ReturnMode::kStrongest);
 }
 
 TEST(DecodeErrors, VlsBankFlagsAreChecked) {

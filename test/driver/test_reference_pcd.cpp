@@ -7,9 +7,9 @@
 #include <filesystem>
 #include <unordered_map>
 
-#include "lidartag/driver/decoder.hpp"
 #include "lidartag/driver/io/pcap_source.hpp"
-#include "lidartag/driver/io/pcd.hpp"
+#include "lidartag/driver/velodyne/decoder.hpp"
+#include "lidartag/driver/velodyne/io/pcd.hpp"
 
 namespace lidartag::velodyne {
 namespace {
@@ -61,13 +61,13 @@ Agreement compare(const std::string& capture, const std::string& reference, Mode
                   size_t first_packet, size_t last_packet, bool by_ring) {
   Grid grid(0.1);
   {
-    PcapSource src(capture);
+    driver::PcapSource src(capture);
     Decoder decoder(Calibration::builtin(model));
     SensorClock clock;
     DecodedPacket out;
-    RawPacket pk;
+    driver::RawPacket pk;
     size_t index = 0;
-    while (src.next(pk, std::chrono::milliseconds(0)) == ReadStatus::kPacket) {
+    while (src.next(pk, std::chrono::milliseconds(0)) == driver::ReadStatus::kPacket) {
       if (pk.payload.size() != kDataPacketSize) continue;
       const size_t i = index++;
       if (decoder.decode(pk.payload, clock, pk.receive_time_ns, out) != DecodeStatus::kOk) continue;

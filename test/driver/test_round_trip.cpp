@@ -4,7 +4,7 @@
 #include <cmath>
 #include <numbers>
 
-#include "lidartag/driver/decoder.hpp"
+#include "lidartag/driver/velodyne/decoder.hpp"
 #include "synthetic_stream.hpp"
 
 namespace lidartag::velodyne {

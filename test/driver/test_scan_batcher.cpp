@@ -8,6 +8,7 @@
 
 #include "../detector/count_allocations.hpp"
 #include "lidartag/driver/scan_batcher.hpp"
+#include "lidartag/driver/velodyne/decoder.hpp"
 #include "synthetic_stream.hpp"
 
 namespace lidartag::velodyne {
@@ -20,16 +21,16 @@ struct Rig {
   ReturnMode mode;
   Decoder decoder;
   SensorClock clock;
-  ScanBatcher batcher;
+  driver::ScanBatcher batcher;
   DecodedPacket pk;
   int capacity;
   std::deque<std::unique_ptr<Scan>> all;  // the scan in progress is the last one
   std::vector<Scan*> scans;               // finished rotations, in order
-  Rig(Model m, ReturnMode md, BatcherOptions o = {}, int capacity_columns = 0)
+  Rig(Model m, ReturnMode md, driver::BatcherOptions o = {}, int capacity_columns = 0)
       : spec(model_spec(m)),
         mode(md),
         decoder(Calibration::builtin(m)),
-        batcher(spec, md, o),
+        batcher(make_batcher(spec, md, o)),
         capacity(capacity_columns) {
     fresh();
   }
@@ -62,7 +63,7 @@ double ahead_of_cut(double az, double cut) {
 
 TEST(ScanBatcher, CutsWholeRotationsAtTheAzimuthInsideAPacket) {
   for (Model m : all_models()) {
-    BatcherOptions o;
+    driver::BatcherOptions o;
     o.cut_azimuth_deg = 123.45;  // not on a packet boundary
     Rig rig(m, ReturnMode::kStrongest, o);
     const int per_rotation_packets =
@@ -183,7 +184,7 @@ TEST(ScanBatcher, DuplicatesAreDroppedAndAReorderedPairIsPutInPlace) {
   std::swap(stream[300], stream[301]);               // reordered pair
   rig.feed_all(stream);
   rig.flush();
-  const BatcherStats& st = rig.batcher.stats();
+  const driver::BatcherStats& st = rig.batcher.stats();
   EXPECT_EQ(st.duplicates, 1u);
   EXPECT_EQ(st.reordered, 1u);     // put back in place by the reorder window
   EXPECT_EQ(st.late_packets, 1u);  // only the duplicate was dropped
@@ -235,7 +236,7 @@ TEST(ScanBatcher, PacketsReorderedByOneToThreeKeepRotationsComplete) {
     }
     rig.feed_all(late);
     rig.flush();
-    const BatcherStats& st = rig.batcher.stats();
+    const driver::BatcherStats& st = rig.batcher.stats();
     EXPECT_EQ(st.reordered, static_cast<uint64_t>(moved)) << "shift " << shift;
     EXPECT_EQ(st.missing_packets, 0u);
     EXPECT_EQ(st.late_packets, 0u);
@@ -254,7 +255,7 @@ TEST(ScanBatcher, APacketLaterThanTheWindowIsReorderedNotMissing) {
   std::rotate(stream.begin() + 100, stream.begin() + 101, stream.begin() + 109);
   rig.feed_all(stream);
   rig.flush();
-  const BatcherStats& st = rig.batcher.stats();
+  const driver::BatcherStats& st = rig.batcher.stats();
   EXPECT_EQ(st.reordered, 1u);
   EXPECT_EQ(st.late_packets, 1u);
   EXPECT_EQ(st.missing_packets, 0u);
@@ -278,7 +279,7 @@ TEST(ScanBatcher, DuplicatesAreCountedOnceAndChangeNothing) {
   }
   rig.feed_all(twice);
   rig.flush();
-  const BatcherStats& st = rig.batcher.stats();
+  const driver::BatcherStats& st = rig.batcher.stats();
   EXPECT_EQ(st.duplicates, twice.size() - stream.size());
   EXPECT_EQ(st.late_packets, st.duplicates);
   EXPECT_EQ(st.reordered, 0u);
@@ -316,7 +317,7 @@ TEST(ScanBatcher, SpoofedPacketsDoNotMultiplyRotations) {
   }
   rig.feed_all(mixed);
   rig.flush();
-  const BatcherStats& st = rig.batcher.stats();
+  const driver::BatcherStats& st = rig.batcher.stats();
   EXPECT_EQ(st.rotations, clean.batcher.stats().rotations);
   EXPECT_EQ(st.inconsistent, spoofed);
   EXPECT_EQ(st.azimuth_jumps, 0u);
@@ -355,7 +356,7 @@ TEST(ScanBatcher, ReplayLoopIsANewStreamNotStrayPackets) {
   rig.feed_all(stream);
   rig.feed_all(stream);  // the capture starts over: time and azimuth jump back
   rig.flush();
-  const BatcherStats& st = rig.batcher.stats();
+  const driver::BatcherStats& st = rig.batcher.stats();
   EXPECT_EQ(st.azimuth_jumps, 1u);
   EXPECT_EQ(st.inconsistent, 0u);
   EXPECT_EQ(st.duplicates, 0u);
@@ -426,7 +427,7 @@ TEST(ScanBatcher, RestrictedFieldOfViewGivesCompleteRotations) {
   // The sensor reports only 270..91 deg: it jumps over the blanked sector inside a packet without
   // a time gap, then pauses between packets with continuous azimuths (as the real VLP-32C capture).
   for (double cut : {180.0, 0.0}) {
-    BatcherOptions o;
+    driver::BatcherOptions o;
     o.cut_azimuth_deg = cut;
     Rig rig(Model::kVLP32C, ReturnMode::kStrongest, o);
     const auto full = testing::make_stream(rig.spec, ReturnMode::kStrongest, 680);
@@ -468,7 +469,7 @@ TEST(ScanBatcher, SensorRestartEndsTheRotationIncomplete) {
 }
 
 TEST(ScanBatcher, StreamThatStopsIsFlushedAfterTheTimeout) {
-  BatcherOptions o;
+  driver::BatcherOptions o;
   o.flush_timeout_s = 0.2;
   Rig rig(Model::kVLP16, ReturnMode::kStrongest, o);
   const auto stream = testing::make_stream(rig.spec, ReturnMode::kStrongest, 30);
@@ -529,7 +530,7 @@ TEST(ScanBatcher, AssemblesIntoTheCallersScanAndSizesItOnFirstUse) {
   const ModelSpec& spec = model_spec(Model::kVLP32C);
   Decoder decoder(Calibration::builtin(Model::kVLP32C));
   SensorClock clock;
-  ScanBatcher batcher(spec, ReturnMode::kStrongest, {});
+  driver::ScanBatcher batcher = velodyne::make_batcher(spec, ReturnMode::kStrongest);
   DecodedPacket pk;
   Scan a, b;
   const auto stream = testing::make_stream(spec, ReturnMode::kStrongest, 400);
@@ -540,7 +541,8 @@ TEST(ScanBatcher, AssemblesIntoTheCallersScanAndSizesItOnFirstUse) {
     if (batcher.add(pk, *current)) {
       ends.push_back(static_cast<int>(i));
       EXPECT_EQ(current->rings, spec.lasers);
-      EXPECT_EQ(current->column_capacity, ScanBatcher::column_capacity(spec));
+      EXPECT_EQ(current->column_capacity,
+                driver::ScanBatcher::column_capacity(velodyne::sensor_layout(spec)));
       if (ends.size() >= 2) {
         EXPECT_TRUE(current->complete);
         // The other scan's last column and this one's first are consecutive firings.
@@ -587,7 +589,8 @@ TEST(ScanBatcher, EveryCellOfARotationIsWrittenSoAReusedScanNeedsNoClearing) {
   // by cell, the same packets assembled into new scans.
   const ModelSpec& spec = model_spec(Model::kVLP32C);
   Scan reused;
-  reused.reserve(spec.lasers, 2, ScanBatcher::column_capacity(spec));
+  reused.reserve(spec.lasers, 2,
+                 driver::ScanBatcher::column_capacity(velodyne::sensor_layout(spec)));
   for (auto* v :
        {&reused.x, &reused.y, &reused.z, &reused.range, &reused.azimuth_deg, &reused.time_s})
     std::fill(v->begin(), v->end(), 12345.0f);
@@ -600,7 +603,7 @@ TEST(ScanBatcher, EveryCellOfARotationIsWrittenSoAReusedScanNeedsNoClearing) {
     fresh.feed_all(stream);
     Decoder decoder(Calibration::builtin(Model::kVLP32C));
     SensorClock clock;
-    ScanBatcher batcher(spec, mode, {});
+    driver::ScanBatcher batcher = velodyne::make_batcher(spec, mode);
     DecodedPacket pk;
     size_t rotation = 0;
     for (const auto& p : stream) {
@@ -637,10 +640,10 @@ TEST(ScanBatcher, ANewStreamThatMixesReturnModesLeavesNoCellUnwritten) {
   const ModelSpec& spec = model_spec(Model::kVLP32C);
   Decoder decoder(Calibration::builtin(Model::kVLP32C));
   SensorClock clock;
-  ScanBatcher batcher(spec, ReturnMode::kStrongest, {});
+  driver::ScanBatcher batcher = velodyne::make_batcher(spec, ReturnMode::kStrongest);
   DecodedPacket pk;
   Scan scan;
-  scan.reserve(spec.lasers, 1, ScanBatcher::column_capacity(spec));
+  scan.reserve(spec.lasers, 1, driver::ScanBatcher::column_capacity(velodyne::sensor_layout(spec)));
   auto poison = [&] {
     std::fill(scan.range.begin(), scan.range.end(), 12345.0f);
     std::fill(scan.return_type.begin(), scan.return_type.end(), ReturnType::kSecond);
@@ -726,12 +729,12 @@ TEST(ScanBatcher, PerPacketPathNeverAllocates) {
       const auto again = stream;  // a replay loop: a new stream
       Decoder decoder(Calibration::builtin(m));
       SensorClock clock;
-      ScanBatcher batcher(spec, mode, {});
+      driver::ScanBatcher batcher = velodyne::make_batcher(spec, mode);
       PacketColumns pk;
       std::array<Scan, 2> scans;
       for (Scan& s : scans)
         s.reserve(spec.lasers, mode == ReturnMode::kDual ? 2 : 1,
-                  ScanBatcher::column_capacity(spec));
+                  driver::ScanBatcher::column_capacity(velodyne::sensor_layout(spec)));
       size_t current = 0, rotations = 0;
       auto feed = [&](const std::vector<testing::StreamPacket>& v) {
         for (const auto& p : v) {

@@ -2,7 +2,7 @@
 
 #include <set>
 
-#include "lidartag/driver/sensor_model.hpp"
+#include "lidartag/driver/velodyne/sensor_model.hpp"
 
 namespace lidartag::velodyne {
 namespace {

@@ -1,4 +1,4 @@
-#include "lidartag/driver/io/calibration_file.hpp"
+#include "lidartag/driver/velodyne/io/calibration_file.hpp"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -13,7 +13,7 @@
 #include <sstream>
 
 #include "io/veloview_xml.hpp"
-#include "lidartag/driver/decoder.hpp"
+#include "lidartag/driver/velodyne/decoder.hpp"
 
 namespace lidartag::velodyne {
 namespace {

@@ -20,7 +20,7 @@
 #include <vector>
 
 #include "lidartag/detector/detector.hpp"
-#include "lidartag/driver/io/capture_reader.hpp"
+#include "lidartag/driver/velodyne/io/capture_reader.hpp"
 #include "pcap_builder.hpp"
 #include "scan_invariants.hpp"
 
@@ -112,8 +112,8 @@ struct Outcome {
   size_t rotations = 0, complete = 0, points = 0;
   std::vector<std::pair<std::string, int>> detections;  // (family, id), every rotation
   CaptureCounts counts;
-  SourceStats source;
-  BatcherStats batcher;
+  driver::SourceStats source;
+  driver::BatcherStats batcher;
   bool opened = true;  // false: the file was refused at open (an IoError, also fine)
 };
 
@@ -140,7 +140,7 @@ Outcome run(const std::string& path, size_t records, detector::Detector& det,
   std::unique_ptr<CaptureReader> reader;
   try {
     reader = std::make_unique<CaptureReader>(path, CaptureReaderOptions{});
-  } catch (const IoError&) {
+  } catch (const driver::IoError&) {
     o.opened = false;  // a mangled global header: refused with a message, which is fine
     return o;
   }

@@ -1,4 +1,4 @@
-#include "lidartag/driver/io/capture_reader.hpp"
+#include "lidartag/driver/velodyne/io/capture_reader.hpp"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -11,8 +11,8 @@
 #include <vector>
 
 #include "../driver/synthetic_stream.hpp"
-#include "lidartag/driver/io/calibration_file.hpp"
 #include "lidartag/driver/io/pcap_writer.hpp"
+#include "lidartag/driver/velodyne/io/calibration_file.hpp"
 
 namespace lidartag::velodyne {
 namespace {
@@ -42,11 +42,11 @@ std::string with_product_byte(const std::string& from, uint8_t product, const st
   const std::string to = (std::filesystem::temp_directory_path() /
                           ("lidartag_capture_reader_" + std::to_string(::getpid()) + name))
                              .string();
-  PcapSource source(from);
-  PcapWriter writer(to);
-  RawPacket p;
+  driver::PcapSource source(from);
+  driver::PcapWriter writer(to);
+  driver::RawPacket p;
   std::vector<uint8_t> payload;
-  while (source.next(p, 0ms) == ReadStatus::kPacket) {
+  while (source.next(p, 0ms) == driver::ReadStatus::kPacket) {
     payload.assign(p.payload.begin(), p.payload.end());
     if (payload.size() == kDataPacketSize) payload[kProductIdOffset] = product;
     writer.write_udp(payload, p.receive_time_ns, p.destination_port);
@@ -138,11 +138,11 @@ TEST(CaptureReader, CutAngleMovesTheRotationBoundary) {
 
 // `n` payloads of `size` bytes to `port`, then the end; notes what the reader watching it had
 // counted when the last one went out.
-class ScriptedSource final : public PacketSource {
+class ScriptedSource final : public driver::PacketSource {
  public:
   ScriptedSource(size_t n, uint16_t port, size_t size) : n_(n), port_(port), size_(size) {}
-  ReadStatus next(RawPacket& out, std::chrono::milliseconds) override {
-    if (sent_ == n_) return ReadStatus::kEnd;
+  driver::ReadStatus next(driver::RawPacket& out, std::chrono::milliseconds) override {
+    if (sent_ == n_) return driver::ReadStatus::kEnd;
     if (sent_ + 1 == n_ && reader != nullptr) {
       counted_before_end = reader->counts().data_packets + reader->counts().position_packets;
     }
@@ -152,9 +152,9 @@ class ScriptedSource final : public PacketSource {
     out.destination_port = port_;
     ++sent_;
     ++stats_.packets;
-    return ReadStatus::kPacket;
+    return driver::ReadStatus::kPacket;
   }
-  SourceStats stats() const override { return stats_; }
+  driver::SourceStats stats() const override { return stats_; }
   const CaptureReader* reader = nullptr;
   uint64_t counted_before_end = 0;
 
@@ -163,7 +163,7 @@ class ScriptedSource final : public PacketSource {
   uint16_t port_;
   size_t size_;
   std::vector<uint8_t> payload_;
-  SourceStats stats_{};
+  driver::SourceStats stats_{};
 };
 
 TEST(CaptureReader, TrafficThatNeverCompletesTheProbeIsNotHeldWithoutBound) {
@@ -188,30 +188,30 @@ TEST(CaptureReader, TrafficThatNeverCompletesTheProbeIsNotHeldWithoutBound) {
 
 // A synthetic sensor stream on the data port, then silence (each call waits its timeout) until
 // `ended` is set, then the end.
-class StreamSource final : public PacketSource {
+class StreamSource final : public driver::PacketSource {
  public:
   explicit StreamSource(std::vector<testing::StreamPacket> packets)
       : packets_(std::move(packets)) {}
-  ReadStatus next(RawPacket& out, std::chrono::milliseconds timeout) override {
+  driver::ReadStatus next(driver::RawPacket& out, std::chrono::milliseconds timeout) override {
     if (sent_ < packets_.size()) {
       const auto& p = packets_[sent_++];
       out.payload = p.bytes;
       out.receive_time_ns = p.time_ns;
       out.destination_port = kDefaultDataPort;
       ++stats_.packets;
-      return ReadStatus::kPacket;
+      return driver::ReadStatus::kPacket;
     }
-    if (ended) return ReadStatus::kEnd;
+    if (ended) return driver::ReadStatus::kEnd;
     std::this_thread::sleep_for(timeout);
-    return ReadStatus::kTimeout;
+    return driver::ReadStatus::kTimeout;
   }
-  SourceStats stats() const override { return stats_; }
+  driver::SourceStats stats() const override { return stats_; }
   bool ended = false;
 
  private:
   std::vector<testing::StreamPacket> packets_;
   size_t sent_ = 0;
-  SourceStats stats_{};
+  driver::SourceStats stats_{};
 };
 
 TEST(CaptureReader, ReadFillsTheCallersScanAndKeepsTheRotationInProgressAcrossTimeouts) {
@@ -451,7 +451,7 @@ TEST(CaptureReader, CountersGoOnAcrossAModelChange) {
   std::vector<uint64_t> sequences;
   while (const Scan* scan = reader.next()) {
     sequences.push_back(scan->sequence);
-    const BatcherStats b = reader.batcher_stats();
+    const driver::BatcherStats b = reader.batcher_stats();
     fell = fell || b.missing_packets < max_missing || b.rotations < max_rotations;
     max_missing = std::max(max_missing, b.missing_packets);
     max_rotations = std::max(max_rotations, b.rotations);
@@ -511,7 +511,7 @@ TEST(CaptureReader, CalibrationFileErrorsSurfaceAtSetup) {
   options.model = Model::kVLP16;
   options.calibration_file = "/nonexistent-lidartag/VLP16.yaml";
   EXPECT_THROW(CaptureReader reader(path, options), CalibrationError);
-  EXPECT_THROW(CaptureReader reader("/nonexistent-lidartag/x.pcap", {}), IoError);
+  EXPECT_THROW(CaptureReader reader("/nonexistent-lidartag/x.pcap", {}), driver::IoError);
 }
 
 }  // namespace

@@ -27,61 +27,61 @@ bool compiles(const std::string& filter) {
 }
 
 TEST(LiveSourceFilter, SelectsTheSensorPortsAndAddress) {
-  LiveSourceOptions options;
-  EXPECT_EQ(build_bpf_filter(options), "ip and udp and (dst port 2368 or dst port 8308)");
+  driver::LiveSourceOptions options;
+  EXPECT_EQ(driver::build_bpf_filter(options), "ip and udp and (dst port 2368 or dst port 8308)");
   options.data_port = 2369;
   options.position_port = 8309;
   options.sensor_ipv4 = 0xC0A801C9;
-  const std::string filter = build_bpf_filter(options);
+  const std::string filter = driver::build_bpf_filter(options);
   EXPECT_EQ(filter, "ip and udp and (dst port 2369 or dst port 8309) and src host 192.168.1.201");
   EXPECT_TRUE(compiles(filter));
-  EXPECT_TRUE(compiles(build_bpf_filter(LiveSourceOptions{})));
+  EXPECT_TRUE(compiles(driver::build_bpf_filter(driver::LiveSourceOptions{})));
 }
 
 TEST(Ipv4Text, RoundTripsDottedQuads) {
-  EXPECT_EQ(ipv4_to_string(0xC0A801C9), "192.168.1.201");
-  EXPECT_EQ(ipv4_to_string(0), "0.0.0.0");
+  EXPECT_EQ(driver::ipv4_to_string(0xC0A801C9), "192.168.1.201");
+  EXPECT_EQ(driver::ipv4_to_string(0), "0.0.0.0");
   uint32_t a = 0;
-  ASSERT_TRUE(parse_ipv4_address("192.168.1.201", a));
+  ASSERT_TRUE(driver::parse_ipv4_address("192.168.1.201", a));
   EXPECT_EQ(a, 0xC0A801C9u);
-  ASSERT_TRUE(parse_ipv4_address("255.255.255.255", a));
+  ASSERT_TRUE(driver::parse_ipv4_address("255.255.255.255", a));
   EXPECT_EQ(a, 0xFFFFFFFFu);
   for (const char* bad : {"", "1.2.3", "1.2.3.4.5", "256.1.1.1", "1.2.3.x", "1..2.3", " 1.2.3.4",
                           "1.2.3.4 ", "1111.2.3.4"}) {
-    EXPECT_FALSE(parse_ipv4_address(bad, a)) << bad;
+    EXPECT_FALSE(driver::parse_ipv4_address(bad, a)) << bad;
   }
 }
 
 TEST(LiveSource, NonexistentInterfaceIsAnIoErrorNamingIt) {
-  LiveSourceOptions options;
+  driver::LiveSourceOptions options;
   options.interface = "lidartag-no-such-if0";
   try {
-    LiveSource source(options);
-    FAIL() << "expected IoError";
-  } catch (const IoError& e) {
+    driver::LiveSource source(options);
+    FAIL() << "expected driver::IoError";
+  } catch (const driver::IoError& e) {
     EXPECT_NE(std::string(e.what()).find("lidartag-no-such-if0"), std::string::npos) << e.what();
   }
   options.interface.clear();
-  EXPECT_THROW(LiveSource source(options), IoError);
+  EXPECT_THROW(driver::LiveSource source(options), driver::IoError);
 }
 
 TEST(LiveSource, CapturesLoopbackTrafficThroughTheFilter) {
   // Receive the packets with a socket too, so the kernel has a listener for them.
-  UdpSourceOptions udp_options;
+  driver::UdpSourceOptions udp_options;
   udp_options.bind_address = "127.0.0.1";
   udp_options.data_port = 0;
   udp_options.position_port = 0;
-  UdpSource receiver(udp_options);
+  driver::UdpSource receiver(udp_options);
 
-  LiveSourceOptions options;
+  driver::LiveSourceOptions options;
   options.interface = "lo";
   options.data_port = receiver.data_port();
   options.position_port = receiver.position_port();
   options.sensor_ipv4 = 0x7F000001;
-  std::unique_ptr<LiveSource> live;
+  std::unique_ptr<driver::LiveSource> live;
   try {
-    live = std::make_unique<LiveSource>(options);
-  } catch (const IoError& e) {
+    live = std::make_unique<driver::LiveSource>(options);
+  } catch (const driver::IoError& e) {
     GTEST_SKIP() << "cannot capture on lo here (needs CAP_NET_RAW): " << e.what();
   }
   EXPECT_EQ(live->link_type(), DLT_EN10MB);
@@ -102,9 +102,9 @@ TEST(LiveSource, CapturesLoopbackTrafficThroughTheFilter) {
   ::close(fd);
 
   std::vector<std::pair<size_t, uint16_t>> got;
-  RawPacket p;
+  driver::RawPacket p;
   for (int i = 0; i < 2; ++i) {
-    ASSERT_EQ(live->next(p, 2000ms), ReadStatus::kPacket);
+    ASSERT_EQ(live->next(p, 2000ms), driver::ReadStatus::kPacket);
     ASSERT_FALSE(p.payload.empty());
     EXPECT_EQ(p.payload[0], p.payload.size() == 1206 ? 0xAB : 0xCD);
     EXPECT_EQ(p.source_ipv4, 0x7F000001u);
@@ -113,7 +113,7 @@ TEST(LiveSource, CapturesLoopbackTrafficThroughTheFilter) {
   }
   EXPECT_EQ(got[0], std::make_pair(size_t{1206}, receiver.data_port()));
   EXPECT_EQ(got[1], std::make_pair(size_t{512}, receiver.position_port()));
-  EXPECT_EQ(live->next(p, 50ms), ReadStatus::kTimeout);  // the third packet did not pass
+  EXPECT_EQ(live->next(p, 50ms), driver::ReadStatus::kTimeout);  // the third packet did not pass
   EXPECT_EQ(live->stats().packets, 2u);
   EXPECT_EQ(live->stats().kernel_drops, 0u);
 }

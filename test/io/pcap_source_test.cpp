@@ -40,10 +40,10 @@ struct Received {
   uint32_t source;
 };
 
-std::vector<Received> read_all(PcapSource& source, size_t limit = 1000) {
+std::vector<Received> read_all(driver::PcapSource& source, size_t limit = 1000) {
   std::vector<Received> out;
-  RawPacket p;
-  while (out.size() < limit && source.next(p, 0ms) == ReadStatus::kPacket) {
+  driver::RawPacket p;
+  while (out.size() < limit && source.next(p, 0ms) == driver::ReadStatus::kPacket) {
     out.push_back({Bytes(p.payload.begin(), p.payload.end()), p.receive_time_ns, p.destination_port,
                    p.source_ipv4});
   }
@@ -51,10 +51,11 @@ std::vector<Received> read_all(PcapSource& source, size_t limit = 1000) {
 }
 
 std::vector<Received> read_file(const std::string& name, const Bytes& file,
-                                SourceStats* stats = nullptr, PcapSourceOptions options = {}) {
+                                driver::SourceStats* stats = nullptr,
+                                driver::PcapSourceOptions options = {}) {
   TempFile tmp(name);
   test::write_file(tmp.path(), file);
-  PcapSource source(tmp.path(), options);
+  driver::PcapSource source(tmp.path(), options);
   auto packets = read_all(source);
   if (stats) *stats = source.stats();
   return packets;
@@ -64,12 +65,12 @@ TEST(PcapSource, ReadsWhatPcapWriterWrote) {
   TempFile tmp("writer.pcap");
   const Bytes data = test::payload_bytes(1206, 1), position = test::payload_bytes(512, 2);
   {
-    PcapWriter writer(tmp.path());
+    driver::PcapWriter writer(tmp.path());
     writer.write_udp(data, kT0 + 1'234'000, 2368);
     writer.write_udp(position, kT0 + 2'000'000, 8308, 0x0A000001);
     writer.close();
   }
-  PcapSource source(tmp.path());
+  driver::PcapSource source(tmp.path());
   EXPECT_EQ(source.link_type(), kLinktypeEthernet);
   const auto packets = read_all(source);
   ASSERT_EQ(packets.size(), 2u);
@@ -80,13 +81,13 @@ TEST(PcapSource, ReadsWhatPcapWriterWrote) {
   EXPECT_EQ(packets[1].payload, position);
   EXPECT_EQ(packets[1].port, 8308);
   EXPECT_EQ(packets[1].source, 0x0A000001u);
-  const SourceStats stats = source.stats();
+  const driver::SourceStats stats = source.stats();
   EXPECT_EQ(stats.packets, 2u);
   EXPECT_EQ(stats.bytes, 1206u + 512u);
   EXPECT_EQ(stats.ignored + stats.truncated + stats.malformed, 0u);
-  RawPacket p;
-  EXPECT_EQ(source.next(p, 0ms), ReadStatus::kEnd);
-  EXPECT_EQ(source.next(p, 0ms), ReadStatus::kEnd);  // stays at the end
+  driver::RawPacket p;
+  EXPECT_EQ(source.next(p, 0ms), driver::ReadStatus::kEnd);
+  EXPECT_EQ(source.next(p, 0ms), driver::ReadStatus::kEnd);  // stays at the end
 }
 
 TEST(PcapSource, EveryLinkTypeDeliversThePayload) {
@@ -109,7 +110,7 @@ TEST(PcapSource, EveryLinkTypeDeliversThePayload) {
   };
   for (const Case& c : cases) {
     SCOPED_TRACE(c.name);
-    SourceStats stats;
+    driver::SourceStats stats;
     const auto packets = read_file(std::string(c.name) + ".pcap",
                                    test::classic_pcap(c.linktype, {{c.frame, kT0}}), &stats);
     ASSERT_EQ(packets.size(), 1u);
@@ -181,16 +182,16 @@ TEST(PcapSource, OtherTrafficIsIgnoredAndCounted) {
   {
     TempFile tmp("other.pcap");
     test::write_file(tmp.path(), file);
-    PcapSource source(tmp.path());
+    driver::PcapSource source(tmp.path());
     const auto packets = read_all(source);
     ASSERT_EQ(packets.size(), 3u);  // the other sender passes without a sensor filter
     EXPECT_EQ(source.stats().ignored, 6u);
     EXPECT_EQ(source.fragments(), 2u);
     EXPECT_EQ(source.records(), records.size());
   }
-  PcapSourceOptions only_sensor;
+  driver::PcapSourceOptions only_sensor;
   only_sensor.sensor_ipv4 = 0xC0A801C9;
-  SourceStats stats;
+  driver::SourceStats stats;
   const auto packets = read_file("other2.pcap", file, &stats, only_sensor);
   ASSERT_EQ(packets.size(), 2u);
   EXPECT_EQ(packets[0].port, 2368);
@@ -201,10 +202,10 @@ TEST(PcapSource, OtherTrafficIsIgnoredAndCounted) {
 
 TEST(PcapSource, ConfiguredPortsSelectTheTraffic) {
   const Bytes payload = test::payload_bytes(100, 1);
-  PcapSourceOptions options;
+  driver::PcapSourceOptions options;
   options.data_port = 2369;
   options.position_port = 8309;
-  SourceStats stats;
+  driver::SourceStats stats;
   const auto packets =
       read_file("ports.pcap",
                 test::classic_pcap(kLinktypeEthernet,
@@ -224,7 +225,7 @@ TEST(PcapSource, RecordCutBySnapLengthIsCountedNotReadPast) {
   Record header_cut{test::ethernet(test::ipv4_udp(payload, 2368)), kT0 + 1000,
                     1206 + 8 + 10};  // inside the IPv4 header
   Record good{test::ethernet(test::ipv4_udp(payload, 2368)), kT0 + 2000};
-  SourceStats stats;
+  driver::SourceStats stats;
   const auto packets =
       read_file("cut.pcap", test::classic_pcap(kLinktypeEthernet, {cut, header_cut, good}), &stats);
   ASSERT_EQ(packets.size(), 1u);
@@ -250,14 +251,14 @@ TEST(PcapSource, FileTruncatedMidRecordEndsAfterTheWholeRecords) {
   file.resize(file.size() - 500);
   TempFile tmp("short.pcap");
   test::write_file(tmp.path(), file);
-  PcapSource source(tmp.path());
+  driver::PcapSource source(tmp.path());
   const auto packets = read_all(source);
   ASSERT_EQ(packets.size(), 1u);
   EXPECT_EQ(packets[0].payload, payload);
   EXPECT_EQ(source.stats().truncated, 1u);
   EXPECT_NE(source.last_error().find("truncated"), std::string::npos) << source.last_error();
-  RawPacket p;
-  EXPECT_EQ(source.next(p, 0ms), ReadStatus::kEnd);
+  driver::RawPacket p;
+  EXPECT_EQ(source.next(p, 0ms), driver::ReadStatus::kEnd);
 }
 
 TEST(PcapSource, CorruptHeadersAreCountedAsMalformed) {
@@ -270,7 +271,7 @@ TEST(PcapSource, CorruptHeadersAreCountedAsMalformed) {
   udp_too_long.udp_length_delta = 40;
   test::Ipv4Options total_too_short;
   total_too_short.total_length_delta = -1220;
-  SourceStats stats;
+  driver::SourceStats stats;
   const auto packets = read_file(
       "bad.pcap",
       test::classic_pcap(kLinktypeEthernet,
@@ -290,7 +291,7 @@ TEST(PcapSource, UdpLengthLongerThanTheCaptureIsTruncated) {
   test::Ipv4Options longer;
   longer.udp_length_delta = 100;
   longer.total_length_delta = 100;
-  SourceStats stats;
+  driver::SourceStats stats;
   const auto packets =
       read_file("udplong.pcap",
                 test::classic_pcap(kLinktypeEthernet,
@@ -350,7 +351,7 @@ TEST(PcapSource, ImpossibleTimestampsAreCountedAsMalformedAndSkipped) {
   file[second_epb + 12 + 3] = 0x80;  // 2^63 us
   TempFile tmp("times.pcapng");
   test::write_file(tmp.path(), file);
-  PcapSource source(tmp.path());
+  driver::PcapSource source(tmp.path());
   const auto packets = read_all(source);
   ASSERT_EQ(packets.size(), 1u);
   EXPECT_EQ(packets[0].time_ns, kT0 + 2000);
@@ -361,7 +362,7 @@ TEST(PcapSource, ImpossibleTimestampsAreCountedAsMalformedAndSkipped) {
   // A classic record whose microseconds are not below a second is corrupt too.
   Bytes classic = test::classic_pcap(kLinktypeEthernet, {{frame, kT0}, {frame, kT0 + 1000}});
   classic[24 + 4 + 3] = 0xFF;  // ts_usec of the first record >= 2^24 * 255
-  SourceStats stats;
+  driver::SourceStats stats;
   const auto kept = read_file("usec.pcap", classic, &stats);
   ASSERT_EQ(kept.size(), 1u);
   EXPECT_EQ(kept[0].time_ns, kT0 + 1000);
@@ -374,7 +375,7 @@ TEST(PcapSource, ZeroLengthAndHugeLengthRecordsAreCounted) {
   // A record with no data at all, between two good ones.
   Bytes file =
       test::classic_pcap(kLinktypeEthernet, {{frame, kT0}, {{}, kT0 + 1}, {frame, kT0 + 2}});
-  SourceStats stats;
+  driver::SourceStats stats;
   auto packets = read_file("zero.pcap", file, &stats);
   EXPECT_EQ(packets.size(), 2u);
   EXPECT_EQ(stats.truncated, 1u);
@@ -395,7 +396,7 @@ TEST(PcapSource, ClassicRecordsFrom2038OnKeepTheirTime) {
   const int64_t y2039 = 2'177'452'800LL * 1'000'000'000;  // 2039-01-01
   for (const bool nano : {false, true}) {
     SCOPED_TRACE(nano ? "nanoseconds" : "microseconds");
-    SourceStats stats;
+    driver::SourceStats stats;
     const auto packets = read_file(
         "y2038.pcap",
         test::classic_pcap(kLinktypeEthernet,
@@ -421,7 +422,7 @@ TEST(PcapSource, ARecordThatStopsTheReplayBeforeTheEndIsAnError) {
   for (size_t i = 0; i < 4; ++i) file[fourth + 8 + i] = i == 2 ? 0x10 : 0x00;  // caplen 1 MiB
   TempFile tmp("cut.pcap");
   test::write_file(tmp.path(), file);
-  PcapSource source(tmp.path());
+  driver::PcapSource source(tmp.path());
   EXPECT_EQ(read_all(source).size(), 3u);
   EXPECT_NE(source.error().find("unreadable after record 3"), std::string::npos) << source.error();
   EXPECT_NE(source.error().find("bytes not read"), std::string::npos) << source.error();
@@ -430,7 +431,7 @@ TEST(PcapSource, ARecordThatStopsTheReplayBeforeTheEndIsAnError) {
   cut.resize(cut.size() - 500);
   TempFile tmp2("end.pcap");
   test::write_file(tmp2.path(), cut);
-  PcapSource ends(tmp2.path());
+  driver::PcapSource ends(tmp2.path());
   EXPECT_EQ(read_all(ends).size(), 9u);
   EXPECT_EQ(ends.stats().truncated, 1u);
   EXPECT_EQ(ends.error(), "");
@@ -439,13 +440,13 @@ TEST(PcapSource, ARecordThatStopsTheReplayBeforeTheEndIsAnError) {
 TEST(PcapSource, LoopRestartsWithMonotonicTime) {
   const Bytes payload = test::payload_bytes(1206, 12);
   const Bytes frame = test::ethernet(test::ipv4_udp(payload, 2368));
-  PcapSourceOptions options;
+  driver::PcapSourceOptions options;
   options.loop = true;
   TempFile tmp("loop.pcap");
   test::write_file(tmp.path(), test::classic_pcap(kLinktypeEthernet, {{frame, kT0},
                                                                       {frame, kT0 + 1'000'000},
                                                                       {frame, kT0 + 3'000'000}}));
-  PcapSource source(tmp.path(), options);
+  driver::PcapSource source(tmp.path(), options);
   const auto packets = read_all(source, 7);
   ASSERT_EQ(packets.size(), 7u);
   // Pass 2 starts one last-interval (2 ms) after the end of pass 1 (3 ms): shift 5 ms.
@@ -457,10 +458,10 @@ TEST(PcapSource, LoopRestartsWithMonotonicTime) {
 }
 
 TEST(PcapSource, LoopOverAFileWithoutUsablePacketsEnds) {
-  PcapSourceOptions options;
+  driver::PcapSourceOptions options;
   options.loop = true;
   const Bytes frame = test::ethernet(test::ipv4_udp(test::payload_bytes(10, 1), 53));
-  SourceStats stats;
+  driver::SourceStats stats;
   const auto packets = read_file(
       "loop-empty.pcap", test::classic_pcap(kLinktypeEthernet, {{frame, kT0}}), &stats, options);
   EXPECT_TRUE(packets.empty());
@@ -468,16 +469,16 @@ TEST(PcapSource, LoopOverAFileWithoutUsablePacketsEnds) {
 }
 
 TEST(ReplaySchedule, DueTimesFollowCaptureTimeScaledByRate) {
-  using Clock = ReplaySchedule::Clock;
+  using Clock = driver::ReplaySchedule::Clock;
   const Clock::time_point start{std::chrono::seconds(100)};
-  ReplaySchedule realtime(1.0);
+  driver::ReplaySchedule realtime(1.0);
   EXPECT_EQ(realtime.due(kT0, start), start);
   EXPECT_EQ(realtime.due(kT0 + 1'000'000, start + 5s), start + 1ms);  // anchored at the first
   EXPECT_EQ(realtime.due(kT0 + 2'000'000'000, start), start + 2s);
-  ReplaySchedule fast(4.0);
+  driver::ReplaySchedule fast(4.0);
   EXPECT_EQ(fast.due(kT0, start), start);
   EXPECT_EQ(fast.due(kT0 + 2'000'000'000, start), start + 500ms);
-  ReplaySchedule slow(0.5);
+  driver::ReplaySchedule slow(0.5);
   EXPECT_EQ(slow.due(kT0, start), start);
   EXPECT_EQ(slow.due(kT0 + 1'000'000, start), start + 2ms);
   slow.reset();
@@ -490,23 +491,23 @@ TEST(PcapSource, PacedReplayWaitsForCaptureTimeAndTimesOut) {
   // Packets 20 s apart: at real time the second is never due within a short timeout.
   test::write_file(tmp.path(), test::classic_pcap(kLinktypeEthernet,
                                                   {{frame, kT0}, {frame, kT0 + 20'000'000'000}}));
-  PcapSourceOptions options;
-  options.pacing = ReplayPacing::kCaptureTime;
+  driver::PcapSourceOptions options;
+  options.pacing = driver::ReplayPacing::kCaptureTime;
   {
-    PcapSource source(tmp.path(), options);
-    RawPacket p;
-    EXPECT_EQ(source.next(p, 0ms), ReadStatus::kPacket);
-    EXPECT_EQ(source.next(p, 1ms), ReadStatus::kTimeout);
-    EXPECT_EQ(source.next(p, 0ms), ReadStatus::kTimeout);  // still pending, not skipped
+    driver::PcapSource source(tmp.path(), options);
+    driver::RawPacket p;
+    EXPECT_EQ(source.next(p, 0ms), driver::ReadStatus::kPacket);
+    EXPECT_EQ(source.next(p, 1ms), driver::ReadStatus::kTimeout);
+    EXPECT_EQ(source.next(p, 0ms), driver::ReadStatus::kTimeout);  // still pending, not skipped
     EXPECT_EQ(source.stats().packets, 1u);
   }
   // At 1000x the 20 s gap takes 20 ms: delivered within a generous timeout, not before ~20 ms.
   options.rate = 1000.0;
-  PcapSource source(tmp.path(), options);
-  RawPacket p;
-  ASSERT_EQ(source.next(p, 0ms), ReadStatus::kPacket);
+  driver::PcapSource source(tmp.path(), options);
+  driver::RawPacket p;
+  ASSERT_EQ(source.next(p, 0ms), driver::ReadStatus::kPacket);
   const auto start = std::chrono::steady_clock::now();
-  ASSERT_EQ(source.next(p, 10s), ReadStatus::kPacket);
+  ASSERT_EQ(source.next(p, 10s), driver::ReadStatus::kPacket);
   EXPECT_GE(std::chrono::steady_clock::now() - start, 15ms);
   EXPECT_EQ(p.receive_time_ns, kT0 + 20'000'000'000);  // times are capture times, not wall time
 }
@@ -514,39 +515,39 @@ TEST(PcapSource, PacedReplayWaitsForCaptureTimeAndTimesOut) {
 TEST(PcapSource, OpeningErrorsNameTheFile) {
   const std::string missing = "/nonexistent-lidartag/missing.pcap";
   try {
-    PcapSource source(missing);
-    FAIL() << "expected IoError";
-  } catch (const IoError& e) {
+    driver::PcapSource source(missing);
+    FAIL() << "expected driver::IoError";
+  } catch (const driver::IoError& e) {
     EXPECT_NE(std::string(e.what()).find(missing), std::string::npos) << e.what();
   }
   TempFile garbage("garbage.pcap");
   test::write_file(garbage.path(), Bytes(100, 0x42));
-  EXPECT_THROW(PcapSource source(garbage.path()), IoError);
+  EXPECT_THROW(driver::PcapSource source(garbage.path()), driver::IoError);
   TempFile usb("usb.pcap");
   test::write_file(usb.path(), test::classic_pcap(189, {}));  // LINKTYPE_USB_LINUX
   try {
-    PcapSource source(usb.path());
-    FAIL() << "expected IoError";
-  } catch (const IoError& e) {
+    driver::PcapSource source(usb.path());
+    FAIL() << "expected driver::IoError";
+  } catch (const driver::IoError& e) {
     EXPECT_NE(std::string(e.what()).find("link type"), std::string::npos) << e.what();
   }
   TempFile good("good.pcap");
   test::write_file(good.path(), test::classic_pcap(kLinktypeEthernet, {}));
-  PcapSourceOptions bad_rate;
-  bad_rate.pacing = ReplayPacing::kCaptureTime;
+  driver::PcapSourceOptions bad_rate;
+  bad_rate.pacing = driver::ReplayPacing::kCaptureTime;
   bad_rate.rate = 0.0;
-  EXPECT_THROW(PcapSource source(good.path(), bad_rate), IoError);
+  EXPECT_THROW(driver::PcapSource source(good.path(), bad_rate), driver::IoError);
 }
 
 TEST(PcapSource, RealCaptureCountsDataAndPositionPackets) {
   const std::string path = LIDARTAG_SHARED_DIR "/captures/vlp16_mrpt_gps.pcap";
   if (!std::filesystem::exists(path)) GTEST_SKIP() << "capture not available: " << path;
-  PcapSource source(path);
+  driver::PcapSource source(path);
   size_t data = 0, position = 0;
   int64_t last = 0;
   bool monotonic = true;
-  RawPacket p;
-  while (source.next(p, 0ms) == ReadStatus::kPacket) {
+  driver::RawPacket p;
+  while (source.next(p, 0ms) == driver::ReadStatus::kPacket) {
     if (p.destination_port == 2368 && p.payload.size() == 1206) ++data;
     if (p.destination_port == 8308 && p.payload.size() == 512) ++position;
     monotonic = monotonic && p.receive_time_ns >= last;

@@ -49,7 +49,7 @@ std::vector<uint8_t> test_payload(size_t n) {
 TEST(PcapWriter, WritesClassicEthernetFileWithMicrosecondTimestamps) {
   const std::string path = temp_path("header.pcap");
   {
-    PcapWriter writer(path);
+    driver::PcapWriter writer(path);
     const auto payload = test_payload(1206);
     writer.write_udp(payload, 1'700'000'000'123'456'789, 2368);
     EXPECT_EQ(writer.records(), 1u);
@@ -72,7 +72,7 @@ TEST(PcapWriter, BuildsEthernetIpv4UdpFrameWithValidChecksums) {
   const std::string path = temp_path("frame.pcap");
   const auto payload = test_payload(513);  // odd length exercises the checksum padding
   {
-    PcapWriter writer(path);
+    driver::PcapWriter writer(path);
     writer.write_udp(payload, 0, 8308, 0x0A000002, 0x0A0000FF, 40000);
   }
   const auto bytes = read_all(path);
@@ -103,7 +103,7 @@ TEST(PcapWriter, BuildsEthernetIpv4UdpFrameWithValidChecksums) {
 TEST(PcapWriter, SourcePortDefaultsToDestinationPort) {
   const std::string path = temp_path("port.pcap");
   {
-    PcapWriter writer(path);
+    driver::PcapWriter writer(path);
     writer.write_udp(test_payload(10), 0, 2368);
   }
   const auto bytes = read_all(path);
@@ -119,7 +119,7 @@ TEST(PcapWriter, SourcePortDefaultsToDestinationPort) {
 
 TEST(PcapWriter, SameInputsGiveIdenticalBytes) {
   auto write = [](const std::string& path) {
-    PcapWriter writer(path);
+    driver::PcapWriter writer(path);
     for (int i = 0; i < 5; ++i) {
       writer.write_udp(test_payload(1206), 1'000'000'000LL * i + 1327100LL * i, 2368);
       writer.write_udp(test_payload(512), 1'000'000'000LL * i + 500, 8308);
@@ -138,7 +138,7 @@ TEST(PcapWriter, SameInputsGiveIdenticalBytes) {
 TEST(PcapWriter, NegativeTimesKeepMicrosecondsInRange) {
   const std::string path = temp_path("neg.pcap");
   {
-    PcapWriter writer(path);
+    driver::PcapWriter writer(path);
     writer.write_udp(test_payload(4), -1500, 2368);  // -1.5 us -> -2 us = -1 s + 999998 us
   }
   const auto bytes = read_all(path);
@@ -151,19 +151,20 @@ TEST(PcapWriter, NegativeTimesKeepMicrosecondsInRange) {
 TEST(PcapWriter, UnwritablePathThrowsIoErrorNamingIt) {
   const std::string path = "/nonexistent-dir-lidartag/x.pcap";
   try {
-    PcapWriter writer(path);
-    FAIL() << "expected IoError";
-  } catch (const IoError& e) {
+    driver::PcapWriter writer(path);
+    FAIL() << "expected driver::IoError";
+  } catch (const driver::IoError& e) {
     EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
   }
 }
 
 TEST(PcapWriter, RejectsOversizedPayloadAndWritesAfterClose) {
   const std::string path = temp_path("big.pcap");
-  PcapWriter writer(path);
-  EXPECT_THROW(writer.write_udp(test_payload(PcapWriter::kMaxPayload + 1), 0, 2368), IoError);
+  driver::PcapWriter writer(path);
+  EXPECT_THROW(writer.write_udp(test_payload(driver::PcapWriter::kMaxPayload + 1), 0, 2368),
+               driver::IoError);
   writer.close();
-  EXPECT_THROW(writer.write_udp(test_payload(4), 0, 2368), IoError);
+  EXPECT_THROW(writer.write_udp(test_payload(4), 0, 2368), driver::IoError);
   writer.close();  // idempotent
   std::filesystem::remove(path);
 }
@@ -171,10 +172,10 @@ TEST(PcapWriter, RejectsOversizedPayloadAndWritesAfterClose) {
 using test::FileSizeLimit;
 
 size_t packets_in(const std::string& path) {
-  PcapSource source(path);
-  RawPacket packet;
+  driver::PcapSource source(path);
+  driver::RawPacket packet;
   size_t n = 0;
-  while (source.next(packet, std::chrono::milliseconds(10)) == ReadStatus::kPacket) ++n;
+  while (source.next(packet, std::chrono::milliseconds(10)) == driver::ReadStatus::kPacket) ++n;
   EXPECT_EQ(source.stats().truncated, 0u);
   return n;
 }
@@ -183,17 +184,17 @@ TEST(PcapWriter, AFullDiskKeepsTheWholeRecordsBeforeItAndSaysHowMany) {
   const std::string path = temp_path("full.pcap");
   constexpr size_t kRecord = 16 + 1248;
   constexpr rlim_t kLimit = 500'000;  // 24 + 395 whole records and part of the next
-  PcapWriter writer(path);
+  driver::PcapWriter writer(path);
   size_t taken = 0;
-  PcapWriteStatus status = PcapWriteStatus::kOk;
+  driver::PcapWriteStatus status = driver::PcapWriteStatus::kOk;
   {
     FileSizeLimit limit(kLimit);
     for (; taken < 2000; ++taken) {
       status = writer.append_udp(test_payload(1206), 1'000'000 * static_cast<int64_t>(taken), 2368);
-      if (status != PcapWriteStatus::kOk) break;
+      if (status != driver::PcapWriteStatus::kOk) break;
     }
   }
-  EXPECT_EQ(status, PcapWriteStatus::kWriteError);
+  EXPECT_EQ(status, driver::PcapWriteStatus::kWriteError);
   // The failing block was written in part: its whole records stay, the torn one is cut off.
   const uint64_t whole = (kLimit - 24) / kRecord;
   EXPECT_EQ(writer.records(), whole);
@@ -202,9 +203,9 @@ TEST(PcapWriter, AFullDiskKeepsTheWholeRecordsBeforeItAndSaysHowMany) {
   EXPECT_EQ(writer.error(), "cannot write '" + path + "': File too large");
   EXPECT_EQ(std::filesystem::file_size(path), 24 + whole * kRecord);
   // Nothing more is taken, even with room again; close() reports the failure.
-  EXPECT_EQ(writer.append_udp(test_payload(4), 0, 2368), PcapWriteStatus::kWriteError);
+  EXPECT_EQ(writer.append_udp(test_payload(4), 0, 2368), driver::PcapWriteStatus::kWriteError);
   EXPECT_FALSE(writer.flush());
-  EXPECT_THROW(writer.close(), IoError);
+  EXPECT_THROW(writer.close(), driver::IoError);
   EXPECT_EQ(writer.records(), whole);
   // The file is a valid capture of exactly those records.
   EXPECT_EQ(packets_in(path), whole);
@@ -213,27 +214,27 @@ TEST(PcapWriter, AFullDiskKeepsTheWholeRecordsBeforeItAndSaysHowMany) {
 
 TEST(PcapWriter, RecordsReachTheFileOnFlushAndOnClose) {
   const std::string path = temp_path("flush.pcap");
-  PcapWriter writer(path);
+  driver::PcapWriter writer(path);
   EXPECT_EQ(std::filesystem::file_size(path), 24u);  // the header at once: creatable and writable
   for (int i = 0; i < 3; ++i)
-    EXPECT_EQ(writer.append_udp(test_payload(100), i, 2368), PcapWriteStatus::kOk);
+    EXPECT_EQ(writer.append_udp(test_payload(100), i, 2368), driver::PcapWriteStatus::kOk);
   EXPECT_EQ(writer.records(), 3u);
   EXPECT_EQ(std::filesystem::file_size(path), 24u);  // buffered
   EXPECT_TRUE(writer.flush());
   EXPECT_EQ(std::filesystem::file_size(path), 24u + 3u * (16u + 142u));
-  EXPECT_EQ(writer.append_udp(test_payload(100), 3, 2368), PcapWriteStatus::kOk);
+  EXPECT_EQ(writer.append_udp(test_payload(100), 3, 2368), driver::PcapWriteStatus::kOk);
   writer.close();
   EXPECT_EQ(packets_in(path), 4u);
-  EXPECT_EQ(writer.append_udp(test_payload(100), 4, 2368), PcapWriteStatus::kClosed);
+  EXPECT_EQ(writer.append_udp(test_payload(100), 4, 2368), driver::PcapWriteStatus::kClosed);
   std::filesystem::remove(path);
 }
 
 TEST(PcapWriter, AFileThatCannotBeWrittenFailsAtCreation) {
   // /dev/full takes the open and refuses every byte: the header write fails in the constructor.
   try {
-    PcapWriter writer("/dev/full");
-    FAIL() << "expected IoError";
-  } catch (const IoError& e) {
+    driver::PcapWriter writer("/dev/full");
+    FAIL() << "expected driver::IoError";
+  } catch (const driver::IoError& e) {
     EXPECT_EQ(std::string(e.what()), "cannot write '/dev/full': No space left on device");
   }
 }

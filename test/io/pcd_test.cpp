@@ -1,4 +1,4 @@
-#include "lidartag/driver/io/pcd.hpp"
+#include "lidartag/driver/velodyne/io/pcd.hpp"
 
 #include <gtest/gtest.h>
 #include <lzf.h>
@@ -322,7 +322,7 @@ TEST(Pcd, APointCloudNeedsXYAndZ) {
   try {
     read_pcd_points(path);
     ADD_FAILURE() << "a cloud without z accepted";
-  } catch (const IoError& e) {
+  } catch (const driver::IoError& e) {
     EXPECT_NE(std::string(e.what()).find("no 'z' field"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
   }
@@ -358,7 +358,7 @@ TEST(Pcd, ReadsAsciiWithOtherTypes) {
   EXPECT_EQ(cloud.field("x")[2], -1e-3);
   EXPECT_EQ(cloud.field("label")[2], 32767);
   EXPECT_FALSE(cloud.has("intensity"));
-  EXPECT_THROW(cloud.field("intensity"), IoError);
+  EXPECT_THROW(cloud.field("intensity"), driver::IoError);
   std::filesystem::remove(path);
 }
 
@@ -368,8 +368,8 @@ TEST(Pcd, BadFilesAreIoErrorsNamingTheProblem) {
     std::ofstream(path, std::ios::binary | std::ios::trunc) << text;
     try {
       read_pcd(path);
-      ADD_FAILURE() << "expected IoError for: " << words;
-    } catch (const IoError& e) {
+      ADD_FAILURE() << "expected driver::IoError for: " << words;
+    } catch (const driver::IoError& e) {
       EXPECT_NE(std::string(e.what()).find(words), std::string::npos) << e.what();
       EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
     }
@@ -406,7 +406,7 @@ TEST(Pcd, BadFilesAreIoErrorsNamingTheProblem) {
   expect_error("FIELDS x\nSIZE 4\nTYPE F\nCOUNT 3\nWIDTH 1\nDATA ascii\n1 2\n", "ascii data ends");
   expect_error("FIELDS x\nSIZE 4\nTYPE F\nWIDTH 1000000000000\nDATA binary\n", "cannot fit");
   expect_error(header + "POINTS 2\n", "header ends");
-  EXPECT_THROW(read_pcd("/nonexistent-lidartag/x.pcd"), IoError);
+  EXPECT_THROW(read_pcd("/nonexistent-lidartag/x.pcd"), driver::IoError);
   std::filesystem::remove(path);
 }
 
@@ -417,7 +417,7 @@ TEST(Pcd, AbsurdSizesAreIoErrorsNotWrapsOrHugeAllocations) {
     try {
       const PcdCloud cloud = read_pcd(path);
       ADD_FAILURE() << "accepted " << cloud.size() << " points for: " << words;
-    } catch (const IoError& e) {
+    } catch (const driver::IoError& e) {
       EXPECT_NE(std::string(e.what()).find(words), std::string::npos) << e.what();
     }
   };
@@ -518,7 +518,7 @@ TEST(Pcd, RandomlyDamagedFilesAreReadConsistentlyOrRefused) {
       ASSERT_EQ(cloud.columns.size(), cloud.fields.size());
       for (const auto& column : cloud.columns) ASSERT_EQ(column.size(), cloud.size());
       ASSERT_LE(cloud.size() * cloud.fields.size(), text.size());
-    } catch (const IoError& e) {
+    } catch (const driver::IoError& e) {
       ++refused;
       EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
     }

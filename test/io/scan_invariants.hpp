@@ -7,7 +7,7 @@
 #include <string>
 
 #include "lidartag/driver/scan.hpp"
-#include "lidartag/driver/sensor_model.hpp"
+#include "lidartag/driver/velodyne/sensor_model.hpp"
 
 namespace lidartag::test {
 

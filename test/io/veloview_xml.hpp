@@ -5,7 +5,7 @@
 
 #include <string>
 
-#include "lidartag/driver/calibration.hpp"
+#include "lidartag/driver/velodyne/calibration.hpp"
 
 namespace lidartag::test {
 

@@ -10,8 +10,8 @@
 #include <vector>
 
 #include "driver/keep_all.hpp"
-#include "lidartag/driver/decoder.hpp"
 #include "lidartag/driver/scan_batcher.hpp"
+#include "lidartag/driver/velodyne/decoder.hpp"
 #include "lidartag/sim/simulator.hpp"
 
 namespace lidartag::sim::testing {
@@ -57,9 +57,9 @@ inline Decoded decode(const Capture& c, const Scene& scene) {
   SensorClock clock;
   Decoded d;
   d.sink = std::make_unique<CollectSink>();
-  BatcherOptions bo;
+  driver::BatcherOptions bo;
   bo.cut_azimuth_deg = scene.sensor.cut_azimuth_deg;
-  ScanBatcher batcher(spec, scene.sensor.return_mode, bo);
+  driver::ScanBatcher batcher = velodyne::make_batcher(spec, scene.sensor.return_mode, bo);
   auto packet = std::make_unique<DecodedPacket>();
   for (const Packet& p : c.packets) {
     if (p.port != kDefaultDataPort) continue;

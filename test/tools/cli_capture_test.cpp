@@ -8,7 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "lidartag/driver/io/pcd.hpp"
+#include "lidartag/driver/velodyne/io/pcd.hpp"
 #include "run_tool.hpp"
 
 namespace {

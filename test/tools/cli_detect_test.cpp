@@ -15,8 +15,8 @@
 #include <string>
 #include <vector>
 
-#include "lidartag/driver/io/capture_reader.hpp"
-#include "lidartag/driver/io/pcd.hpp"
+#include "lidartag/driver/velodyne/io/capture_reader.hpp"
+#include "lidartag/driver/velodyne/io/pcd.hpp"
 #include "run_tool.hpp"
 
 namespace {

@@ -22,9 +22,9 @@
 #include "lidartag/detector/cloud_scan.hpp"
 #include "lidartag/detector/detector.hpp"
 #include "lidartag/detector/tracker.hpp"
-#include "lidartag/driver/io/capture_reader.hpp"
 #include "lidartag/driver/io/errors.hpp"
-#include "lidartag/driver/io/pcd.hpp"
+#include "lidartag/driver/velodyne/io/capture_reader.hpp"
+#include "lidartag/driver/velodyne/io/pcd.hpp"
 #include "lidartag/progress.hpp"
 #ifdef LIDARTAG_HAVE_CONFIG
 #include "lidartag/daemon/config.hpp"

@@ -11,9 +11,9 @@
 
 #include "lidartag/commands.hpp"
 #include "lidartag/common.hpp"
-#include "lidartag/driver/io/capture_reader.hpp"
 #include "lidartag/driver/io/errors.hpp"
-#include "lidartag/driver/io/pcd.hpp"
+#include "lidartag/driver/velodyne/io/capture_reader.hpp"
+#include "lidartag/driver/velodyne/io/pcd.hpp"
 #include "lidartag/exit_codes.hpp"
 #include "lidartag/progress.hpp"
 
@@ -45,7 +45,7 @@ void prepare_output(const DumpArgs& args) {
     size_t ours = 0, others = 0;
     for (const auto& entry : fs::directory_iterator(args.out, ec))
       ++(entry.is_regular_file(ec) && is_dump_file(entry.path()) ? ours : others);
-    if (ec) throw velodyne::IoError("cannot list '" + args.out + "': " + ec.message());
+    if (ec) throw driver::IoError("cannot list '" + args.out + "': " + ec.message());
     if (ours + others > 0 && !args.force) {
       throw UsageError(fmt::format(
           "output folder '{}' is not empty ({} PCD file{} of an earlier dump, {} other entr{}); "
@@ -56,8 +56,8 @@ void prepare_output(const DumpArgs& args) {
       for (const auto& entry : fs::directory_iterator(args.out, ec)) {
         if (!entry.is_regular_file(ec) || !is_dump_file(entry.path())) continue;
         if (!fs::remove(entry.path(), ec) || ec)
-          throw velodyne::IoError("cannot remove '" + entry.path().string() +
-                                  "': " + (ec ? ec.message() : "not removed"));
+          throw driver::IoError("cannot remove '" + entry.path().string() +
+                                "': " + (ec ? ec.message() : "not removed"));
       }
       spdlog::info("removed {} PCD file{} of an earlier dump from {}", ours, ours == 1 ? "" : "s",
                    args.out);
@@ -65,8 +65,8 @@ void prepare_output(const DumpArgs& args) {
   }
   fs::create_directories(args.out, ec);
   if (ec || !fs::is_directory(args.out)) {
-    throw velodyne::IoError("cannot create output directory '" + args.out + "'" +
-                            (ec ? ": " + ec.message() : std::string()));
+    throw driver::IoError("cannot create output directory '" + args.out + "'" +
+                          (ec ? ": " + ec.message() : std::string()));
   }
 }
 

@@ -8,8 +8,8 @@
 
 #include "lidartag/commands.hpp"
 #include "lidartag/common.hpp"
-#include "lidartag/driver/decoder.hpp"
-#include "lidartag/driver/io/capture_reader.hpp"
+#include "lidartag/driver/velodyne/decoder.hpp"
+#include "lidartag/driver/velodyne/io/capture_reader.hpp"
 
 namespace lidartag::cli {
 namespace {

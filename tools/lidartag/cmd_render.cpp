@@ -25,9 +25,9 @@
 #include "lidartag/draw/cairo_util.hpp"
 #include "lidartag/draw/close_up.hpp"
 #include "lidartag/draw/units.hpp"
-#include "lidartag/driver/io/capture_reader.hpp"
 #include "lidartag/driver/io/errors.hpp"
-#include "lidartag/driver/io/pcd.hpp"
+#include "lidartag/driver/velodyne/io/capture_reader.hpp"
+#include "lidartag/driver/velodyne/io/pcd.hpp"
 #include "lidartag/exit_codes.hpp"
 #include "lidartag/progress.hpp"
 #ifdef LIDARTAG_HAVE_CONFIG

@@ -28,7 +28,7 @@ int run_sim(const SimArgs& args) {
   const int rotations = args.rotations.value_or(scene.rotations);
   const uint64_t seed = args.seed.value_or(scene.seed);
   sim::Simulator simulator(std::move(scene));
-  velodyne::PcapWriter writer(args.out);
+  driver::PcapWriter writer(args.out);
   sim::RunStats stats;
   // Progress by the packets' time: `rotations` periods from the scene's start time.
   const auto& so = simulator.scene().sensor;

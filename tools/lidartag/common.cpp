@@ -13,8 +13,8 @@
 #include "lidartag/detector/cloud_scan.hpp"
 #include "lidartag/draw/units.hpp"
 #include "lidartag/driver/io/errors.hpp"
-#include "lidartag/driver/io/pcd.hpp"
 #include "lidartag/driver/io/udp_frame.hpp"
+#include "lidartag/driver/velodyne/io/pcd.hpp"
 
 namespace lidartag::cli {
 
@@ -63,7 +63,7 @@ void add_capture_options(CLI::App& app, CaptureArgs& args) {
       ->check(CLI::Validator(
           [](std::string& text) -> std::string {
             uint32_t address = 0;
-            return velodyne::parse_ipv4_address(text, address)
+            return driver::parse_ipv4_address(text, address)
                        ? std::string()
                        : "not an IPv4 address: '" + text + "'";
           },
@@ -76,7 +76,7 @@ velodyne::CaptureReaderOptions reader_options(const CaptureArgs& args) {
   options.source.position_port = args.position_port;
   if (!args.sensor.empty()) {
     uint32_t address = 0;
-    if (velodyne::parse_ipv4_address(args.sensor, address)) options.source.sensor_ipv4 = address;
+    if (driver::parse_ipv4_address(args.sensor, address)) options.source.sensor_ipv4 = address;
   }
   if (!args.model.empty()) options.model = velodyne::model_from_name(args.model);
   options.calibration_file = args.calibration;
@@ -143,7 +143,7 @@ void load_pcd_scan(const CaptureArgs& args, int rings, double resolution_deg, Sc
   } catch (const detector::CloudError& e) {
     std::string hint;
     if (fields.ring.empty() && !model && rings == 0) hint = " (--model or --rings N)";
-    throw velodyne::IoError(path + ": " + e.what() + hint);
+    throw driver::IoError(path + ": " + e.what() + hint);
   }
   velodyne::apply_pcd_rotation(pcd.rotation, scan);
   if (report.skipped_coordinates > 0)

@@ -7,9 +7,9 @@
 #include <string_view>
 
 #include "lidartag/cli11.hpp"
-#include "lidartag/driver/io/capture_reader.hpp"
 #include "lidartag/driver/scan.hpp"
-#include "lidartag/driver/sensor_model.hpp"
+#include "lidartag/driver/velodyne/io/capture_reader.hpp"
+#include "lidartag/driver/velodyne/sensor_model.hpp"
 
 namespace lidartag::cli {
 
@@ -18,7 +18,7 @@ struct CaptureArgs {
   std::string capture;
   std::string model;        // empty: from the product byte
   std::string calibration;  // empty: built-in table
-  double cut_deg = velodyne::BatcherOptions{}.cut_azimuth_deg;
+  double cut_deg = driver::BatcherOptions{}.cut_azimuth_deg;
   uint16_t data_port = velodyne::kDefaultDataPort;
   uint16_t position_port = velodyne::kDefaultPositionPort;
   std::string sensor;  // sender address filter, dotted quad
@@ -50,7 +50,7 @@ bool is_pcd(const std::string& path);
 // A PCD file (`args.capture`) as one scan, for detect and render (detector/cloud_scan.hpp):
 // organised dumps keep their cells, other clouds are binned by azimuth (`resolution_deg`); rings
 // come from a `ring` field or are regressed from the elevations (--model's beam table, or `rings`
-// beams estimated from the cloud). Throws velodyne::IoError naming the file.
+// beams estimated from the cloud). Throws driver::IoError naming the file.
 void load_pcd_scan(const CaptureArgs& args, int rings, double resolution_deg, Scan& scan);
 
 // " (tag36h11 fits better)" after a rejection of other_family that names the family

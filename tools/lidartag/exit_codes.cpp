@@ -2,7 +2,7 @@
 
 #include "lidartag/detector/detector.hpp"
 #include "lidartag/detector/tag_family.hpp"
-#include "lidartag/driver/io/calibration_file.hpp"
+#include "lidartag/driver/velodyne/io/calibration_file.hpp"
 #include "lidartag/sim/scene.hpp"
 #ifdef LIDARTAG_HAVE_CONFIG
 #include "lidartag/daemon/config.hpp"

@@ -2,14 +2,14 @@
 
 #include <algorithm>
 
-namespace lidartag::velodyne {
+namespace lidartag::driver {
 
 void ColumnWriter::queue_run(Scan& s, bool open) {
   if (run_columns_ == 0 || !open || packet_ == nullptr) {
     run_columns_ = 0;
     return;
   }
-  const PacketColumns& pk = *packet_;
+  const ColumnPacket& pk = *packet_;
   const int n = run_columns_;
   run_columns_ = 0;
   if (pk.rings != s.rings || pk.decoder == nullptr) return;  // cannot happen: begin() sized it
@@ -73,7 +73,7 @@ void ColumnWriter::write_batch(Scan& s) {
     // than what the scan held before: a scan's storage is reused without being cleared.
     clear_cells(s, 0, batch_column_, n);
   }
-  batch_.columns = 0;
+  batch_.clear();
   // The held packets the batch read are free now, but the one being written.
   for (int i = 0; i < batch_slot_count_; ++i) {
     const int slot = batch_slots_[static_cast<size_t>(i)];
@@ -88,4 +88,4 @@ bool ColumnWriter::reads(int slot) const {
   return false;
 }
 
-}  // namespace lidartag::velodyne
+}  // namespace lidartag::driver

@@ -1,30 +1,43 @@
 #include "lidartag/driver/assembly/reorder_window.hpp"
 
 #include <algorithm>
+#include <new>
 
-#include "../angles.hpp"
+#include "lidartag/driver/angles.hpp"
 
-namespace lidartag::velodyne {
+namespace lidartag::driver {
 
-void HeldPacket::hold(const PacketColumns& packet) {
-  columns = packet;
-  if (packet.payload != nullptr) std::copy_n(packet.payload, kDataPacketSize, bytes.begin());
-  columns.payload = bytes.data();
+HeldPacket::HeldPacket(size_t max_payload_bytes)
+    : packet_(new (object_.data()) ColumnPacket{}),
+      bytes_(std::make_unique<uint8_t[]>(max_payload_bytes)),
+      capacity_(max_payload_bytes) {}
+
+void HeldPacket::hold(const ColumnPacket& packet) {
+  // The decoder copies its own type (what it later reads to decode the points); a packet without
+  // one is only ever counted, never decoded: its header is enough.
+  packet_ = packet.decoder != nullptr ? packet.decoder->copy_packet(packet, object_)
+                                      : new (object_.data()) ColumnPacket(packet);
+  const size_t n = std::min(packet.payload_size, capacity_);
+  if (packet.payload != nullptr) std::copy_n(packet.payload, n, bytes_.get());
+  packet_->payload = bytes_.get();
+  packet_->payload_size = n;
 }
 
-int64_t last_stamp(const PacketColumns& packet) {
+int64_t last_stamp(const ColumnPacket& packet) {
   const auto last = static_cast<size_t>(std::max(packet.columns - 1, 0));
   return packet.stamp_ns + round_half_away(packet.column_time_us[last] * 1e3);
 }
 
-ReorderWindow::ReorderWindow() : slots_(std::make_unique<std::array<HeldPacket, kSlots>>()) {}
+ReorderWindow::ReorderWindow(size_t max_payload_bytes) {
+  for (auto& slot : slots_) slot = std::make_unique<HeldPacket>(max_payload_bytes);
+}
 
-bool ReorderWindow::insert(const PacketColumns& packet, bool& reordered) {
+bool ReorderWindow::insert(const ColumnPacket& packet, bool& reordered) {
   int slot = 0;
   while (slot < kSlots && taken_[static_cast<size_t>(slot)]) ++slot;
   if (slot == kSlots) return false;
   taken_[static_cast<size_t>(slot)] = true;
-  (*slots_)[static_cast<size_t>(slot)].hold(packet);
+  slots_[static_cast<size_t>(slot)]->hold(packet);
   last_ns_[static_cast<size_t>(slot)] = last_stamp(packet);
   // Sorted by time, oldest first; a packet placed before a later one arrived out of order.
   int i = size_;
@@ -58,7 +71,7 @@ void ReorderWindow::remove(int64_t stamp_ns) {
 
 bool ReorderWindow::holds(int64_t stamp_ns, float azimuth_deg) const {
   for (int i = 0; i < size_; ++i) {
-    const PacketColumns& h = oldest(i);
+    const ColumnPacket& h = oldest(i);
     if (h.stamp_ns == stamp_ns && h.column_azimuth_deg[0] == azimuth_deg) return true;
   }
   return false;
@@ -73,4 +86,4 @@ bool ReorderWindow::overlaps(int64_t first_ns, int64_t last_ns) const {
   return false;
 }
 
-}  // namespace lidartag::velodyne
+}  // namespace lidartag::driver

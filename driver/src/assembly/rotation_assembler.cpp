@@ -3,9 +3,9 @@
 #include <algorithm>
 #include <cmath>
 
-#include "../angles.hpp"
+#include "lidartag/driver/angles.hpp"
 
-namespace lidartag::velodyne {
+namespace lidartag::driver {
 namespace {
 
 // A time step this far from the firing period is a discontinuity of the stream (sensor restart,
@@ -14,14 +14,30 @@ constexpr double kMaxGapUs = 1e6;
 
 }  // namespace
 
-RotationAssembler::RotationAssembler(const ModelSpec& spec, ReturnMode mode,
+RotationAssembler::RotationAssembler(const SensorLayout& layout, uint8_t return_mode, int returns,
                                      const BatcherOptions& options, ReorderWindow& held,
                                      BatcherStats& stats)
-    : spec_(spec), mode_(mode), options_(options), stats_(stats), writer_(held) {}
+    : layout_(layout),
+      mode_(return_mode),
+      returns_(returns),
+      frame_rule_(layout.delimiter == RotationDelimiter::kFrameId),
+      options_(options),
+      stats_(stats),
+      writer_(held) {}
 
-int RotationAssembler::column_capacity(const ModelSpec& spec) {
-  // One rotation at 300 rpm lasts 200 ms; 10 % margin for clock drift and jitter.
-  return static_cast<int>(std::ceil(1.1 * 200000.0 / spec.firing_period_us));
+int RotationAssembler::column_capacity(const SensorLayout& layout) {
+  // One rotation at 300 rpm lasts 200 ms; 10 % margin for clock drift and jitter. A frame the
+  // sensor announces always fits.
+  return std::max(static_cast<int>(std::ceil(1.1 * 200000.0 / layout.column_period_us)),
+                  layout.frame_columns);
+}
+
+int RotationAssembler::frame_step() const {
+  const int bits = std::clamp(layout_.frame_id_bits, 1, 32);
+  const uint32_t mask = bits == 32 ? ~0u : (1u << bits) - 1u;
+  const uint32_t ahead = (frame_id_ - last_frame_id_) & mask;
+  if (ahead > mask / 2) return -1;
+  return static_cast<int>(std::min<uint32_t>(ahead, 1u << 30));
 }
 
 bool RotationAssembler::crossed_cut(double from_deg, double to_deg) const {
@@ -32,15 +48,14 @@ bool RotationAssembler::crossed_cut(double from_deg, double to_deg) const {
 }
 
 void RotationAssembler::begin(Scan& scan, int64_t stamp_ns) {
-  const int returns = mode_ == ReturnMode::kDual ? 2 : 1;
   // A fresh scan, or one last filled in another return mode: sized here, once.
-  if (scan.rings != spec_.lasers || scan.returns != returns || scan.column_capacity <= 0) {
-    scan.reserve(spec_.lasers, returns, column_capacity(spec_));
+  if (scan.rings != layout_.rings || scan.returns != returns_ || scan.column_capacity <= 0) {
+    scan.reserve(layout_.rings, returns_, column_capacity(layout_));
   }
   scan.clear();
   scan.sequence = sequence_++;
-  scan.model = static_cast<uint8_t>(spec_.model);
-  scan.return_mode = static_cast<uint8_t>(mode_);
+  scan.model = layout_.model;
+  scan.return_mode = mode_;
   scan.starts_at_cut = next_starts_at_cut_;
   scan.stamp_ns = stamp_ns;
   rate_steps_deg_ = 0;
@@ -85,11 +100,12 @@ void RotationAssembler::forgive_loss(int64_t stamp_ns) {
 
 RotationAssembler::Step RotationAssembler::classify(double az, int64_t stamp, int per_packet) {
   Step s;
-  const double fp = spec_.firing_period_us;
+  const double fp = layout_.column_period_us;
   const double dt = static_cast<double>(stamp - last_column_stamp_ns_) * 1e-3;  // us
   const double step = wrap360(az - last_column_azimuth_);
-  if (dt <= 0 || dt > kMaxGapUs) {
-    // Discontinuity: restart, clock reset or replay loop.
+  const int frames = frame_rule_ && has_frame_ ? frame_step() : 0;
+  if (dt <= 0 || dt > kMaxGapUs || frames < 0) {
+    // Discontinuity: restart, clock reset, replay loop, a frame counter that went back.
     ++stats_.azimuth_jumps;
     s.jump = true;
     return s;
@@ -98,8 +114,11 @@ RotationAssembler::Step RotationAssembler::classify(double az, int64_t stamp, in
   // not for every column).
   const bool gap = dt > 1.5 * fp;
   const double normal_step = gap ? last_rate_step_deg_ / last_rate_dt_us_ * fp : 0.0;
-  if (gap && step > 1.5 * normal_step + 0.02 && step < 360.0 - 1.5 * normal_step) {
-    // Time and azimuth advanced together: packets were lost on the way.
+  // Time and azimuth advanced together, or the frame id skipped frames (whose azimuths repeat):
+  // packets were lost on the way.
+  const bool lost =
+      gap && ((step > 1.5 * normal_step + 0.02 && step < 360.0 - 1.5 * normal_step) || frames > 1);
+  if (lost) {
     const double lost_columns = std::max(0.0, std::round(dt / fp) - 1.0);
     s.missing = static_cast<uint32_t>(std::ceil(lost_columns / per_packet));
     stats_.missing_packets += s.missing;
@@ -119,12 +138,13 @@ RotationAssembler::Step RotationAssembler::classify(double az, int64_t stamp, in
       last_rate_dt_us_ = dt;
     }
   }
-  s.cut = crossed_cut(last_column_azimuth_, az);
+  s.cut = frame_rule_ ? frames > 0 : crossed_cut(last_column_azimuth_, az);
   return s;
 }
 
 void RotationAssembler::follow(double az, int64_t stamp) {
   have_last_ = true;
+  last_frame_id_ = frame_id_;
   last_column_azimuth_ = az;
   last_column_stamp_ns_ = stamp;
 }
@@ -138,19 +158,20 @@ void RotationAssembler::end_before(Scan& scan, int c, double az, int64_t stamp,
   follow(az, stamp);
 }
 
-bool RotationAssembler::add_packet(const PacketColumns& pk, int slot, Scan& scan, bool may_end) {
+bool RotationAssembler::add_packet(const ColumnPacket& pk, int slot, Scan& scan, bool may_end) {
   return run(pk, slot, 0, scan, may_end);
 }
 
-void RotationAssembler::resume(const PacketColumns& pk, int slot, Scan& scan) {
+void RotationAssembler::resume(const ColumnPacket& pk, int slot, Scan& scan) {
   // The rest of a packet that already ended a rotation: it cannot end another (see run()).
   (void)run(pk, slot, pending_column_, scan, false);
 }
 
-bool RotationAssembler::run(const PacketColumns& pk, int slot, int first, Scan& scan,
-                            bool may_end) {
+bool RotationAssembler::run(const ColumnPacket& pk, int slot, int first, Scan& scan, bool may_end) {
   writer_.start_packet(pk, slot);
-  const int per_packet = spec_.columns_per_packet(pk.mode);
+  const int per_packet = layout_.packet_columns(pk.returns);
+  has_frame_ = pk.has_frame_id;
+  frame_id_ = pk.frame_id;
   for (int c = first; c < pk.columns; ++c) {
     const auto uc = static_cast<size_t>(c);
     const double az = pk.column_azimuth_deg[uc];
@@ -209,4 +230,4 @@ bool RotationAssembler::run(const PacketColumns& pk, int slot, int first, Scan& 
   return false;
 }
 
-}  // namespace lidartag::velodyne
+}  // namespace lidartag::driver

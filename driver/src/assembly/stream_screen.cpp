@@ -3,9 +3,9 @@
 #include <algorithm>
 #include <cmath>
 
-#include "../angles.hpp"
+#include "lidartag/driver/angles.hpp"
 
-namespace lidartag::velodyne {
+namespace lidartag::driver {
 namespace {
 
 // The azimuth a packet must have, predicted from the stream's newest packet, within this many
@@ -25,12 +25,12 @@ double azimuth_diff(double a, double b) {
 
 }  // namespace
 
-StreamScreen::StreamScreen(const ModelSpec& spec, double flush_timeout_s)
-    : spec_(spec),
-      flush_timeout_s_(flush_timeout_s),
-      candidates_(std::make_unique<std::array<HeldPacket, kNewStreamPackets>>()) {}
+StreamScreen::StreamScreen(const SensorLayout& layout, double flush_timeout_s)
+    : layout_(layout), flush_timeout_s_(flush_timeout_s) {
+  for (auto& c : candidates_) c = std::make_unique<HeldPacket>(layout.max_payload_bytes);
+}
 
-StreamScreen::Ref StreamScreen::ref_of(const PacketColumns& pk) {
+StreamScreen::Ref StreamScreen::ref_of(const ColumnPacket& pk) {
   const auto last = static_cast<size_t>(std::max(pk.columns - 1, 0));
   // The rate across the whole packet: one column's step (0.2 deg on a VLP-32C, in 0.01 deg
   // steps) is off by up to 5 %, which across a gap of several lost packets misplaces the next
@@ -44,10 +44,10 @@ StreamScreen::Ref StreamScreen::ref_of(const PacketColumns& pk) {
   return {pk.stamp_ns, pk.column_azimuth_deg[0], pk.column_azimuth_deg[last], rate};
 }
 
-bool StreamScreen::fits(const Ref& ref, const PacketColumns& pk) const {
+bool StreamScreen::fits(const Ref& ref, const ColumnPacket& pk) const {
   if (pk.columns <= 0) return false;
   const double dt_us = static_cast<double>(pk.stamp_ns - ref.stamp_ns) * 1e-3;
-  const double period_us = spec_.packet_period_us(pk.mode);
+  const double period_us = layout_.packet_period_us(pk.returns);
   if (dt_us < -kMaxLatePackets * period_us || dt_us > flush_timeout_s_ * 1e6) return false;
   // Where the sensor pointed at that time, by the rate measured inside the newest packet.
   const double travel = ref.rate_deg_per_us * dt_us;
@@ -57,12 +57,12 @@ bool StreamScreen::fits(const Ref& ref, const PacketColumns& pk) const {
     return true;
   // A restricted field of view: the sensor paused (longer than a packet period), then goes on
   // from where it stopped.
-  const double step = ref.rate_deg_per_us * spec_.firing_period_us;
+  const double step = ref.rate_deg_per_us * layout_.column_period_us;
   return dt_us > 1.5 * period_us &&
          std::abs(azimuth_diff(az, ref.last_azimuth_deg + step)) <= kAzimuthToleranceDeg + step;
 }
 
-StreamScreen::Verdict StreamScreen::screen(const PacketColumns& pk, const ReorderWindow& window,
+StreamScreen::Verdict StreamScreen::screen(const ColumnPacket& pk, const ReorderWindow& window,
                                            std::optional<int64_t> last_written_ns) const {
   if (!have_head_) return Verdict::kAccept;
   const float az = pk.column_azimuth_deg[0];
@@ -86,7 +86,7 @@ StreamScreen::Verdict StreamScreen::screen(const PacketColumns& pk, const Reorde
   return Verdict::kAccept;
 }
 
-void StreamScreen::taken(const PacketColumns& pk) {
+void StreamScreen::taken(const ColumnPacket& pk) {
   if (!have_head_ || pk.stamp_ns > head_.stamp_ns) {
     previous_head_ = head_;
     have_previous_head_ = have_head_;
@@ -95,7 +95,7 @@ void StreamScreen::taken(const PacketColumns& pk) {
   have_head_ = true;
 }
 
-void StreamScreen::released(const PacketColumns& pk) {
+void StreamScreen::released(const ColumnPacket& pk) {
   const auto h = static_cast<size_t>(released_count_++ % kHistory);
   released_stamp_[h] = pk.stamp_ns;
   released_azimuth_[h] = pk.column_azimuth_deg[0];
@@ -106,24 +106,24 @@ void StreamScreen::drop_head() {
   have_previous_head_ = false;
 }
 
-StreamScreen::Candidate StreamScreen::add_candidate(const PacketColumns& pk) {
-  auto& c = *candidates_;
+StreamScreen::Candidate StreamScreen::add_candidate(const ColumnPacket& pk) {
+  auto& c = candidates_;
   if (candidate_count_ == kNewStreamPackets) return Candidate::kDropped;  // adopted before this
   if (candidate_count_ == 0 ||
-      fits(ref_of(c[static_cast<size_t>(candidate_count_ - 1)].columns), pk)) {
-    c[static_cast<size_t>(candidate_count_++)].hold(pk);
+      fits(ref_of(c[static_cast<size_t>(candidate_count_ - 1)]->columns()), pk)) {
+    c[static_cast<size_t>(candidate_count_++)]->hold(pk);
     return Candidate::kHeld;
   }
   if (candidate_count_ == 1) {
     // One odd packet then another that disagrees with it: the first was the stray one.
-    c[0].hold(pk);
+    c[0]->hold(pk);
     return Candidate::kReplacedStray;
   }
   return Candidate::kDropped;
 }
 
-void StreamScreen::start_candidates(const PacketColumns& pk) {
-  (*candidates_)[0].hold(pk);
+void StreamScreen::start_candidates(const ColumnPacket& pk) {
+  candidates_[0]->hold(pk);
   candidate_count_ = 1;
 }
 
@@ -133,4 +133,4 @@ int StreamScreen::clear_candidates() {
   return n;
 }
 
-}  // namespace lidartag::velodyne
+}  // namespace lidartag::driver

@@ -8,7 +8,7 @@
 
 #include "lidartag/driver/io/udp_frame.hpp"
 
-namespace lidartag::velodyne {
+namespace lidartag::driver {
 namespace {
 
 pcap_t* as_pcap(void* p) {
@@ -121,4 +121,4 @@ SourceStats LiveSource::stats() const {
   return s;
 }
 
-}  // namespace lidartag::velodyne
+}  // namespace lidartag::driver

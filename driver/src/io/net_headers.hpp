@@ -6,7 +6,7 @@
 #include <cstdint>
 #include <span>
 
-namespace lidartag::velodyne::net {
+namespace lidartag::driver::net {
 
 inline constexpr size_t kEthernetHeader = 14;
 inline constexpr size_t kVlanTag = 4;
@@ -45,4 +45,4 @@ inline uint16_t fold_checksum(uint32_t sum) {
   return static_cast<uint16_t>(~sum & 0xFFFF);
 }
 
-}  // namespace lidartag::velodyne::net
+}  // namespace lidartag::driver::net

@@ -7,7 +7,7 @@
 #include <cstdio>
 #include <thread>
 
-namespace lidartag::velodyne {
+namespace lidartag::driver {
 namespace {
 
 pcap_t* as_pcap(void* p) {
@@ -200,4 +200,4 @@ ReadStatus PcapSource::next(RawPacket& out, std::chrono::milliseconds timeout) {
   return ReadStatus::kPacket;
 }
 
-}  // namespace lidartag::velodyne
+}  // namespace lidartag::driver

@@ -9,7 +9,7 @@
 
 #include "net_headers.hpp"
 
-namespace lidartag::velodyne {
+namespace lidartag::driver {
 namespace {
 
 // Fixed addresses keep the output deterministic: 60:76:88 is Velodyne's OUI.
@@ -220,4 +220,4 @@ void PcapWriter::close() {
   if (failed()) throw IoError(error_);
 }
 
-}  // namespace lidartag::velodyne
+}  // namespace lidartag::driver

@@ -2,7 +2,7 @@
 
 #include "net_headers.hpp"
 
-namespace lidartag::velodyne {
+namespace lidartag::driver {
 namespace {
 
 constexpr size_t kSllHeader = 16;
@@ -172,4 +172,4 @@ bool accept_udp_frame(LinkType link, std::span<const uint8_t> frame, const UdpFi
   return true;
 }
 
-}  // namespace lidartag::velodyne
+}  // namespace lidartag::driver

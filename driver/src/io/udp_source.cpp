@@ -17,7 +17,7 @@
 #include <cstring>
 #include <ctime>
 
-namespace lidartag::velodyne {
+namespace lidartag::driver {
 
 namespace asio = boost::asio;
 using asio::ip::udp;
@@ -231,4 +231,4 @@ SourceStats UdpSource::stats() const {
   return s;
 }
 
-}  // namespace lidartag::velodyne
+}  // namespace lidartag::driver

@@ -5,8 +5,8 @@
 #include <filesystem>
 #include <lidartag/daemon/config.hpp>
 #include <lidartag/detector/detector.hpp>
-#include <lidartag/driver/io/calibration_file.hpp>
-#include <lidartag/driver/io/capture_reader.hpp>
+#include <lidartag/driver/velodyne/io/calibration_file.hpp>
+#include <lidartag/driver/velodyne/io/capture_reader.hpp>
 #include <lidartag/sim/scene.hpp>
 #include <lidartag/tag_detections_t.hpp>
 #include <vector>

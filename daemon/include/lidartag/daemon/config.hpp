@@ -14,10 +14,10 @@
 
 #include "lidartag/detector/detector.hpp"
 #include "lidartag/detector/tracker.hpp"
-#include "lidartag/driver/decoder.hpp"
-#include "lidartag/driver/packet.hpp"
 #include "lidartag/driver/scan_batcher.hpp"
-#include "lidartag/driver/sensor_model.hpp"
+#include "lidartag/driver/velodyne/decoder.hpp"
+#include "lidartag/driver/velodyne/packet.hpp"
+#include "lidartag/driver/velodyne/sensor_model.hpp"
 
 namespace lidartag::daemon {
 
@@ -87,7 +87,7 @@ struct SensorOptions {
   std::optional<velodyne::Model> model;
   // Calibration file (ros-drivers YAML or VeloView XML); empty: the model's built-in table.
   std::string calibration;
-  velodyne::BatcherOptions batcher;  // cut azimuth, flush timeout, jump threshold
+  driver::BatcherOptions batcher;    // cut azimuth, flush timeout, jump threshold
   velodyne::DecoderOptions decoder;  // range limits
   SourceOptions source;
 };

@@ -24,14 +24,14 @@ struct LcmLogSourceOptions {
   bool loop = false;                     // start again at the end (times keep growing)
 };
 
-class LcmLogSource final : public velodyne::PacketSource {
+class LcmLogSource final : public driver::PacketSource {
  public:
-  // Opens the log; throws velodyne::IoError naming the file.
+  // Opens the log; throws driver::IoError naming the file.
   LcmLogSource(const std::string& path, LcmLogSourceOptions options);
   ~LcmLogSource() override;
 
-  velodyne::ReadStatus next(velodyne::RawPacket& out, std::chrono::milliseconds timeout) override;
-  velodyne::SourceStats stats() const override { return stats_; }
+  driver::ReadStatus next(driver::RawPacket& out, std::chrono::milliseconds timeout) override;
+  driver::SourceStats stats() const override { return stats_; }
   uint64_t events() const { return events_; }  // log events read, all channels and passes
 
  private:
@@ -43,8 +43,8 @@ class LcmLogSource final : public velodyne::PacketSource {
   LcmLogSourceOptions options_;
   std::unique_ptr<lcm::LogFile> log_;
   lidartag::raw_packet_t message_;
-  velodyne::ReplaySchedule schedule_;
-  velodyne::SourceStats stats_{};
+  driver::ReplaySchedule schedule_;
+  driver::SourceStats stats_{};
   uint64_t events_ = 0;
   bool pending_ = false;
   int64_t time_ns_ = 0;  // receive time of message_, shifted for loops

@@ -45,7 +45,7 @@ void fill_point_cloud(const RotationResult& r, const std::string& sensor,
 
 void fill_status(const SensorStatus& s, int64_t utime, double uptime_s, lidartag::status_t& out);
 
-void fill_raw_packet(const velodyne::RawPacket& p, const std::string& sensor,
+void fill_raw_packet(const driver::RawPacket& p, const std::string& sensor,
                      lidartag::raw_packet_t& out);
 
 // Host time, microseconds since the epoch.

@@ -14,8 +14,8 @@
 #include "lidartag/daemon/config.hpp"
 #include "lidartag/daemon/health.hpp"
 #include "lidartag/daemon/sensor_status.hpp"
-#include "lidartag/driver/io/capture_reader.hpp"
 #include "lidartag/driver/packet_source.hpp"
+#include "lidartag/driver/velodyne/io/capture_reader.hpp"
 
 namespace lidartag::daemon {
 
@@ -50,7 +50,7 @@ class SensorMonitor {
   // ---- Published by the data path ----
   void started(int64_t now_ns);
   // Receiving thread: every packet of the source (its sender, when on the data port).
-  void note_sender(const velodyne::RawPacket& packet);
+  void note_sender(const driver::RawPacket& packet);
   // Receiving thread, after every read of the source: the reader's counters, and the rotation
   // just assembled (else null).
   void after_read(const velodyne::CaptureReader& reader, const Scan* rotation);

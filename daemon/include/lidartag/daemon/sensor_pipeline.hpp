@@ -33,7 +33,7 @@
 #include "lidartag/daemon/sensor_status.hpp"
 #include "lidartag/daemon/tap_source.hpp"
 #include "lidartag/detector/detector.hpp"
-#include "lidartag/driver/io/capture_reader.hpp"
+#include "lidartag/driver/velodyne/io/capture_reader.hpp"
 #include "lidartag/raw_packet_t.hpp"
 
 namespace lidartag::daemon {
@@ -64,7 +64,7 @@ class SensorPipeline {
   // down or stall it in tests). Not reachable from the configuration.
   using DetectHook = std::function<void(const Scan&)>;
 
-  // Opens the source (velodyne::IoError), the calibration when the model is given
+  // Opens the source (driver::IoError), the calibration when the model is given
   // (velodyne::CalibrationError) and builds a detector for each rotation the pipeline may hold
   // (workers + pipeline.publish_queue; detector::OptionsError). `arena` has `workers` threads; none
   // of them ever waits for the source, and at most `workers` rotations are detected at once.

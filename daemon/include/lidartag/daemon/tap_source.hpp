@@ -24,8 +24,8 @@ class PcapRecorder {
  public:
   static constexpr int64_t kFlushPeriodNs = 1'000'000'000;
 
-  explicit PcapRecorder(const std::string& path);  // throws velodyne::IoError
-  void write(const velodyne::RawPacket& packet) noexcept;
+  explicit PcapRecorder(const std::string& path);  // throws driver::IoError
+  void write(const driver::RawPacket& packet) noexcept;
   // Writes what is buffered and closes the file; a failure then counts like a write error.
   void close() noexcept;
   // Packets in the file (after close() or a failure exactly those; before, buffered ones too).
@@ -45,22 +45,22 @@ class PcapRecorder {
 
   std::string path_;
   mutable std::mutex mutex_;
-  velodyne::PcapWriter writer_;
+  driver::PcapWriter writer_;
   uint64_t received_ = 0;
   int64_t next_flush_ns_ = 0;
   bool reported_ = false;
 };
 
-class TapSource final : public velodyne::PacketSource {
+class TapSource final : public driver::PacketSource {
  public:
-  using RawTap = std::function<void(const velodyne::RawPacket&)>;
+  using RawTap = std::function<void(const driver::RawPacket&)>;
 
   // `recorder` may be null; `raw_tap` may be empty.
-  TapSource(std::unique_ptr<velodyne::PacketSource> inner, PcapRecorder* recorder, RawTap raw_tap);
+  TapSource(std::unique_ptr<driver::PacketSource> inner, PcapRecorder* recorder, RawTap raw_tap);
 
   // Waits at most 100 ms per call, so that stop() is noticed quickly; kEnd once stopped.
-  velodyne::ReadStatus next(velodyne::RawPacket& out, std::chrono::milliseconds timeout) override;
-  velodyne::SourceStats stats() const override;  // the inner source's (its thread only)
+  driver::ReadStatus next(driver::RawPacket& out, std::chrono::milliseconds timeout) override;
+  driver::SourceStats stats() const override;  // the inner source's (its thread only)
   std::string error() const override { return inner_->error(); }  // its thread only
 
   void stop() { stop_.store(true, std::memory_order_relaxed); }
@@ -68,7 +68,7 @@ class TapSource final : public velodyne::PacketSource {
   uint64_t packets() const { return packets_.load(std::memory_order_relaxed); }
 
  private:
-  std::unique_ptr<velodyne::PacketSource> inner_;
+  std::unique_ptr<driver::PacketSource> inner_;
   PcapRecorder* recorder_;
   RawTap raw_tap_;
   std::atomic<bool> stop_{false};

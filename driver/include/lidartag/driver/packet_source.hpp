@@ -7,7 +7,12 @@
 #include <span>
 #include <string>
 
-namespace lidartag::velodyne {
+namespace lidartag::driver {
+
+// The UDP ports a source reads unless told otherwise: a sensor's data port and its auxiliary one
+// (Velodyne's position packets). The defaults are Velodyne's (velodyne/packet.hpp names them).
+inline constexpr uint16_t kDefaultDataPort = 2368;
+inline constexpr uint16_t kDefaultPositionPort = 8308;
 
 struct RawPacket {
   std::span<const uint8_t> payload;  // UDP payload; valid until the next call to next()
@@ -47,4 +52,4 @@ class PacketSource {
   virtual std::string error() const { return {}; }
 };
 
-}  // namespace lidartag::velodyne
+}  // namespace lidartag::driver

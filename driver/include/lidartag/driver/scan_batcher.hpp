@@ -1,4 +1,5 @@
-// Decoded packets -> whole rotations, cut at a configurable azimuth at the column (firing) level.
+// Parsed packets of any vendor -> whole rotations, cut at the column (firing) level where the
+// vendor's delimiter says (a configurable azimuth, or a change of frame id).
 // A small functor: the caller owns the scans and passes the one to fill with every packet; the
 // batcher assembles straight into it (no second copy). Design notes: docs/scan-assembly.md.
 // Its parts, each with one job (driver/include/lidartag/driver/assembly/): StreamScreen (which
@@ -14,11 +15,10 @@
 #include "lidartag/driver/assembly/reorder_window.hpp"
 #include "lidartag/driver/assembly/rotation_assembler.hpp"
 #include "lidartag/driver/assembly/stream_screen.hpp"
-#include "lidartag/driver/decoder.hpp"
+#include "lidartag/driver/columns.hpp"
 #include "lidartag/driver/scan.hpp"
-#include "lidartag/driver/sensor_model.hpp"
 
-namespace lidartag::velodyne {
+namespace lidartag::driver {
 
 class ScanBatcher {
  public:
@@ -29,20 +29,22 @@ class ScanBatcher {
   // the stream in between, that make a new stream (restart, clock jump, replay loop).
   static constexpr int kNewStreamPackets = StreamScreen::kNewStreamPackets;
 
-  ScanBatcher(const ModelSpec& spec, ReturnMode mode, BatcherOptions options);
+  // `layout`: the vendor's description of the sensor (velodyne::sensor_layout()); `return_mode`
+  // and `returns`: of the packets expected first (ColumnPacket).
+  ScanBatcher(const SensorLayout& layout, uint8_t return_mode, int returns, BatcherOptions options);
   ~ScanBatcher();
   ScanBatcher(const ScanBatcher&) = delete;
   ScanBatcher& operator=(const ScanBatcher&) = delete;
 
-  // Adds one packet (parsed or decoded: its columns are written straight into the scan by the
-  // decoder that parsed it, which must outlive this batcher's use of it). Returns true when
+  // Adds one packet (parsed by a vendor's decoder: its columns are written straight into the scan
+  // by that decoder, which must outlive this batcher's use of it). Returns true when
   // `scan` holds a finished rotation (complete or not: Scan::complete); columns after the cut are
   // kept and go first into the next scan passed in, which must then be another one (or this one,
   // once the caller is done with it). While it returns false, pass the same scan again: it holds
   // the rotation in progress. A call ends at most one rotation. A scan whose shape (rings,
   // returns) does not fit is reserved for the model when its rotation begins (first use,
   // return-mode change): a scan may start empty. Never throws, never allocates.
-  [[nodiscard]] bool add(const PacketColumns& packet, Scan& scan);
+  [[nodiscard]] bool add(const ColumnPacket& packet, Scan& scan);
   // The stream ended: delivers what is held back and the rotation in progress (incomplete), one
   // rotation per call: call again while it returns true.
   [[nodiscard]] bool flush(Scan& scan);
@@ -62,20 +64,20 @@ class ScanBatcher {
   uint64_t next_sequence() const { return assembler_.next_sequence(); }
   void continue_sequence(uint64_t next) { assembler_.continue_sequence(next); }
   // Columns a scan needs for one rotation at 300 rpm (the slowest), with margin.
-  static int column_capacity(const ModelSpec& spec) {
-    return RotationAssembler::column_capacity(spec);
+  static int column_capacity(const SensorLayout& layout) {
+    return RotationAssembler::column_capacity(layout);
   }
 
  private:
   // The held packets go into the rotation, which goes on; true when that ended it.
   bool release_held(Scan& scan);
   // add() without the deferred work of earlier calls.
-  bool add_one(const PacketColumns& packet, Scan& scan);
+  bool add_one(const ColumnPacket& packet, Scan& scan);
   // Deferred work of earlier calls (a stream's tail, a packet that came meanwhile): true when it
   // ended a rotation.
   bool catch_up(Scan& scan);
-  void take(const PacketColumns& packet);  // into the window
-  bool pump(Scan& scan);                   // the window down to its depth
+  void take(const ColumnPacket& packet);  // into the window
+  bool pump(Scan& scan);                  // the window down to its depth
   bool release_oldest(Scan& scan, bool may_end);
   void take_pending(Scan& scan);
   void done_with(int slot);
@@ -92,7 +94,7 @@ class ScanBatcher {
   // The candidates of a new stream into the window, in order (their return mode taken).
   void insert_candidates();
 
-  const ModelSpec& spec_;
+  SensorLayout layout_;  // the parts refer to it
   BatcherOptions options_;
   BatcherStats stats_{};
   ReorderWindow window_;
@@ -106,4 +108,4 @@ class ScanBatcher {
   std::unique_ptr<HeldPacket> stash_;
 };
 
-}  // namespace lidartag::velodyne
+}  // namespace lidartag::driver

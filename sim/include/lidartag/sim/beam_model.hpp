@@ -6,7 +6,7 @@
 #include <array>
 #include <span>
 
-#include "lidartag/driver/sensor_model.hpp"
+#include "lidartag/driver/velodyne/sensor_model.hpp"
 #include "lidartag/sim/random.hpp"
 #include "lidartag/sim/scene.hpp"
 

@@ -9,9 +9,9 @@
 #include <span>
 #include <string>
 
-#include "lidartag/driver/encoder.hpp"
-#include "lidartag/driver/packet.hpp"
-#include "lidartag/driver/sensor_model.hpp"
+#include "lidartag/driver/velodyne/encoder.hpp"
+#include "lidartag/driver/velodyne/packet.hpp"
+#include "lidartag/driver/velodyne/sensor_model.hpp"
 
 namespace lidartag::sim {
 

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "lidartag/driver/sensor_model.hpp"
+#include "lidartag/driver/velodyne/sensor_model.hpp"
 
 namespace lidartag::sim {
 

@@ -7,8 +7,8 @@
 #include <array>
 #include <cstdint>
 
-#include "lidartag/driver/encoder.hpp"
-#include "lidartag/driver/sensor_model.hpp"
+#include "lidartag/driver/velodyne/encoder.hpp"
+#include "lidartag/driver/velodyne/sensor_model.hpp"
 #include "lidartag/sim/beam_model.hpp"
 #include "lidartag/sim/geometry.hpp"
 #include "lidartag/sim/random.hpp"

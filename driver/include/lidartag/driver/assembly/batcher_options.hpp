@@ -5,7 +5,7 @@
 
 #include "lidartag/options/rules.hpp"
 
-namespace lidartag::velodyne {
+namespace lidartag::driver {
 
 struct BatcherOptions {
   // Rotations are cut where the firing azimuth crosses this angle (degrees, 0 = straight ahead,
@@ -70,4 +70,4 @@ struct BatcherStats {
   }
 };
 
-}  // namespace lidartag::velodyne
+}  // namespace lidartag::driver

@@ -1,6 +1,7 @@
 // Columns into the scan: consecutive columns of a packet make a run, runs that go to
 // consecutive scan columns make a batch, and the decoder that parsed the packets writes each
-// batch straight into the scan's ring-major storage (Decoder::write_batch): no copy of points.
+// batch straight into the scan's ring-major storage (ColumnDecoder::write_batch, one virtual call
+// per batch of about 32 columns): no copy of points.
 #pragma once
 
 #include <algorithm>
@@ -8,10 +9,10 @@
 #include <cstdint>
 
 #include "lidartag/driver/assembly/reorder_window.hpp"
-#include "lidartag/driver/decoder.hpp"
+#include "lidartag/driver/columns.hpp"
 #include "lidartag/driver/scan.hpp"
 
-namespace lidartag::velodyne {
+namespace lidartag::driver {
 
 class ColumnWriter {
  public:
@@ -24,14 +25,14 @@ class ColumnWriter {
   explicit ColumnWriter(ReorderWindow& held) : held_(held) {}
 
   // The packet whose columns come next, and its slot in the held packets (-1: not held).
-  void start_packet(const PacketColumns& packet, int slot) {
+  void start_packet(const ColumnPacket& packet, int slot) {
     packet_ = &packet;
     packet_slot_ = slot;
   }
   // Column `c` of the current packet, firing at `stamp_ns`, is the scan's next column (inline:
   // once per column).
   void add_column(int c, int64_t stamp_ns, Scan& scan) {
-    const PacketColumns& pk = *packet_;
+    const ColumnPacket& pk = *packet_;
     const int col = scan.columns++;
     const auto ucol = static_cast<size_t>(col);
     // The column's start from the scan's start.
@@ -54,9 +55,11 @@ class ColumnWriter {
   }
   // The current run into the batch (`open`: a rotation is in progress to take it).
   void queue_run(Scan& scan, bool open);
-  // The current packet is done with (its run queued).
+  // The current packet is done with (its run queued; written at once when the packet is not
+  // held: the batch reads the packet until it is written).
   void end_packet(Scan& scan, bool open) {
     queue_run(scan, open);
+    if (packet_slot_ < 0) write_batch(scan);
     packet_ = nullptr;
     packet_slot_ = -1;
   }
@@ -67,7 +70,7 @@ class ColumnWriter {
 
  private:
   ReorderWindow& held_;
-  const PacketColumns* packet_ = nullptr;
+  const ColumnPacket* packet_ = nullptr;
   int packet_slot_ = -1;
   // The run of the current packet's columns waiting to join the batch.
   int run_columns_ = 0, run_packet_column_ = 0, run_scan_column_ = 0;
@@ -75,10 +78,10 @@ class ColumnWriter {
   // Runs waiting to be decoded into the scan from scan column batch_column_ on, and the held
   // packets they read.
   ColumnBatch batch_;
-  const Decoder* decoder_ = nullptr;
+  const ColumnDecoder* decoder_ = nullptr;
   int batch_column_ = 0;
   std::array<int, ReorderWindow::kSlots> batch_slots_{};
   int batch_slot_count_ = 0;
 };
 
-}  // namespace lidartag::velodyne
+}  // namespace lidartag::driver

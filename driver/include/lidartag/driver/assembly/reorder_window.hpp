@@ -4,20 +4,32 @@
 #pragma once
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <memory>
 
-#include "lidartag/driver/decoder.hpp"
-#include "lidartag/driver/packet.hpp"
+#include "lidartag/driver/columns.hpp"
 
-namespace lidartag::velodyne {
+namespace lidartag::driver {
 
-// A packet's columns, pointing at this copy of its bytes.
-struct HeldPacket {
-  PacketColumns columns;
-  std::array<uint8_t, kDataPacketSize> bytes;
+// A copy of a parsed packet (of its vendor's type, made by its decoder), pointing at this copy of
+// its bytes. Storage for packets of up to `max_payload_bytes`, allocated once.
+class HeldPacket {
+ public:
+  explicit HeldPacket(size_t max_payload_bytes);
+  HeldPacket(const HeldPacket&) = delete;
+  HeldPacket& operator=(const HeldPacket&) = delete;
 
-  void hold(const PacketColumns& packet);
+  // Never allocates; the bytes beyond max_payload_bytes are not copied (cannot happen: a
+  // vendor's packets are never larger than its SensorLayout says).
+  void hold(const ColumnPacket& packet);
+  const ColumnPacket& columns() const { return *packet_; }
+
+ private:
+  alignas(std::max_align_t) std::array<std::byte, ColumnPacket::kMaxObjectBytes> object_{};
+  ColumnPacket* packet_;
+  std::unique_ptr<uint8_t[]> bytes_;
+  size_t capacity_;
 };
 
 class ReorderWindow {
@@ -33,17 +45,17 @@ class ReorderWindow {
   // A pause of the source this long (host time) means no reordered packet is on its way.
   static constexpr double kReleaseAfter_s = 0.005;
 
-  ReorderWindow();
+  explicit ReorderWindow(size_t max_payload_bytes);
 
   int size() const { return size_; }
-  const PacketColumns& oldest(int i) const { return packet(order_[static_cast<size_t>(i)]); }
-  const PacketColumns& packet(int slot) const {
-    return (*slots_)[static_cast<size_t>(slot)].columns;
+  const ColumnPacket& oldest(int i) const { return packet(order_[static_cast<size_t>(i)]); }
+  const ColumnPacket& packet(int slot) const {
+    return slots_[static_cast<size_t>(slot)]->columns();
   }
   // Puts a copy of `packet` in place by time. False when no slot is free (cannot happen: the
   // batcher keeps the window at its depth); else `reordered` says whether it went before a
   // packet that arrived earlier.
-  bool insert(const PacketColumns& packet, bool& reordered);
+  bool insert(const ColumnPacket& packet, bool& reordered);
   // The oldest packet's slot, out of the window; it stays taken until free().
   int pop_oldest();
   void free(int slot) { taken_[static_cast<size_t>(slot)] = false; }
@@ -55,7 +67,7 @@ class ReorderWindow {
   bool overlaps(int64_t first_ns, int64_t last_ns) const;
 
  private:
-  std::unique_ptr<std::array<HeldPacket, kSlots>> slots_;
+  std::array<std::unique_ptr<HeldPacket>, kSlots> slots_;
   std::array<int, kSlots> order_{};        // slots of the window, oldest first
   std::array<int64_t, kSlots> last_ns_{};  // per slot: its packet's last column's time
   int size_ = 0;
@@ -63,6 +75,6 @@ class ReorderWindow {
 };
 
 // Time of a packet's last column.
-int64_t last_stamp(const PacketColumns& packet);
+int64_t last_stamp(const ColumnPacket& packet);
 
-}  // namespace lidartag::velodyne
+}  // namespace lidartag::driver

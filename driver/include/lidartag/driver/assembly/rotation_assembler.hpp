@@ -1,6 +1,8 @@
 // Released packets' columns into rotations (docs/scan-assembly.md, "Where a rotation ends"): each
 // column is classified once against the one before it (the next in the rotation, packets lost,
-// a field-of-view gap, the cut, a jump of the stream), and one function ends a rotation.
+// a field-of-view gap, the cut, a jump of the stream), and one function ends a rotation. The cut
+// is the vendor's rotation delimiter (SensorLayout::delimiter): the cut azimuth, or a change of
+// the packets' frame id.
 #pragma once
 
 #include <array>
@@ -9,22 +11,23 @@
 
 #include "lidartag/driver/assembly/batcher_options.hpp"
 #include "lidartag/driver/assembly/column_writer.hpp"
+#include "lidartag/driver/columns.hpp"
 #include "lidartag/driver/scan.hpp"
-#include "lidartag/driver/sensor_model.hpp"
 
-namespace lidartag::velodyne {
+namespace lidartag::driver {
 
 class RotationAssembler {
  public:
-  RotationAssembler(const ModelSpec& spec, ReturnMode mode, const BatcherOptions& options,
-                    ReorderWindow& held, BatcherStats& stats);
+  // `return_mode` and `returns`: of the packets expected first (ColumnPacket).
+  RotationAssembler(const SensorLayout& layout, uint8_t return_mode, int returns,
+                    const BatcherOptions& options, ReorderWindow& held, BatcherStats& stats);
 
   // The columns of `packet` (held in `slot`, -1: not held) into `scan`. With `may_end`, a cut, a
   // jump or a full scan ends the rotation: true, and the packet's columns from there on wait
   // (resume() takes them into the next scan). Without it, a rotation never ends here.
-  bool add_packet(const PacketColumns& packet, int slot, Scan& scan, bool may_end);
+  bool add_packet(const ColumnPacket& packet, int slot, Scan& scan, bool may_end);
   // The columns of the packet that ended the last rotation, from where it ended, into the next.
-  void resume(const PacketColumns& packet, int slot, Scan& scan);
+  void resume(const ColumnPacket& packet, int slot, Scan& scan);
   // The stream ended: the rotation in progress is finished (true when one was open), and the
   // next one neither starts at the cut nor follows any column.
   bool end_stream(Scan& scan);
@@ -38,25 +41,32 @@ class RotationAssembler {
   std::optional<int64_t> last_column_stamp() const {
     return have_last_ ? std::optional<int64_t>(last_column_stamp_ns_) : std::nullopt;
   }
-  ReturnMode mode() const { return mode_; }
-  void set_mode(ReturnMode mode) { mode_ = mode; }
+  uint8_t mode() const { return mode_; }
+  void set_mode(uint8_t return_mode, int returns) {
+    mode_ = return_mode;
+    returns_ = returns;
+  }
   uint64_t next_sequence() const { return sequence_; }
   void continue_sequence(uint64_t next) { sequence_ = next; }
   // Columns a scan needs for one rotation at 300 rpm (the slowest), with margin.
-  static int column_capacity(const ModelSpec& spec);
+  static int column_capacity(const SensorLayout& layout);
 
  private:
   // What a column is, against the one before it.
   struct Step {
-    bool cut = false;      // the cut azimuth lies between them
+    bool cut = false;      // the rotation delimiter lies between them
     bool jump = false;     // a discontinuity of the stream
     uint32_t missing = 0;  // packets lost between them
   };
   static constexpr int kGaps = 8;  // recent gaps counted as missing packets
 
-  bool run(const PacketColumns& packet, int slot, int first, Scan& scan, bool may_end);
+  bool run(const ColumnPacket& packet, int slot, int first, Scan& scan, bool may_end);
   Step classify(double azimuth_deg, int64_t stamp_ns, int per_packet);
+  // kCutAzimuth: the cut azimuth lies in the arc (from, to] travelled clockwise.
   bool crossed_cut(double from_deg, double to_deg) const;
+  // kFrameId: the frame of the column after the last one is that one (0), the next (1), a later
+  // one (the frames between were lost: how many ahead) or an earlier one (-1: the stream jumped).
+  int frame_step() const;
   void begin(Scan& scan, int64_t stamp_ns);
   void finish(Scan& scan, bool ends_at_cut);
   // Ends the rotation before column `c` (at `azimuth_deg`, `stamp_ns`); `carried_missing` is
@@ -65,8 +75,13 @@ class RotationAssembler {
                   bool ends_at_cut);
   void follow(double azimuth_deg, int64_t stamp_ns);
 
-  const ModelSpec& spec_;
-  ReturnMode mode_;
+  const SensorLayout& layout_;
+  uint8_t mode_;
+  int returns_;
+  bool frame_rule_;  // rotations end where the frame id changes (else at the cut azimuth)
+  // The frame of the packet whose columns are being taken, and of the last column taken.
+  bool has_frame_ = false;
+  uint32_t frame_id_ = 0, last_frame_id_ = 0;
   BatcherOptions options_;
   BatcherStats& stats_;
   ColumnWriter writer_;
@@ -93,4 +108,4 @@ class RotationAssembler {
   int gap_next_ = 0;
 };
 
-}  // namespace lidartag::velodyne
+}  // namespace lidartag::driver

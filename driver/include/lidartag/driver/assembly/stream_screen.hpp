@@ -9,9 +9,9 @@
 #include <optional>
 
 #include "lidartag/driver/assembly/reorder_window.hpp"
-#include "lidartag/driver/sensor_model.hpp"
+#include "lidartag/driver/columns.hpp"
 
-namespace lidartag::velodyne {
+namespace lidartag::driver {
 
 class StreamScreen {
  public:
@@ -30,14 +30,14 @@ class StreamScreen {
     float rate_deg_per_us = 0;  // measured inside the packet
   };
 
-  StreamScreen(const ModelSpec& spec, double flush_timeout_s);
+  StreamScreen(const SensorLayout& layout, double flush_timeout_s);
 
   // `last_written_ns`: the time of the newest column already in the rotation, if any.
-  Verdict screen(const PacketColumns& packet, const ReorderWindow& window,
+  Verdict screen(const ColumnPacket& packet, const ReorderWindow& window,
                  std::optional<int64_t> last_written_ns) const;
   // A packet went into the window; one left it for the rotation.
-  void taken(const PacketColumns& packet);
-  void released(const PacketColumns& packet);
+  void taken(const ColumnPacket& packet);
+  void released(const ColumnPacket& packet);
   // The newest packet taken was a stray one: the one before it is the stream's newest again.
   void drop_head();
   // The stream ended: nothing is known of its packets any more.
@@ -47,12 +47,12 @@ class StreamScreen {
 
   // Candidates of a new stream: a packet that does not fit the stream is held if it continues
   // the candidates before it.
-  Candidate add_candidate(const PacketColumns& packet);
+  Candidate add_candidate(const ColumnPacket& packet);
   // A packet that starts a new stream by itself (another return mode).
-  void start_candidates(const PacketColumns& packet);
+  void start_candidates(const ColumnPacket& packet);
   int candidates() const { return candidate_count_; }
-  const PacketColumns& candidate(int i) const {
-    return (*candidates_)[static_cast<size_t>(i)].columns;
+  const ColumnPacket& candidate(int i) const {
+    return candidates_[static_cast<size_t>(i)]->columns();
   }
   // Forgets the candidates; returns how many there were.
   int clear_candidates();
@@ -60,19 +60,19 @@ class StreamScreen {
  private:
   static constexpr int kHistory = 16;  // released packets remembered to recognise duplicates
 
-  static Ref ref_of(const PacketColumns& packet);
+  static Ref ref_of(const ColumnPacket& packet);
   // Whether `packet` continues a stream whose newest packet is `ref` (time and azimuth agree).
-  bool fits(const Ref& ref, const PacketColumns& packet) const;
+  bool fits(const Ref& ref, const ColumnPacket& packet) const;
 
-  const ModelSpec& spec_;
+  const SensorLayout& layout_;
   double flush_timeout_s_;
   bool have_head_ = false, have_previous_head_ = false;
   Ref head_{}, previous_head_{};
   std::array<int64_t, kHistory> released_stamp_{};
   std::array<float, kHistory> released_azimuth_{};
   int released_count_ = 0;
-  std::unique_ptr<std::array<HeldPacket, kNewStreamPackets>> candidates_;
+  std::array<std::unique_ptr<HeldPacket>, kNewStreamPackets> candidates_;
   int candidate_count_ = 0;
 };
 
-}  // namespace lidartag::velodyne
+}  // namespace lidartag::driver

@@ -5,7 +5,7 @@
 #include <stdexcept>
 #include <string>
 
-namespace lidartag::velodyne {
+namespace lidartag::driver {
 
 // A file, socket or interface cannot be opened, created or written.
 class IoError : public std::runtime_error {
@@ -13,4 +13,4 @@ class IoError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-}  // namespace lidartag::velodyne
+}  // namespace lidartag::driver

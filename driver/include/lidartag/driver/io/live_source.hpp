@@ -10,10 +10,9 @@
 
 #include "lidartag/driver/io/errors.hpp"
 #include "lidartag/driver/io/udp_frame.hpp"
-#include "lidartag/driver/packet.hpp"
 #include "lidartag/driver/packet_source.hpp"
 
-namespace lidartag::velodyne {
+namespace lidartag::driver {
 
 struct LiveSourceOptions {
   std::string interface;  // e.g. "eth0"; "any" captures on every interface (cooked frames)
@@ -60,4 +59,4 @@ class LiveSource final : public PacketSource {
   SourceStats stats_{};
 };
 
-}  // namespace lidartag::velodyne
+}  // namespace lidartag::driver

@@ -11,10 +11,9 @@
 
 #include "lidartag/driver/io/errors.hpp"
 #include "lidartag/driver/io/udp_frame.hpp"
-#include "lidartag/driver/packet.hpp"
 #include "lidartag/driver/packet_source.hpp"
 
-namespace lidartag::velodyne {
+namespace lidartag::driver {
 
 enum class ReplayPacing : uint8_t {
   kAsFastAsPossible,  // no waiting: tools and tests
@@ -110,4 +109,4 @@ class PcapSource final : public PacketSource {
   int64_t first_ns_ = 0, last_ns_ = 0, last_interval_ns_ = 0, shift_ns_ = 0;
 };
 
-}  // namespace lidartag::velodyne
+}  // namespace lidartag::driver

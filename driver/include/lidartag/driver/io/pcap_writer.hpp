@@ -19,7 +19,7 @@
 
 #include "lidartag/driver/io/errors.hpp"
 
-namespace lidartag::velodyne {
+namespace lidartag::driver {
 
 enum class PcapWriteStatus : uint8_t {
   kOk,          // the record is buffered (or in the file)
@@ -87,4 +87,4 @@ class PcapWriter {
   std::string error_;
 };
 
-}  // namespace lidartag::velodyne
+}  // namespace lidartag::driver

@@ -10,7 +10,7 @@
 
 #include "lidartag/driver/packet_source.hpp"
 
-namespace lidartag::velodyne {
+namespace lidartag::driver {
 
 // libpcap DLT_ values of the supported link types (the numbers of <pcap/dlt.h> on Linux).
 enum class LinkType : int {
@@ -64,4 +64,4 @@ struct UdpFilter {
 std::string ipv4_to_string(uint32_t address);
 bool parse_ipv4_address(std::string_view text, uint32_t& address);
 
-}  // namespace lidartag::velodyne
+}  // namespace lidartag::driver

@@ -12,10 +12,9 @@
 #include <vector>
 
 #include "lidartag/driver/io/errors.hpp"
-#include "lidartag/driver/packet.hpp"
 #include "lidartag/driver/packet_source.hpp"
 
-namespace lidartag::velodyne {
+namespace lidartag::driver {
 
 struct UdpSourceOptions {
   // Local IPv4 address to bind; 0.0.0.0 receives on every interface (sensors broadcast). A
@@ -86,4 +85,4 @@ class UdpSource final : public PacketSource {
   size_t next_socket_ = 0;
 };
 
-}  // namespace lidartag::velodyne
+}  // namespace lidartag::driver

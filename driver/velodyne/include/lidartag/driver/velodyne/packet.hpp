@@ -8,6 +8,8 @@
 #include <span>
 #include <string_view>
 
+#include "lidartag/driver/packet_source.hpp"
+
 namespace lidartag::velodyne {
 
 inline constexpr size_t kDataPacketSize = 1206;     // UDP payload, port 2368
@@ -19,8 +21,8 @@ inline constexpr size_t kTimestampOffset = 1200;  // uint32, us since the top of
 inline constexpr size_t kReturnModeOffset = 1204;
 inline constexpr size_t kProductIdOffset = 1205;
 inline constexpr uint16_t kMaxAzimuth = 35999;  // hundredths of a degree
-inline constexpr uint16_t kDefaultDataPort = 2368;
-inline constexpr uint16_t kDefaultPositionPort = 8308;
+using driver::kDefaultDataPort;                 // 2368 (the io sources' defaults)
+using driver::kDefaultPositionPort;             // 8308
 
 // Block flags as read little-endian: FF EE -> 0xEEFF. VLS-128 banks 0..3 use EE, DD, CC, BB.
 inline constexpr std::array<uint16_t, 4> kBankFlags = {0xEEFF, 0xDDFF, 0xCCFF, 0xBBFF};

@@ -1,10 +1,10 @@
-// Azimuth arithmetic shared by the decoder and the batcher (private to the driver).
+// Azimuth arithmetic shared by the assembly and the vendors' decoders.
 #pragma once
 
 #include <cmath>
 #include <cstdint>
 
-namespace lidartag::velodyne {
+namespace lidartag::driver {
 
 // Degrees into [0, 360). Differences of two azimuths in [0, 360) need one add, not a division
 // (they are wrapped per column).
@@ -34,4 +34,4 @@ inline float wrap_near(float deg) {
   return deg >= 360.0f ? deg - 360.0f : deg;
 }
 
-}  // namespace lidartag::velodyne
+}  // namespace lidartag::driver

@@ -1,4 +1,4 @@
-#include "lidartag/driver/sensor_model.hpp"
+#include "lidartag/driver/velodyne/sensor_model.hpp"
 
 #include <algorithm>
 #include <array>

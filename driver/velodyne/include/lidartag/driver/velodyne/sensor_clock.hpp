@@ -4,7 +4,7 @@
 
 #include <cstdint>
 
-#include "lidartag/driver/packet.hpp"
+#include "lidartag/driver/velodyne/packet.hpp"
 
 namespace lidartag::velodyne {
 

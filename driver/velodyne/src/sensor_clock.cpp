@@ -1,4 +1,4 @@
-#include "lidartag/driver/sensor_clock.hpp"
+#include "lidartag/driver/velodyne/sensor_clock.hpp"
 
 #include <cstdlib>
 

@@ -1,4 +1,4 @@
-#include "lidartag/driver/io/calibration_file.hpp"
+#include "lidartag/driver/velodyne/io/calibration_file.hpp"
 
 #include <cmath>
 #include <filesystem>

@@ -1,4 +1,4 @@
-#include "lidartag/driver/io/pcd.hpp"
+#include "lidartag/driver/velodyne/io/pcd.hpp"
 
 #include <lzf.h>
 
@@ -162,7 +162,7 @@ std::string data(const std::vector<OutPoint>& points, PcdFormat format, const st
   for (size_t f = 0; f < kFieldCount; ++f)
     for (const auto& point : points) put_field(p, point, f);
   if (bytes.size() > std::numeric_limits<uint32_t>::max() / 2) {
-    throw IoError("PCD file '" + path + "': too many points for binary_compressed");
+    throw driver::IoError("PCD file '" + path + "': too many points for binary_compressed");
   }
   // LZF output is at most 1 byte per 32 larger than its input.
   std::string packed(8 + bytes.size() + bytes.size() / 32 + 16, '\0');
@@ -171,7 +171,7 @@ std::string data(const std::vector<OutPoint>& points, PcdFormat format, const st
   const unsigned compressed =
       in_len == 0 ? 0 : lzf_compress(bytes.data(), in_len, packed.data() + 8, out_len);
   if (in_len > 0 && compressed == 0) {
-    throw IoError("PCD file '" + path + "': LZF compression failed");
+    throw driver::IoError("PCD file '" + path + "': LZF compression failed");
   }
   std::memcpy(packed.data(), &compressed, 4);
   std::memcpy(packed.data() + 4, &in_len, 4);
@@ -181,8 +181,8 @@ std::string data(const std::vector<OutPoint>& points, PcdFormat format, const st
 
 // ---- Reading ----
 
-IoError pcd_error(const std::string& path, const std::string& problem) {
-  return IoError("PCD file '" + path + "': " + problem);
+driver::IoError pcd_error(const std::string& path, const std::string& problem) {
+  return driver::IoError("PCD file '" + path + "': " + problem);
 }
 
 template <typename T>
@@ -286,11 +286,11 @@ size_t write_pcd(const std::string& path, const Scan& scan, const PcdWriteOption
       options.organized ? static_cast<size_t>(scan.rings) * static_cast<size_t>(scan.returns) : 1;
   const std::string body = data(points, options.format, path);
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  if (!out) throw IoError("cannot create PCD file '" + path + "'");
+  if (!out) throw driver::IoError("cannot create PCD file '" + path + "'");
   out << header(scan, options, width, height);
   out.write(body.data(), static_cast<std::streamsize>(body.size()));
   out.close();
-  if (!out) throw IoError("cannot write PCD file '" + path + "'");
+  if (!out) throw driver::IoError("cannot write PCD file '" + path + "'");
   return valid;
 }
 
@@ -316,7 +316,7 @@ bool PcdCloud::has(const std::string& name) const {
 
 const std::vector<double>& PcdCloud::field(const std::string& name) const {
   const auto it = std::find(fields.begin(), fields.end(), name);
-  if (it == fields.end()) throw IoError("PCD cloud has no field '" + name + "'");
+  if (it == fields.end()) throw driver::IoError("PCD cloud has no field '" + name + "'");
   return columns[static_cast<size_t>(it - fields.begin())];
 }
 

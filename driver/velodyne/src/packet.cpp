@@ -1,4 +1,4 @@
-#include "lidartag/driver/packet.hpp"
+#include "lidartag/driver/velodyne/packet.hpp"
 
 #include <algorithm>
 #include <charconv>

@@ -5,8 +5,8 @@
 #include <stdexcept>
 #include <string>
 
-#include "lidartag/driver/calibration.hpp"
-#include "lidartag/driver/sensor_model.hpp"
+#include "lidartag/driver/velodyne/calibration.hpp"
+#include "lidartag/driver/velodyne/sensor_model.hpp"
 
 namespace lidartag::velodyne {
 

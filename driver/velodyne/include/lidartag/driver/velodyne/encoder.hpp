@@ -6,8 +6,8 @@
 #include <cstdint>
 #include <span>
 
-#include "lidartag/driver/packet.hpp"
-#include "lidartag/driver/sensor_model.hpp"
+#include "lidartag/driver/velodyne/packet.hpp"
+#include "lidartag/driver/velodyne/sensor_model.hpp"
 
 namespace lidartag::velodyne {
 

@@ -1,14 +1,32 @@
-#include "lidartag/driver/decoder.hpp"
+#include "lidartag/driver/velodyne/decoder.hpp"
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
+#include <new>
 #include <numbers>
 #include <type_traits>
 #include <vector>
 
-#include "angles.hpp"
+#include "lidartag/driver/angles.hpp"
 
 namespace lidartag::velodyne {
+
+using driver::wrap360;
+using driver::wrap_near;
+
+driver::SensorLayout sensor_layout(const ModelSpec& spec) {
+  driver::SensorLayout layout;
+  layout.model = static_cast<uint8_t>(spec.model);
+  layout.rings = spec.lasers;
+  layout.column_period_us = spec.firing_period_us;
+  layout.packet_columns_single = spec.columns_per_packet(ReturnMode::kStrongest);
+  layout.packet_columns_dual = spec.columns_per_packet(ReturnMode::kDual);
+  layout.max_payload_bytes = kDataPacketSize;
+  layout.delimiter = driver::RotationDelimiter::kCutAzimuth;  // packets carry no rotation number
+  return layout;
+}
+
 namespace {
 
 constexpr double kDegToRad = std::numbers::pi / 180.0;
@@ -154,7 +172,7 @@ struct LaserConstants {
 // distance | intensity << 16 (one load, one compare for a pair of echoes), one ring ahead of
 // its conversion (see write_batch()).
 struct RingEchoes {
-  static constexpr size_t kN = ColumnBatch::kMaxColumns;
+  static constexpr size_t kN = detail::BatchColumns::kMaxColumns;
   // As gathered: the last echo and the strongest (or second strongest), or the only one; whether
   // any cell has two different echoes.
   struct Gathered {
@@ -468,11 +486,12 @@ DecodeStatus Decoder::parse(std::span<const uint8_t> payload, const SensorClock&
   out.rings = spec.lasers;
   out.returns = dual ? 2 : 1;
   out.laser_of_ring = laser_of_ring_.data();
-  out.mode = mode;
+  out.return_mode = static_cast<uint8_t>(mode);
   out.usec_since_hour = usec;
   out.stamp_ns = clock.join(usec, receive_time_ns);
   out.decoder = this;
   out.payload = p;
+  out.payload_size = payload.size();
 
   const float* trig_t = trig_table_;
   for (int g = 0; g < groups; ++g) {
@@ -524,14 +543,14 @@ void Decoder::write_points(const PacketColumns& pk, int first, int count,
                          lasers_per_firing};
   const uint8_t* p = pk.payload;
   const ReturnType single_type =
-      pk.mode == ReturnMode::kLast ? ReturnType::kLast : ReturnType::kStrongest;
+      pk.mode() == ReturnMode::kLast ? ReturnType::kLast : ReturnType::kStrongest;
   // Runs of a few columns (VLS-128 packets, the ends of a rotation): per firing, vectorised over
   // the lasers, scattered into the rings. Longer runs: per ring, vectorised over the columns,
   // stored as runs.
   if (count >= kRingKernelMinColumns) {
-    ColumnBatch batch;
+    detail::BatchColumns batch;
     (void)batch.append(pk, first, count, sink.time_offset);
-    write_batch(batch, sink);
+    write_columns(batch, sink);
     return;
   }
   {
@@ -571,14 +590,33 @@ void Decoder::write_points(const PacketColumns& pk, int first, int count,
   }
 }
 
-bool ColumnBatch::append(const PacketColumns& pk, int first, int count, float t_off) {
+driver::ColumnPacket* Decoder::copy_packet(const driver::ColumnPacket& packet,
+                                           std::span<std::byte> storage) const {
+  static_assert(std::is_trivially_copyable_v<PacketColumns>);
+  static_assert(sizeof(PacketColumns) <= driver::ColumnPacket::kMaxObjectBytes);
+  static_assert(alignof(PacketColumns) <= alignof(std::max_align_t));
+  // The assembly gives this decoder only the packets it parsed: PacketColumns.
+  return new (storage.data()) PacketColumns(static_cast<const PacketColumns&>(packet));
+}
+
+void Decoder::write_batch(const driver::ColumnBatch& batch, const PointSink& sink) const {
+  detail::BatchColumns columns;
+  for (int i = 0; i < batch.runs; ++i) {
+    const driver::ColumnBatch::Run& r = batch.run[static_cast<size_t>(i)];
+    (void)columns.append(static_cast<const PacketColumns&>(*r.packet), r.first, r.count,
+                         r.time_offset);
+  }
+  write_columns(columns, sink);
+}
+
+bool detail::BatchColumns::append(const PacketColumns& pk, int first, int count, float t_off) {
   const int n = columns;
   if (count <= 0 || n + count > kMaxColumns) return false;
-  const int pk_returns = pk.mode == ReturnMode::kDual ? 2 : 1;
+  const int pk_returns = pk.mode() == ReturnMode::kDual ? 2 : 1;
   if (n == 0) {
-    mode = pk.mode;
+    mode = pk.mode();
     returns = pk_returns;
-  } else if (pk.mode != mode) {
+  } else if (pk.mode() != mode) {
     return false;
   }
   const auto src = static_cast<std::ptrdiff_t>(first), dst = static_cast<std::ptrdiff_t>(n);
@@ -595,7 +633,8 @@ bool ColumnBatch::append(const PacketColumns& pk, int first, int count, float t_
   return true;
 }
 
-LIDARTAG_AVX2_CLONE void Decoder::write_batch(const ColumnBatch& b, const PointSink& sink) const {
+LIDARTAG_AVX2_CLONE void Decoder::write_columns(const detail::BatchColumns& b,
+                                                const PointSink& sink) const {
   const int count = b.columns;
   if (count <= 0) return;
   const bool dual = b.returns == 2;

@@ -12,21 +12,21 @@
 #include <string>
 #include <vector>
 
-#include "lidartag/driver/calibration.hpp"
-#include "lidartag/driver/decoder.hpp"
 #include "lidartag/driver/io/pcap_source.hpp"
-#include "lidartag/driver/packet.hpp"
 #include "lidartag/driver/packet_source.hpp"
 #include "lidartag/driver/scan.hpp"
 #include "lidartag/driver/scan_batcher.hpp"
-#include "lidartag/driver/sensor_clock.hpp"
+#include "lidartag/driver/velodyne/calibration.hpp"
+#include "lidartag/driver/velodyne/decoder.hpp"
+#include "lidartag/driver/velodyne/packet.hpp"
+#include "lidartag/driver/velodyne/sensor_clock.hpp"
 
 namespace lidartag::velodyne {
 
 struct CaptureReaderOptions {
   // Ports tell data from position packets; the file constructor also opens the capture with these
   // options (as fast as possible unless pacing is set).
-  PcapSourceOptions source;
+  driver::PcapSourceOptions source;
   // Model to decode as. Empty: the product byte of the data packets, checked against their timing
   // by ModelCheck (see model_mismatch()); the timing's model when the byte names none.
   std::optional<Model> model;
@@ -34,7 +34,7 @@ struct CaptureReaderOptions {
   std::string calibration_file;
   // Range limits.
   DecoderOptions decoder;
-  BatcherOptions batcher;
+  driver::BatcherOptions batcher;
   // Data packets examined before the model is decided when it is not given (held back, then
   // decoded in order). Only payloads laid out as data packets count (see ModelCheck); ModelCheck
   // needs about ten for the timing. At most max(1024, 4 x this) packets are held; traffic that
@@ -71,7 +71,7 @@ class CaptureReader {
   // Opens the capture file (IoError) and, with a model given, the calibration (CalibrationError).
   CaptureReader(const std::string& path, CaptureReaderOptions options);
   // Reads from any source (live or replay); ends when the source reports kEnd or kError.
-  CaptureReader(std::unique_ptr<PacketSource> source, CaptureReaderOptions options);
+  CaptureReader(std::unique_ptr<driver::PacketSource> source, CaptureReaderOptions options);
   ~CaptureReader();
   CaptureReader(const CaptureReader&) = delete;
   CaptureReader& operator=(const CaptureReader&) = delete;
@@ -105,10 +105,10 @@ class CaptureReader {
   // (or calibration file) that the packets' product byte and timing contradict.
   std::string model_mismatch() const;
   const CaptureCounts& counts() const { return counts_; }
-  SourceStats source_stats() const { return source_->stats(); }
+  driver::SourceStats source_stats() const { return source_->stats(); }
   // Why the source ended before its end (PacketSource::error()); empty if it did not.
   std::string source_error() const { return source_->error(); }
-  BatcherStats batcher_stats() const;
+  driver::BatcherStats batcher_stats() const;
   const SensorClock& clock() const { return clock_; }
   const Calibration* calibration() const;
 
@@ -120,7 +120,7 @@ class CaptureReader {
   };
 
   // Each returns true when `scan` received a finished rotation.
-  bool take(const RawPacket& packet, Scan& scan);
+  bool take(const driver::RawPacket& packet, Scan& scan);
   bool handle(std::span<const uint8_t> payload, int64_t time_ns, uint16_t port, Scan& scan);
   void decide();
   // Per data packet after the decision: checks that the packets still fit the model in use.
@@ -130,11 +130,11 @@ class CaptureReader {
   // Decodes as `model` from now on (what was assembled with the old one is delivered first).
   void switch_model(Model model);
 
-  std::unique_ptr<PacketSource> source_;
+  std::unique_ptr<driver::PacketSource> source_;
   CaptureReaderOptions options_;
   std::unique_ptr<Decoder> decoder_;
-  std::unique_ptr<ScanBatcher> batcher_;
-  BatcherStats retired_;                   // of the batchers of models switched away from
+  std::unique_ptr<driver::ScanBatcher> batcher_;
+  driver::BatcherStats retired_;           // of the batchers of models switched away from
   uint64_t next_sequence_ = 0;             // of a batcher switched away from
   std::unique_ptr<PacketColumns> packet_;  // parsed: the batcher decodes it into the scan
   SensorClock clock_;

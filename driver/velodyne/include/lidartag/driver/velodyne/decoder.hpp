@@ -1,4 +1,5 @@
-// Data packet -> points of up to 24 columns, in ring order. Pure: no I/O, no allocation per packet.
+// Velodyne data packet -> points of up to 24 columns, in ring order; the decoder behind the
+// assembly's seam (lidartag/driver/columns.hpp). Pure: no I/O, no allocation per packet.
 #pragma once
 
 #include <array>
@@ -7,11 +8,13 @@
 #include <span>
 #include <string>
 
-#include "lidartag/driver/calibration.hpp"
-#include "lidartag/driver/packet.hpp"
+#include "lidartag/driver/columns.hpp"
 #include "lidartag/driver/scan.hpp"
-#include "lidartag/driver/sensor_clock.hpp"
-#include "lidartag/driver/sensor_model.hpp"
+#include "lidartag/driver/scan_batcher.hpp"
+#include "lidartag/driver/velodyne/calibration.hpp"
+#include "lidartag/driver/velodyne/packet.hpp"
+#include "lidartag/driver/velodyne/sensor_clock.hpp"
+#include "lidartag/driver/velodyne/sensor_model.hpp"
 #include "lidartag/options/rules.hpp"
 
 namespace lidartag::velodyne {
@@ -25,32 +28,35 @@ enum class DecodeStatus : uint8_t {
 };
 std::string_view decode_status_name(DecodeStatus s);
 
-class Decoder;
+using driver::PointSink;
 
-// What Decoder::parse() reads of a data packet: its header, its columns' azimuths and times, and
-// what write_points() needs to decode the points of any run of its columns later, from `payload`
+// The SensorLayout of a model (driver/columns.hpp): what the shared assembly knows of it. Rotations
+// are delimited by the cut azimuth; Scan::model is the Model's number.
+driver::SensorLayout sensor_layout(const ModelSpec& spec);
+// Returns per column in this mode: 2 in dual mode, else 1.
+constexpr int returns_of(ReturnMode mode) {
+  return mode == ReturnMode::kDual ? 2 : 1;
+}
+// The shared batcher for this model's packets, `mode` expected first.
+inline driver::ScanBatcher make_batcher(const ModelSpec& spec, ReturnMode mode,
+                                        driver::BatcherOptions options = {}) {
+  return driver::ScanBatcher(sensor_layout(spec), static_cast<uint8_t>(mode), returns_of(mode),
+                             options);
+}
+
+// What Decoder::parse() reads of a data packet: the assembly's header (its columns' azimuths,
+// times and spin rates, its shape; return_mode is byte 1204, returns 2 in dual mode) and what
+// write_points() needs to decode the points of any run of its columns later, from `payload`
 // (which must then still be valid: a copy of this struct may point it at a copy of the bytes).
-struct PacketColumns {
-  static constexpr int kMaxColumns = 24;
-  static constexpr int kMaxRings = 128;
-
-  int columns = 0;
-  int rings = 0;
-  int returns = 1;
-  ReturnMode mode = ReturnMode::kStrongest;
+struct PacketColumns : driver::ColumnPacket {
   uint32_t usec_since_hour = 0;  // packet timestamp field
-  int64_t stamp_ns = 0;          // absolute time of the packet's first firing (SensorClock)
-  const uint8_t* laser_of_ring = nullptr;               // rings entries, owned by the Decoder
-  std::array<float, kMaxColumns> column_azimuth_deg{};  // firing azimuth, [0, 360)
-  std::array<double, kMaxColumns> column_time_us{};     // from the packet's first firing
-
-  const Decoder* decoder = nullptr;  // the one that parsed it (owns the calibration)
-  const uint8_t* payload = nullptr;  // kDataPacketSize bytes
   // Per column, what every point of the column shares: the firing azimuth's cos/sin, the spin
-  // rate (deg and rad per us), the firing time (us, float) and, per echo and bank, the payload
-  // offset of the column's channel 0.
-  std::array<float, kMaxColumns> cos_az{}, sin_az{}, rate_deg{}, rate_rad{}, time0_us{};
+  // rate in rad per us, the firing time (us, float) and, per echo and bank, the payload offset of
+  // the column's channel 0.
+  std::array<float, kMaxColumns> cos_az{}, sin_az{}, rate_rad{}, time0_us{};
   std::array<std::array<std::array<uint16_t, 4>, 2>, kMaxColumns> channel_offset{};
+
+  ReturnMode mode() const { return static_cast<ReturnMode>(return_mode); }
 };
 
 // A data packet with its points (Decoder::decode()). Cells are indexed [ret][ring][col]
@@ -65,40 +71,28 @@ struct DecodedPacket : PacketColumns {
   int at(int ret, int col, int ring) const { return (ret * rings + ring) * columns + col; }
 };
 
-// Runs of columns of one or several parsed packets (of one decoder) bound for consecutive columns
-// of one scan, decoded together ring by ring (Decoder::write_batch()): every ring's run is then
-// long, also for packets of few columns (VLS-128: 3, dual 1). The packets' bytes must still be
-// valid when the batch is written.
-struct ColumnBatch {
-  static constexpr int kMaxColumns = 48;
+namespace detail {
+// The columns of a driver::ColumnBatch gathered for the ring-by-ring kernel (Decoder::write_batch):
+// every ring's run is then long, also for packets of few columns (VLS-128: 3, dual 1). The
+// packets' bytes must still be valid when the batch is written.
+struct BatchColumns {
+  static constexpr int kMaxColumns = driver::ColumnBatch::kMaxColumns;
   int columns = 0;
   int returns = 1;
   ReturnMode mode = ReturnMode::kStrongest;
   // Per column: its packet's bytes and channel offsets, and what compute_firing() needs; the time
   // offset of its run (written times are time_offset + t_us * PointSink::time_scale).
-  std::array<const uint8_t*, kMaxColumns> payload{};
-  std::array<std::array<std::array<uint16_t, 4>, 2>, kMaxColumns> channel_offset{};
-  std::array<float, kMaxColumns> cos_az{}, sin_az{}, azimuth_deg{}, rate_deg{}, rate_rad{},
-      time0_us{}, time_offset{};
+  // (Not zeroed: a batch is gathered on the stack per write, and only its `columns` are read.)
+  std::array<const uint8_t*, kMaxColumns> payload;
+  std::array<std::array<std::array<uint16_t, 4>, 2>, kMaxColumns> channel_offset;
+  std::array<float, kMaxColumns> cos_az, sin_az, azimuth_deg, rate_deg, rate_rad, time0_us,
+      time_offset;
 
   // Adds `count` columns of `packet` from `first`; false (nothing added) when they do not fit or
   // the packet's return mode differs from the batch's.
   bool append(const PacketColumns& packet, int first, int count, float time_offset);
 };
 
-// Where write_points() puts a run of columns: pointers to the run's first cell of return 0,
-// ring 0, per field; cells of the next ring are `ring_stride` further, of return 1
-// `return_stride` further. Times are written as time_offset + t_us * time_scale, t_us from the
-// packet's first firing.
-struct PointSink {
-  float *x, *y, *z, *range, *azimuth_deg, *time;
-  uint8_t* intensity;
-  ReturnType* return_type;
-  size_t ring_stride, return_stride;
-  float time_offset, time_scale;
-};
-
-namespace detail {
 // Per-laser constants of the per-point loop, a struct of arrays so that it vectorises. Floats:
 // 24 bits resolve 15 um at 200 m, well below the 2-4 mm distance unit.
 struct LaserTable {
@@ -132,7 +126,7 @@ void visit_decoder_options(V& v, DecoderOptions& o) {
 
 // Decodes data packets of one sensor. Holds the calibration, per-laser constants and the last
 // measured rotation rate (used where a packet's own azimuths cannot give it).
-class Decoder {
+class Decoder final : public driver::ColumnDecoder {
  public:
   // `calibration.model` is the model decoded; the calibration must match it (lasers count).
   explicit Decoder(Calibration calibration, DecoderOptions options = {});
@@ -145,9 +139,11 @@ class Decoder {
   // error `out` is left untouched. `payload` must outlive the use of `out`.
   [[nodiscard]] DecodeStatus parse(std::span<const uint8_t> payload, const SensorClock& clock,
                                    int64_t receive_time_ns, PacketColumns& out);
-  // The points of a batch of columns into `sink` (its time_offset unused: the batch has one per
-  // column). Never allocates.
-  void write_batch(const ColumnBatch& batch, const PointSink& sink) const;
+  // The points of a batch of columns (of packets this decoder parsed) into `sink` (its
+  // time_offset unused: each run has one). Never allocates.
+  void write_batch(const driver::ColumnBatch& batch, const PointSink& sink) const override;
+  driver::ColumnPacket* copy_packet(const driver::ColumnPacket& packet,
+                                    std::span<std::byte> storage) const override;
   // The points of `count` columns from `first` of a parsed packet into `sink`. Never allocates.
   void write_points(const PacketColumns& packet, int first, int count, const PointSink& sink) const;
 
@@ -159,6 +155,9 @@ class Decoder {
  private:
   Calibration calibration_;
   DecoderOptions options_;
+  // The ring-by-ring kernel over gathered columns.
+  void write_columns(const detail::BatchColumns& batch, const PointSink& sink) const;
+
   const ModelSpec* spec_;
   double min_range_m_, max_range_m_;
   detail::LaserTable lasers_{};

@@ -10,7 +10,7 @@
 
 #include "lidartag/driver/io/errors.hpp"
 #include "lidartag/driver/scan.hpp"
-#include "lidartag/driver/sensor_model.hpp"
+#include "lidartag/driver/velodyne/sensor_model.hpp"
 
 namespace lidartag::velodyne {
 

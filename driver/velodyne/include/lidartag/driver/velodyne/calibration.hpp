@@ -4,7 +4,7 @@
 
 #include <vector>
 
-#include "lidartag/driver/sensor_model.hpp"
+#include "lidartag/driver/velodyne/sensor_model.hpp"
 
 namespace lidartag::velodyne {
 

@@ -1,9 +1,9 @@
-#include "lidartag/driver/io/capture_reader.hpp"
+#include "lidartag/driver/velodyne/io/capture_reader.hpp"
 
 #include <algorithm>
 #include <cmath>
 
-#include "lidartag/driver/io/calibration_file.hpp"
+#include "lidartag/driver/velodyne/io/calibration_file.hpp"
 
 namespace lidartag::velodyne {
 
@@ -17,9 +17,10 @@ constexpr size_t kModelEpochPackets = 64;
 }  // namespace
 
 CaptureReader::CaptureReader(const std::string& path, CaptureReaderOptions options)
-    : CaptureReader(std::make_unique<PcapSource>(path, options.source), options) {}
+    : CaptureReader(std::make_unique<driver::PcapSource>(path, options.source), options) {}
 
-CaptureReader::CaptureReader(std::unique_ptr<PacketSource> source, CaptureReaderOptions options)
+CaptureReader::CaptureReader(std::unique_ptr<driver::PacketSource> source,
+                             CaptureReaderOptions options)
     : source_(std::move(source)),
       options_(std::move(options)),
       packet_(std::make_unique<PacketColumns>()) {
@@ -32,8 +33,8 @@ const Calibration* CaptureReader::calibration() const {
   return decoder_ ? &decoder_->calibration() : nullptr;
 }
 
-BatcherStats CaptureReader::batcher_stats() const {
-  BatcherStats s = retired_;
+driver::BatcherStats CaptureReader::batcher_stats() const {
+  driver::BatcherStats s = retired_;
   if (batcher_) s += batcher_->stats();
   return s;
 }
@@ -125,7 +126,7 @@ void CaptureReader::decide() {
   decoder_ = std::make_unique<Decoder>(std::move(calibration), options_.decoder);
 }
 
-bool CaptureReader::take(const RawPacket& p, Scan& scan) {
+bool CaptureReader::take(const driver::RawPacket& p, Scan& scan) {
   if (counts_.first_time_ns == 0) counts_.first_time_ns = p.receive_time_ns;
   counts_.last_time_ns = p.receive_time_ns;
   if (p.destination_port == options_.source.data_port) {
@@ -188,10 +189,11 @@ bool CaptureReader::handle(std::span<const uint8_t> payload, int64_t time_ns, ui
   }
   ++counts_.decoded;
   if (!batcher_) {
-    batcher_ = std::make_unique<ScanBatcher>(decoder_->spec(), packet_->mode, options_.batcher);
+    batcher_ = std::make_unique<driver::ScanBatcher>(
+        sensor_layout(decoder_->spec()), packet_->return_mode, packet_->returns, options_.batcher);
     batcher_->continue_sequence(next_sequence_);
   }
-  mode_ = packet_->mode;
+  mode_ = packet_->mode();
   // A pause in the packets' own clock longer than flush_timeout_s makes the stream a new one for
   // the batcher (its screening, not this packet's possibly spoofed time, ends the rotation).
   return batcher_->add(*packet_, scan);
@@ -231,12 +233,12 @@ CaptureReader::ReadResult CaptureReader::read(Scan& scan, std::chrono::milliseco
     // Rounded up: a source that waits the whole timeout returns after the deadline, not just
     // before it (which would take another call).
     const auto left = std::chrono::ceil<std::chrono::milliseconds>(deadline - now);
-    RawPacket packet;
-    const ReadStatus status =
+    driver::RawPacket packet;
+    const driver::ReadStatus status =
         source_->next(packet, std::max(left, std::chrono::milliseconds::zero()));
-    if (status == ReadStatus::kPacket) {
+    if (status == driver::ReadStatus::kPacket) {
       if (take(packet, scan)) return ReadResult::kRotation;
-    } else if (status == ReadStatus::kEnd || status == ReadStatus::kError) {
+    } else if (status == driver::ReadStatus::kEnd || status == driver::ReadStatus::kError) {
       if (!decided_ && !draining_) decide();
       source_ended_ = true;
       continue;

@@ -11,7 +11,7 @@
 #include <string_view>
 
 #include "calibration_entries.hpp"
-#include "lidartag/driver/io/calibration_file.hpp"
+#include "lidartag/driver/velodyne/io/calibration_file.hpp"
 
 namespace lidartag::velodyne::detail {
 namespace {

@@ -1,4 +1,4 @@
-#include "lidartag/driver/calibration.hpp"
+#include "lidartag/driver/velodyne/calibration.hpp"
 
 #include <algorithm>
 #include <numeric>

@@ -1,4 +1,4 @@
-#include "lidartag/driver/encoder.hpp"
+#include "lidartag/driver/velodyne/encoder.hpp"
 
 #include <algorithm>
 

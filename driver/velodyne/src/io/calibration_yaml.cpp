@@ -6,7 +6,7 @@
 #include <optional>
 
 #include "calibration_entries.hpp"
-#include "lidartag/driver/io/calibration_file.hpp"
+#include "lidartag/driver/velodyne/io/calibration_file.hpp"
 
 namespace lidartag::velodyne::detail {
 namespace {
