@@ -47,11 +47,21 @@ class ShiftedPoints {
 
 }  // namespace
 
+IntensityLevels board_levels(std::span<const ClusterPoint> points, const RigidPose& pose, double t,
+                             std::vector<ClusterPoint>& inside, DecodeWorkspace& ws) {
+  inside.clear();
+  for (const ClusterPoint& p : points) {
+    const Eigen::Vector3d q = pose.apply(Eigen::Vector3d(p.x, p.y, p.z));
+    if (std::abs(q.y()) <= t / 2 && std::abs(q.z()) <= t / 2) inside.push_back(p);
+  }
+  return inside.size() >= 16 ? intensity_levels(inside, ws) : intensity_levels(points, ws);
+}
+
 ClusterDecode decode_cluster(std::span<const ClusterPoint> points, const RigidPose& pose,
                              const Eigen::Vector3d& unseen_axis, double t,
                              std::span<const RkhsDictionary> dictionaries,
                              std::span<const RkhsDictionary> decoys, const DecodeOptions& opt,
-                             ClusterDecodeWorkspace& ws, double board_slack_m) {
+                             ClusterDecodeWorkspace& ws, bool on_board, double board_slack_m) {
   ClusterDecode out;
   ws.hypotheses.clear();
   ws.shifts.clear();
@@ -85,11 +95,14 @@ ClusterDecode decode_cluster(std::span<const ClusterPoint> points, const RigidPo
   const double cell = t / dictionaries.front().width();
   const bool search = !unseen_axis.isZero();
   out.shift_searched = search;
-  // On a board (board_slack_m > 0) the points reach past the tag: it may sit anywhere the board
-  // holds it, up to board_slack_m either way.
-  const double s0 = !search ? 0.0 : board_slack_m > 0 ? -board_slack_m : std::min(0.0, hi - t / 2);
-  const double s1 = !search ? 0.0 : board_slack_m > 0 ? board_slack_m : std::max(0.0, lo + t / 2);
-  ShiftedPoints shifted(ws, axis, intensity_levels(ws.pulled, ws.decode), t);
+  // On a board the points reach past the tag: it may sit anywhere the board holds it, up to
+  // board_slack_m either way.
+  const double s0 = !search ? 0.0 : on_board ? -board_slack_m : std::min(0.0, hi - t / 2);
+  const double s1 = !search ? 0.0 : on_board ? board_slack_m : std::max(0.0, lo + t / 2);
+  ShiftedPoints shifted(ws, axis,
+                        on_board ? board_levels(ws.pulled, RigidPose{}, t, ws.inside, ws.decode)
+                                 : intensity_levels(ws.pulled, ws.decode),
+                        t);
 
   // Every (shift, family) is a hypothesis; each family's best one keeps its evidence.
   auto try_shift = [&](double shift) {

@@ -276,7 +276,10 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
   diag.coverage = coverage_ratio(b.pose.subset, fit.pose, t, b.hull_in, b.hull);
   if (diag.coverage < opt_.pose.min_coverage) return finish(Stage::kPose, Rejection::kCoverage);
   IntensityLevels levels;
-  if (opt_.pose.border_refine) levels = intensity_levels(b.points, b.decode.decode);
+  if (opt_.pose.border_refine)
+    levels = outline.on_board
+                 ? board_levels(b.points, fit.pose, t, b.decode.inside, b.decode.decode)
+                 : intensity_levels(b.points, b.decode.decode);
   double measured_size_m = -1.0;          // the size check: what the black square's steps say
   bool along_y = false, along_z = false;  // the in-plane axes the black square placed
   auto place = [&] {
@@ -299,17 +302,20 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
 
   // Sec. VI: decoding, eqs. (18)-(22), over the shifts along an axis the outline did not place.
   // On a board, the board's outline places the board: along an axis the black square could not
-  // place (a square mount's top and bottom, which horizontal rings do not cross), the tag may sit
-  // anywhere the board holds it.
+  // place (a square mount's top and bottom, which horizontal rings do not cross), the tag is taken
+  // to be printed at the board's centre, which the board's first and last rings place to within
+  // half a ring spacing: decoding searches a cell either way. (Searching the whole slack of a
+  // large margin, up to 2.3 cells of a 1.2 m tag16h5 on a 1.6 m board, read a VLP-16's tag as
+  // another code once in 90 rotations.)
   Eigen::Vector3d unseen = outline.unseen_axis;
   double board_slack_m = 0.0;
   if (outline.on_board && along_y != along_z) {
     unseen =
         fit.pose.R.transpose() * (along_y ? Eigen::Vector3d::UnitZ() : Eigen::Vector3d::UnitY());
-    board_slack_m = 0.5 * (outline.side_m - t) + t / dicts_.front().width();
+    board_slack_m = t / dicts_.front().width();
   }
   const ClusterDecode dec = decode_cluster(b.points, fit.pose, unseen, t, dicts_, decoys_,
-                                           opt_.decode, b.decode, board_slack_m);
+                                           opt_.decode, b.decode, outline.on_board, board_slack_m);
   diag.score = dec.best.score;
   diag.margin = dec.best.margin_bits;
   clock.lap(Stage::kDecode);

@@ -34,6 +34,7 @@ struct FamilyDecode {
 // Scratch memory of decode_cluster, kept by the caller between clusters.
 struct ClusterDecodeWorkspace {
   std::vector<ClusterPoint> pulled;  // the points in the tag frame, at the current shift
+  std::vector<ClusterPoint> inside;  // those inside the tag's square (a board's levels)
   std::vector<DecodeHypothesis> hypotheses;
   std::vector<double> shifts;  // tried along the unseen axis, in order
   std::vector<FamilyDecode> families;
@@ -64,13 +65,22 @@ struct ClusterDecode {
 // tag size; `unseen_axis` (sensor frame, unit, or zero) the axis along which the outline could not
 // place the tag (TagOutline::unseen_axis). At most opt.max_points points (evenly spaced) are
 // decoded. The evidence of each configured family's best hypothesis is left in ws.families, the
-// best hypothesis' cell votes in ws.votes and ws.vote_counts. `board_slack_m` (a tag on a
-// larger board, whose points reach past it): shifts along the unseen axis up to this far either
-// way; 0: only where the points stay inside the tag.
+// best hypothesis' cell votes in ws.votes and ws.vote_counts. `on_board` (a tag on a larger
+// board, whose points reach past it): the black and white levels from the points inside the
+// tag's square (board_levels), and shifts along the unseen axis up to `board_slack_m` either way
+// (else only where the points stay inside the tag).
+// The black and white levels of a tag on a board: from its points inside the tag's square of
+// side t (pulled back by `pose`), since a board's bare margin, most of the points around a small
+// tag, would count as white and pull the split between the levels; from every point when fewer
+// than 16 are inside. `inside` is scratch.
+IntensityLevels board_levels(std::span<const ClusterPoint> points, const RigidPose& pose, double t,
+                             std::vector<ClusterPoint>& inside, DecodeWorkspace& ws);
+
 ClusterDecode decode_cluster(std::span<const ClusterPoint> points, const RigidPose& pose,
                              const Eigen::Vector3d& unseen_axis, double t,
                              std::span<const RkhsDictionary> dictionaries,
                              std::span<const RkhsDictionary> decoys, const DecodeOptions& opt,
-                             ClusterDecodeWorkspace& ws, double board_slack_m = 0.0);
+                             ClusterDecodeWorkspace& ws, bool on_board = false,
+                             double board_slack_m = 0.0);
 
 }  // namespace lidartag::detector
