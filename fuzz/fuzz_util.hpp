@@ -14,7 +14,6 @@
 #include <string_view>
 
 #include "lidartag/driver/packet_source.hpp"
-#include "lidartag/driver/velodyne/packet.hpp"
 
 namespace lidartag::fuzz {
 
@@ -78,15 +77,18 @@ class RecordSource final : public driver::PacketSource {
   driver::ReadStatus next(driver::RawPacket& out, std::chrono::milliseconds) override {
     if (data_.size() < kRecordHeader) return driver::ReadStatus::kEnd;
     const uint8_t kind = data_[0];
-    const uint32_t step_us = velodyne::read_u32(data_.data() + 1);
+    // Little-endian, as the record form is written (the fuzzers of every layer share it: no
+    // vendor's byte readers here).
+    const uint32_t step_us = uint32_t{data_[1]} | uint32_t{data_[2]} << 8 |
+                             uint32_t{data_[3]} << 16 | uint32_t{data_[4]} << 24;
     const size_t length =
-        std::min<size_t>(velodyne::read_u16(data_.data() + 5), data_.size() - kRecordHeader);
+        std::min<size_t>(size_t{data_[5]} | size_t{data_[6]} << 8, data_.size() - kRecordHeader);
     out.payload = data_.subspan(kRecordHeader, length);
     time_ns_ += int64_t{step_us} * 1000;
     out.receive_time_ns = time_ns_;
     out.source_ipv4 = (kind & 2) != 0 ? 0xC0A8010Bu : 0xC0A8010Au;  // 192.168.1.11 / .10
     out.destination_port =
-        (kind & 1) != 0 ? velodyne::kDefaultPositionPort : velodyne::kDefaultDataPort;
+        (kind & 1) != 0 ? driver::kDefaultPositionPort : driver::kDefaultDataPort;
     data_ = data_.subspan(kRecordHeader + length);
     ++stats_.packets;
     stats_.bytes += length;
