@@ -28,6 +28,7 @@
 #include <vector>
 
 #include "bench_args.hpp"
+#include "bench_report.hpp"
 #include "lidartag/detector/detector.hpp"
 #include "sim_scans.hpp"
 
@@ -35,6 +36,9 @@ namespace {
 
 using namespace lidartag;
 namespace fs = std::filesystem;
+using bench_report::fmt;
+using bench_report::machine;
+using bench_report::quantile;
 
 struct Args {
   int runs = 10;
@@ -102,29 +106,6 @@ struct Cell {
 
   double off() const { return typed / size - 1.0; }
 };
-
-std::string fmt(double v, int digits) {
-  char b[32];
-  std::snprintf(b, sizeof b, "%.*f", digits, v);
-  return b;
-}
-
-double quantile(std::vector<double> v, double q) {
-  if (v.empty()) return NAN;
-  std::sort(v.begin(), v.end());
-  return v[std::min(v.size() - 1, static_cast<size_t>(q * static_cast<double>(v.size())))];
-}
-
-std::string machine() {
-  std::string cpu = "unknown CPU";
-  std::ifstream info("/proc/cpuinfo");
-  for (std::string line; std::getline(info, line);)
-    if (line.rfind("model name", 0) == 0) {
-      cpu = line.substr(line.find(':') + 2);
-      break;
-    }
-  return cpu + " (" + std::to_string(std::thread::hardware_concurrency()) + " cores)";
-}
 
 void run_cell(Cell& c, int run, int rotations) {
   const int code = (7 * run + c.angle + static_cast<int>(10 * c.distance)) % 30;

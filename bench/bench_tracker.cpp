@@ -38,6 +38,7 @@
 #include <vector>
 
 #include "bench_args.hpp"
+#include "bench_report.hpp"
 #include "lidartag/detector/detector.hpp"
 #include "lidartag/detector/tracker.hpp"
 #include "lidartag/driver/velodyne/io/capture_reader.hpp"
@@ -48,6 +49,9 @@ namespace {
 
 using namespace lidartag;
 namespace fs = std::filesystem;
+using bench_report::fmt;
+using bench_report::machine;
+using bench_report::median;
 
 const std::string kPcaps = LIDARTAG_SOURCE_DIR "/pcaps/";
 
@@ -284,34 +288,6 @@ Capture run_capture(const std::string& name, const detector::DetectorOptions& op
           std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count());
     }
   return c;
-}
-
-std::string fmt(double v, int digits) {
-  char b[32];
-  std::snprintf(b, sizeof b, "%.*f", digits, v);
-  return b;
-}
-
-// The CPU's model and the load averages, for the figures' context.
-std::string machine() {
-  std::string cpu = "unknown CPU", load = "?";
-  std::ifstream info("/proc/cpuinfo");
-  for (std::string line; std::getline(info, line);)
-    if (line.rfind("model name", 0) == 0) {
-      cpu = line.substr(line.find(':') + 2);
-      break;
-    }
-  std::ifstream avg("/proc/loadavg");
-  double l1 = 0, l5 = 0, l15 = 0;
-  if (avg >> l1 >> l5 >> l15) load = fmt(l1, 2) + ", " + fmt(l5, 2) + ", " + fmt(l15, 2);
-  return cpu + " (" + std::to_string(std::thread::hardware_concurrency()) +
-         " cores), load average at the end " + load;
-}
-
-double median(std::vector<double> v) {
-  if (v.empty()) return NAN;
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
 }
 
 int run(const Args& args) {

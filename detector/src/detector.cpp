@@ -296,7 +296,7 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
   // which no square of this size is measured (steps on two opposite sides or three) is not this
   // tag (blank boards, signs, other prints).
   if (outline.on_board &&
-      !(measured_size_m > 0 && std::abs(measured_size_m / t - 1.0) <= opt_.corners.size_tolerance))
+      (measured_size_m <= 0 || size_contradicts(measured_size_m, t, opt_.corners.size_tolerance)))
     return finish(Stage::kPose, Rejection::kSize);
   clock.lap(Stage::kPose);
 
@@ -348,8 +348,7 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
   det.time_center_s = times.center_s;
   det.time_last_s = times.last_s;
   det.measured_size_m = measured_size_m;
-  det.size_warning =
-      measured_size_m > 0.0 && std::abs(measured_size_m / t - 1.0) > opt_.pose.size_warning_ratio;
+  det.size_warning = size_contradicts(measured_size_m, t, opt_.pose.size_warning_ratio);
   if (opt_.keep_tag_points) {
     det.first_point = static_cast<int>(out.tag_points.size());
     out.tag_points.insert(out.tag_points.end(), b.points.begin(), b.points.end());

@@ -1,7 +1,9 @@
-// Small 2-D geometry shared by the corner and pose stages.
+// Small geometry shared by the stages: 2-D hulls and areas (corners, pose), and the rotation
+// helpers of SO(3) (the pose fit, the tracks' motion).
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
 #include <vector>
@@ -66,6 +68,20 @@ inline double polygon_area(const std::vector<Eigen::Vector2d>& poly) {
     a += p.x() * q.y() - q.x() * p.y();
   }
   return 0.5 * std::abs(a);
+}
+
+// [w]: the cross product with w as a matrix.
+inline Eigen::Matrix3d hat(const Eigen::Vector3d& w) {
+  Eigen::Matrix3d m;
+  m << 0, -w.z(), w.y(), w.z(), 0, -w.x(), -w.y(), w.x(), 0;
+  return m;
+}
+
+// exp([w]): the rotation by |w| about w (first order below 1e-12 rad).
+inline Eigen::Matrix3d exp_so3(const Eigen::Vector3d& w) {
+  const double th = w.norm();
+  if (th < 1e-12) return Eigen::Matrix3d::Identity() + hat(w);
+  return Eigen::AngleAxisd(th, w / th).toRotationMatrix();
 }
 
 }  // namespace lidartag::detector::geometry

@@ -38,17 +38,8 @@ nlopt_algorithm to_nlopt(PoseAlgorithm a) {
   return NLOPT_LD_MMA;
 }
 
-Eigen::Matrix3d hat(const Eigen::Vector3d& w) {
-  Eigen::Matrix3d m;
-  m << 0, -w.z(), w.y(), w.z(), 0, -w.x(), -w.y(), w.x(), 0;
-  return m;
-}
-
-Eigen::Matrix3d exp_so3(const Eigen::Vector3d& w) {
-  const double th = w.norm();
-  if (th < 1e-12) return Eigen::Matrix3d::Identity() + hat(w);
-  return Eigen::AngleAxisd(th, w / th).toRotationMatrix();
-}
+using geometry::exp_so3;
+using geometry::hat;
 
 // Right Jacobian of SO(3): Exp(w + dw) ~ Exp(w) Exp(J_r(w) dw).
 Eigen::Matrix3d right_jacobian(const Eigen::Vector3d& w) {

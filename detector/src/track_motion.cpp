@@ -9,6 +9,8 @@
 #include <cmath>
 #include <numbers>
 
+#include "geometry.hpp"
+
 namespace lidartag::detector {
 
 namespace {
@@ -16,17 +18,11 @@ namespace {
 using Eigen::Matrix3d;
 using Eigen::Vector3d;
 
-Matrix3d hat(const Vector3d& v) {
-  Matrix3d m;
-  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
-  return m;
-}
+using geometry::hat;
 
 // exp([a] tau).
 Matrix3d turn(const Vector3d& a, double tau) {
-  const double angle = a.norm() * tau;
-  if (std::abs(angle) < 1e-12) return Matrix3d::Identity();
-  return Eigen::AngleAxisd(angle, a.normalized()).toRotationMatrix();
+  return geometry::exp_so3(a * tau);
 }
 
 // B(tau): how the velocity moves a point over tau, under each convention.
@@ -125,7 +121,6 @@ MotionFit fit_motion(std::span<const TimedPose> window, const Motion& fallback, 
   out.pose.t_s = t_now;
   out.pose.position = mean;
   out.pose.frame = Eigen::Quaterniond(Eigen::Vector4d(qsum.normalized())).normalized();
-  out.motion.known = true;  // standing still, until shown otherwise
   if (window.size() == 1) {
     out.motion = fallback;
     out.moving = fallback.known &&

@@ -447,8 +447,7 @@ void Tracker::fill_info(const Track& t, TrackInfo& info) const {
   info.angle_std_deg = t.angle_std_deg;
   info.window_rotations = t.window_count;
   info.measured_size_m = t.size_count > 0 ? t.size_sum / t.size_count : -1.0;
-  info.size_warning = info.measured_size_m > 0.0 &&
-                      std::abs(info.measured_size_m / t.size_m - 1.0) > size_warning_ratio_;
+  info.size_warning = size_contradicts(info.measured_size_m, t.size_m, size_warning_ratio_);
   info.moving = t.moving;
   if (t.moving) {
     // The centre's velocity now: the turn moving it, and the drift.
@@ -502,8 +501,7 @@ void Tracker::report(const ScanResult& result, TrackerResult& out) const {
     d.time_center_s = c.time_center_s;
     d.time_last_s = c.time_last_s;
     d.measured_size_m = c.measured_size_m;
-    d.size_warning = c.measured_size_m > 0.0 &&
-                     std::abs(c.measured_size_m / c.size_m - 1.0) > size_warning_ratio_;
+    d.size_warning = size_contradicts(c.measured_size_m, c.size_m, size_warning_ratio_);
     // The track's function in the candidate's frame: quarter turns q - delta.
     const int q = ((t.leader & 3) - t.delta) & 3;
     const Eigen::Matrix3d r =

@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <span>
 #include <string_view>
@@ -30,6 +31,13 @@ std::string_view stage_name(Stage s);
 
 // The stage a rejection reason belongs to.
 Stage stage_of(Rejection r);
+
+// The size check's rule: a size measured (> 0; -1 when the points do not tell it) that is more
+// than `ratio` off the configured `size_m` (Detection::size_warning, the tracker's, and a tag on a
+// board beyond corners.size_tolerance).
+inline bool size_contradicts(double measured_m, double size_m, double ratio) {
+  return measured_m > 0.0 && std::abs(measured_m / size_m - 1.0) > ratio;
+}
 
 struct Detection {
   int family_index = 0;                                // into DetectorOptions::families
