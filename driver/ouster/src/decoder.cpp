@@ -236,7 +236,7 @@ void Decoder::write_batch(const ColumnBatch& batch, const PointSink& sink) const
         //   y = (r - n) sin(theta_e + theta_a) cos(phi) + n sin(theta_e)
         //   z = (r - n) sin(phi)
         // then the lidar-to-sensor transform.
-        const float r = static_cast<float>(mm) * 1e-3f;
+        const auto r = static_cast<float>(mm * 1e-3);  // one rounding
         const float rn = r - n_m_;
         const float cea = ce[uc] * ca - se[uc] * sa;
         const float sea = se[uc] * ca + ce[uc] * sa;
