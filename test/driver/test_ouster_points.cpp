@@ -4,6 +4,7 @@
 // precision, from the metadata alone) to 0.1 mm.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <deque>
 #include <filesystem>
@@ -157,6 +158,68 @@ INSTANTIATE_TEST_SUITE_P(Captures, OusterPoints, ::testing::Values(0, 1, 2, 3, 4
                              if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
                            return n;
                          });
+
+TEST(OusterPoints, DestaggeringAppliesThePixelShiftSoThatAColumnPointsOneWay) {
+  size_t frames = 0;
+  for (const auto& cf : capture_files()) {
+    const std::string stem = ouster_dir() + "/pcaps/" + cf.pcap;
+    if (!fs::exists(stem + ".pcap")) GTEST_SKIP() << "Ouster captures not found at " << stem;
+    SCOPED_TRACE(cf.pcap);
+    const SensorInfo info = load_metadata(ouster_dir() + "/pcaps/" + cf.metadata + ".json");
+    Decoder decoder(info);
+    Assembled run = assemble(decoder, testing::read_packets(stem + ".pcap").lidar);
+    for (Scan& s : run.scans) {
+      if (s.columns != info.columns_per_frame) {
+        const Scan before = s;
+        EXPECT_FALSE(decoder.destagger(s)) << "a partial frame";
+        EXPECT_EQ(s.x, before.x);
+        continue;
+      }
+      const Scan staggered = s;
+      ASSERT_TRUE(decoder.destagger(s));
+      ++frames;
+      const int w = s.columns;
+      const double step = 360.0 / w;
+      for (int ret = 0; ret < s.returns; ++ret)
+        for (int ring = 0; ring < s.rings; ++ring) {
+          const int shift = info.pixel_shift_by_row[s.laser_id[size_t(ring)]];
+          for (int c = 0; c < w; ++c) {
+            const size_t from = staggered.at(ret, ring, c);
+            const size_t to = s.at(ret, ring, ((c + shift) % w + w) % w);
+            ASSERT_EQ(s.x[to], staggered.x[from]);
+            ASSERT_EQ(s.range[to], staggered.range[from]);
+            ASSERT_EQ(s.intensity[to], staggered.intensity[from]);
+            ASSERT_EQ(s.time_s[to], staggered.time_s[from]);
+          }
+        }
+      // Every column's cells now point within a column step of each other (staggered they are
+      // up to the beams' azimuth spread apart, several degrees).
+      double worst = 0, worst_staggered = 0;
+      for (int c = 0; c < w; ++c) {
+        auto spread = [&](const Scan& x) {
+          const double ref = x.azimuth_deg[x.at(0, 0, c)];
+          double lo = 0, hi = 0;
+          for (int ring = 0; ring < x.rings; ++ring) {
+            double d = x.azimuth_deg[x.at(0, ring, c)] - ref;
+            d -= 360.0 * std::round(d / 360.0);
+            lo = std::min(lo, d);
+            hi = std::max(hi, d);
+          }
+          return hi - lo;
+        };
+        worst = std::max(worst, spread(s));
+        worst_staggered = std::max(worst_staggered, spread(staggered));
+      }
+      EXPECT_LT(worst, step) << "destaggered";
+      const auto [lo, hi] =
+          std::minmax_element(info.pixel_shift_by_row.begin(), info.pixel_shift_by_row.end());
+      if (*hi - *lo >= 8) {
+        EXPECT_GT(worst_staggered, 4 * step) << "staggered";
+      }
+    }
+  }
+  EXPECT_EQ(frames, 8u);  // the whole frames of the captures
+}
 
 TEST(OusterPoints, ColumnsWhoseStatusBitIsClearAreHoles) {
   const std::string stem = ouster_dir() + "/pcaps/OS-0-128-U1_v2.3.0_1024x10";

@@ -107,6 +107,32 @@ double Decoder::column_azimuth_deg(int m) const {
   return wrap360(360.0 * m / info_.columns_per_frame - yaw_deg_);
 }
 
+bool Decoder::destagger(Scan& scan) const {
+  const int w = info_.columns_per_frame;
+  if (scan.columns != w || scan.rings != format_.pixels || scan.model != kScanModel ||
+      scan.column_azimuth_deg[0] != static_cast<float>(column_azimuth_deg(0)))
+    return false;
+  const auto uw = static_cast<size_t>(w);
+  for (int ret = 0; ret < scan.returns; ++ret) {
+    for (int ring = 0; ring < scan.rings; ++ring) {
+      const int shift = info_.pixel_shift_by_row[beam_of_ring_[static_cast<size_t>(ring)]];
+      // Cell c to (c + shift) mod w: a right rotation by shift.
+      const auto left = static_cast<size_t>(((w - shift) % w + w) % w);
+      if (left == 0) continue;
+      const size_t first = scan.at(ret, ring, 0);
+      auto turn = [&](auto& v) {
+        const auto b = v.begin() + static_cast<std::ptrdiff_t>(first);
+        std::rotate(b, b + static_cast<std::ptrdiff_t>(left), b + static_cast<std::ptrdiff_t>(uw));
+      };
+      for (auto* v : {&scan.x, &scan.y, &scan.z, &scan.range, &scan.azimuth_deg, &scan.time_s})
+        turn(*v);
+      turn(scan.intensity);
+      turn(scan.return_type);
+    }
+  }
+  return true;
+}
+
 DecodeStatus Decoder::parse(std::span<const uint8_t> payload, PacketColumns& out) {
   auto count = [this](DecodeStatus s) {
     ++stats_.by_status[static_cast<size_t>(s)];

@@ -96,6 +96,14 @@ class Decoder final : public ColumnDecoder {
   // The sensor frame's clockwise azimuth of measurement id `m`'s encoder angle, degrees.
   double column_azimuth_deg(int m) const;
 
+  // Applies the metadata's pixel_shift_by_row to a whole frame assembled from this decoder's
+  // packets (Scan::columns == columns_per_frame, column c = measurement id c): each ring's cells
+  // move from column c to (c + shift) mod columns, so that a column's cells point the same way
+  // (Ouster's destaggered image; each cell keeps its own azimuth_deg and time_s, the per-column
+  // arrays stay those of the firing). False, the scan untouched, for anything else (a partial
+  // frame, a restricted column_window). In place: never allocates.
+  bool destagger(Scan& scan) const;
+
  private:
   SensorInfo info_;
   DecoderOptions options_;
