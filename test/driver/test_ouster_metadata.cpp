@@ -207,6 +207,22 @@ TEST(OusterPackets, WrongSizeInitIdSerialAndTypeAreCountedRejects) {
   EXPECT_EQ(tolerant.parse(q, out), DecodeStatus::kOk);
 }
 
+TEST(OusterPackets, ADecoderRefusesAHandMadeInfoThatContradictsItself) {
+  SensorInfo s;
+  s.pixels_per_column = 256;
+  EXPECT_THROW(Decoder{s}, std::invalid_argument);
+  s.pixels_per_column = 16;
+  s.columns_per_packet = 16;
+  s.columns_per_frame = s.mode_columns = 1024;
+  s.mode_rate_hz = 10;
+  s.beam_altitude_deg.assign(16, 1.0);
+  s.beam_azimuth_deg.assign(15, 0.0);  // one short
+  s.pixel_shift_by_row.assign(16, 0);
+  EXPECT_THROW(Decoder{s}, std::invalid_argument);
+  s.beam_azimuth_deg.assign(16, 0.0);
+  EXPECT_NO_THROW(Decoder{s});
+}
+
 TEST(OusterPackets, SignalIntensityIsRefusedWhereTheProfileHasNone) {
   const std::string json = ouster_dir() + "/pcaps/OS-0-128-U1_v2.3.0_1024x10.json";
   if (!fs::exists(json)) GTEST_SKIP() << "Ouster captures not found at " << json;

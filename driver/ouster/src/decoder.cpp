@@ -49,6 +49,21 @@ Decoder::Decoder(const SensorInfo& info, DecoderOptions options)
       format_(PacketFormat::of(info)),
       layout_(sensor_layout(info)),
       period_us_(info.column_period_us()) {
+  // A SensorInfo not from load_metadata() is checked too: the tables below are sized by it.
+  const auto beams = static_cast<size_t>(info.pixels_per_column);
+  if (info.pixels_per_column < 1 || info.pixels_per_column > ColumnPacket::kMaxRings ||
+      info.columns_per_packet < 1 || info.columns_per_packet > ColumnPacket::kMaxColumns ||
+      info.columns_per_frame < 1 || info.mode_columns < 1 || info.mode_rate_hz < 1 ||
+      info.beam_altitude_deg.size() != beams || info.beam_azimuth_deg.size() != beams ||
+      info.pixel_shift_by_row.size() != beams) {
+    throw std::invalid_argument("Ouster metadata inconsistent: " + std::to_string(beams) +
+                                " pixels per column, " + std::to_string(info.columns_per_packet) +
+                                " columns per packet, " + std::to_string(info.columns_per_frame) +
+                                " per frame, beam tables " +
+                                std::to_string(info.beam_altitude_deg.size()) + "/" +
+                                std::to_string(info.beam_azimuth_deg.size()) + "/" +
+                                std::to_string(info.pixel_shift_by_row.size()));
+  }
   const ProfileSpec& spec = *format_.spec;
   const Field range_fields[2] = {Field::kRange, Field::kRange2};
   const bool signal = options_.intensity == IntensitySource::kSignal;
