@@ -53,9 +53,9 @@ Decoder::Decoder(const SensorInfo& info, DecoderOptions options)
   const auto beams = static_cast<size_t>(info.pixels_per_column);
   if (info.pixels_per_column < 1 || info.pixels_per_column > ColumnPacket::kMaxRings ||
       info.columns_per_packet < 1 || info.columns_per_packet > ColumnPacket::kMaxColumns ||
-      info.columns_per_frame < 1 || info.mode_columns < 1 || info.mode_rate_hz < 1 ||
-      info.beam_altitude_deg.size() != beams || info.beam_azimuth_deg.size() != beams ||
-      info.pixel_shift_by_row.size() != beams) {
+      info.columns_per_frame < info.columns_per_packet || info.mode_columns < 1 ||
+      info.mode_rate_hz < 1 || info.beam_altitude_deg.size() != beams ||
+      info.beam_azimuth_deg.size() != beams || info.pixel_shift_by_row.size() != beams) {
     throw std::invalid_argument("Ouster metadata inconsistent: " + std::to_string(beams) +
                                 " pixels per column, " + std::to_string(info.columns_per_packet) +
                                 " columns per packet, " + std::to_string(info.columns_per_frame) +
@@ -202,7 +202,7 @@ DecodeStatus Decoder::parse(std::span<const uint8_t> payload, PacketColumns& out
     const ColumnHeader& h = cols[u];
     const bool valid = h.valid();
     // An invalid column's measurement id is not trusted: the one its place implies.
-    const int m = valid ? h.measurement_id : (ref.measurement_id + (c - first_valid) + w) % w;
+    const int m = valid ? h.measurement_id : ((ref.measurement_id + c - first_valid) % w + w) % w;
     out.measurement_id[u] = static_cast<uint16_t>(m);
     out.valid[u] = valid ? 1 : 0;
     out.column_azimuth_deg[u] = static_cast<float>(column_azimuth_deg(m));
