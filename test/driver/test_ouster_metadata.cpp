@@ -180,6 +180,10 @@ TEST(OusterPackets, WrongSizeInitIdSerialAndTypeAreCountedRejects) {
   q[32 + 8] = 0xFF;
   q[32 + 9] = 0xFF;
   EXPECT_EQ(decoder.parse(q, untouched), DecodeStatus::kBadMeasurementId);
+  // A timestamp beyond what the assembly's time arithmetic holds (2^32 s).
+  q = p;
+  q[32 + 7] = 0x80;
+  EXPECT_EQ(decoder.parse(q, untouched), DecodeStatus::kBadTimestamp);
   // Every column's status bit clear.
   q = p;
   const PacketFormat& f = decoder.format();
@@ -197,7 +201,8 @@ TEST(OusterPackets, WrongSizeInitIdSerialAndTypeAreCountedRejects) {
   EXPECT_EQ(st.by_status[size_t(DecodeStatus::kWrongPacketType)], 2u);  // the junk's too
   EXPECT_EQ(st.by_status[size_t(DecodeStatus::kBadMeasurementId)], 1u);
   EXPECT_EQ(st.by_status[size_t(DecodeStatus::kNoValidColumn)], 1u);
-  EXPECT_EQ(st.rejected(), 9u);
+  EXPECT_EQ(st.by_status[size_t(DecodeStatus::kBadTimestamp)], 1u);
+  EXPECT_EQ(st.rejected(), 10u);
   // Checks off: a packet of another init id is taken.
   DecoderOptions lax;
   lax.check_init_id = false;

@@ -134,6 +134,16 @@ TEST_P(OusterPoints, FramesOfTheSharedAssemblyHoldEveryPointWhereTheFormulaPutsI
           ASSERT_EQ(s.intensity[i], field_value(f.pixel(p.data(), pc, beam), *refl_field[ret]));
           ASSERT_EQ(s.return_type[i], ret == 0 ? ReturnType::kStrongest : ReturnType::kSecond);
           ASSERT_NEAR(s.time_s[i], double(h.timestamp_ns - t0) * 1e-9, 1e-6);
+          // The cell's azimuth is the point's, clockwise from +x as Velodyne's (beyond 5 m,
+          // where the beam origin's offset moves it by less than 0.2 deg).
+          if (mm > 5000) {
+            const double az = -std::atan2(want[1], want[0]) * 180.0 / std::numbers::pi;
+            double d = s.azimuth_deg[i] - az;
+            d -= 360.0 * std::round(d / 360.0);
+            ASSERT_LT(std::abs(d), 0.2) << "column " << c << " ring " << ring;
+            ASSERT_GE(s.azimuth_deg[i], 0.0f);
+            ASSERT_LT(s.azimuth_deg[i], 360.0f);
+          }
         }
       }
     }

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "lidartag/driver/angles.hpp"
+#include "lidartag/driver/packet_source.hpp"
 
 namespace lidartag::driver::ouster {
 namespace {
@@ -21,7 +22,8 @@ constexpr std::array<std::string_view, kDecodeStatusCount> kStatusNames = {"ok",
                                                                            "wrong init id",
                                                                            "wrong serial number",
                                                                            "bad measurement id",
-                                                                           "no valid column"};
+                                                                           "no valid column",
+                                                                           "bad timestamp"};
 
 }  // namespace
 
@@ -176,6 +178,9 @@ DecodeStatus Decoder::parse(std::span<const uint8_t> payload, PacketColumns& out
       continue;
     }
     if (h.measurement_id >= info_.columns_per_frame) return count(DecodeStatus::kBadMeasurementId);
+    // Times the assembly can subtract without overflow (those of every packet source).
+    if (h.timestamp_ns >= static_cast<uint64_t>(kMaxReceiveTimeNs))
+      return count(DecodeStatus::kBadTimestamp);
     if (first_valid < 0) first_valid = c;
   }
   if (first_valid < 0) return count(DecodeStatus::kNoValidColumn);

@@ -29,8 +29,9 @@ enum class DecodeStatus : uint8_t {
   kWrongSerial,       // the header's serial number is not the metadata's (another sensor)
   kBadMeasurementId,  // a valid column's measurement id beyond the frame's columns
   kNoValidColumn,     // every column's status bit clear: nothing to place in a frame
+  kBadTimestamp,      // a valid column's timestamp at or beyond 2^32 s (driver::kMaxReceiveTimeNs)
 };
-inline constexpr int kDecodeStatusCount = 7;
+inline constexpr int kDecodeStatusCount = 8;
 std::string_view decode_status_name(DecodeStatus s);
 
 // Where the 8-bit intensity of the points comes from.

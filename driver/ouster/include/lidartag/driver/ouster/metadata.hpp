@@ -43,8 +43,8 @@ struct SensorInfo {
   bool nested_layout = false;  // the file's layout: nested (newer firmware) or flat
 
   // Beam intrinsics, per beam (pixel row) in the sensor's order: degrees; altitude + up, azimuth
-  // the beam's offset from the encoder angle (Ouster's sign: + is counter-clockwise seen from
-  // above).
+  // the beam's offset from the encoder angle, + clockwise seen from above (the published
+  // formula's theta_azimuth is minus it).
   std::vector<double> beam_altitude_deg;
   std::vector<double> beam_azimuth_deg;
   double lidar_origin_to_beam_origin_mm = 0;  // n of the published range-to-xyz formula
