@@ -287,9 +287,11 @@ std::string suggest(const CameraModel& cam, std::span<const TagPose> poses,
     hints.push_back("a tilted tag (all face the camera within " + fmt(max_tilt * kDeg, 0) +
                     " degrees: turn one 30-45 degrees)");
   if (hints.empty()) hints.push_back("more poses spread over distance, image sides and tilt");
-  // Depth (translation along z) is told by distances; rotations and sideways translations by
-  // the image sides.
-  if (std::abs(weak(5)) < 0.35 && hints.size() > 1 && hints[0].rfind("a tag at another", 0) == 0)
+  // A weak direction with translation in it (depth, or rotation traded against a sideways
+  // translation, which one range cannot tell apart) is cured by another distance; pure
+  // rotations by other image sides.
+  if (weak.tail<3>().norm() < 0.35 && hints.size() > 1 &&
+      hints[0].rfind("a tag at another", 0) == 0)
     std::rotate(hints.begin(), hints.begin() + 1, hints.end());
   std::string s = "add " + hints[0];
   for (std::size_t i = 1; i < hints.size(); ++i) s += "; or " + hints[i];
