@@ -38,12 +38,11 @@ struct Reader {
   // it, or a plain sequence. Returns its values row-major; rows/cols when given must match.
   std::vector<double> matrix(const YAML::Node& n, const std::string& key, int* rows = nullptr,
                              int* cols = nullptr) const {
-    // Node assignment writes through to the node assigned to: reset() rebinds.
-    YAML::Node data;
-    data.reset(n);
+    // Copy-constructed, not assigned: Node assignment writes through to the node assigned to,
+    // and reset() refuses a missing key's node.
+    const YAML::Node data = n.IsMap() ? n["data"] : n;
     int r = -1, c = -1;
     if (n.IsMap()) {
-      data.reset(n["data"]);
       if (!data) fail(key, "matrix without 'data'");
       if (n["rows"]) r = integer(n["rows"], key + ".rows");
       if (n["cols"]) c = integer(n["cols"], key + ".cols");
@@ -95,7 +94,7 @@ std::string strip_directive(std::string_view text) {
 
 }  // namespace
 
-CameraModel parse_intrinsics(std::string_view text, const std::string& origin) {
+static CameraModel parse_yaml(std::string_view text, const std::string& origin) {
   const Reader rd{origin};
   YAML::Node root;
   try {
@@ -210,6 +209,16 @@ CameraModel parse_intrinsics(std::string_view text, const std::string& origin) {
     rd.fail("", e.what());
   }
   return cam;
+}
+
+CameraModel parse_intrinsics(std::string_view text, const std::string& origin) {
+  try {
+    return parse_yaml(text, origin);
+  } catch (const YAML::Exception& e) {
+    // A node of a form the reader did not expect: the key is in the message when yaml-cpp knows
+    // it.
+    throw IntrinsicsFileError(origin, "", std::string("malformed: ") + e.what());
+  }
 }
 
 CameraModel load_intrinsics(const std::string& path) {

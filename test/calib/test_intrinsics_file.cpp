@@ -161,6 +161,40 @@ TEST(IntrinsicsFile, BadFilesNameTheKey) {
   }
 }
 
+// Truncated and corrupted files: a parse or an IntrinsicsFileError, never another exception.
+TEST(IntrinsicsFile, TruncatedOrCorruptFilesGiveItsErrorOnly) {
+  int parsed = 0, refused = 0;
+  for (const std::string& full : {std::string(kRosPlumbBob), std::string(kOpenCv)}) {
+    for (std::size_t n = 0; n <= full.size(); ++n) {
+      for (int corrupt = 0; corrupt < 2; ++corrupt) {
+        std::string text = full.substr(0, n);
+        if (corrupt && n > 0) text[n / 2] = static_cast<char>(text[n / 2] ^ 0x5a);
+        try {
+          parse_intrinsics(text, "cut.yaml");
+          ++parsed;
+        } catch (const IntrinsicsFileError&) {
+          ++refused;
+        }
+      }
+    }
+  }
+  // Every byte of the whole files flipped in turn, three ways.
+  for (const std::string& full : {std::string(kRosPlumbBob), std::string(kOpenCv)})
+    for (std::size_t i = 0; i < full.size(); ++i)
+      for (const char mask : {'\x01', '\x20', '\x5a'}) {
+        std::string text = full;
+        text[i] = static_cast<char>(text[i] ^ mask);
+        try {
+          parse_intrinsics(text, "flip.yaml");
+          ++parsed;
+        } catch (const IntrinsicsFileError&) {
+          ++refused;
+        }
+      }
+  EXPECT_GT(parsed, 0);
+  EXPECT_GT(refused, 0);
+}
+
 TEST(IntrinsicsFile, LoadsAFileAndNamesItWhenMissing) {
   const auto dir =
       std::filesystem::temp_directory_path() /
