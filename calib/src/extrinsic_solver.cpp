@@ -237,8 +237,8 @@ std::string direction_name(const Vec6& v) {
   for (int i = 0; i < 6; ++i) parts.emplace_back(std::abs(v(i)), i);
   std::sort(parts.begin(), parts.end(), std::greater<>());
   std::string name = kDofNames[parts[0].second];
-  for (std::size_t i = 1; i < parts.size() && parts[i].first >= 0.35; ++i)
-    name += " coupled with " + std::string(kDofNames[parts[i].second]);
+  // The second largest component when it matters (a rotation traded against a translation).
+  if (parts[1].first >= 0.35) name += " coupled with " + std::string(kDofNames[parts[1].second]);
   return name;
 }
 
@@ -267,10 +267,12 @@ std::string suggest(const CameraModel& cam, std::span<const TagPose> poses,
     ++grid[gy][gx];
   }
   std::vector<std::string> hints;
-  if (rmax < 1.5 * rmin)
+  if (rmax < 1.5 * rmin) {
+    // Nearer when the tags are far (a near tag is the stronger lever), else farther.
+    const double at = rmin >= 3.0 ? std::max(1.5, rmin / 2) : 2 * rmax;
     hints.push_back("a tag at another distance (all are at " + fmt(rmin, 1) + "-" + fmt(rmax, 1) +
-                    " m: add one nearer than " + fmt(rmin / 2, 1) + " m or farther than " +
-                    fmt(rmax * 1.6, 1) + " m)");
+                    " m: add one at about " + fmt(at, 1) + " m)");
+  }
   static const char* const kRow[3] = {"top", "middle", "bottom"};
   static const char* const kCol[3] = {"left", "centre", "right"};
   std::string empty;
@@ -371,9 +373,13 @@ CalibrationResult solve_extrinsic(const CameraModel& camera, std::span<const Tag
     const bool finite = std::all_of(poses[i].pixels.begin(), poses[i].pixels.end(),
                                     [](const Eigen::Vector2d& p) { return p.allFinite(); }) &&
                         poses[i].lidar.corner_cov.allFinite() && poses[i].sigma_px > 0;
-    if (!finite) {
+    const bool psd = finite && Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 12, 12>>(
+                                   poses[i].lidar.corner_cov, Eigen::EigenvaluesOnly)
+                                       .eigenvalues()(0) >= -1e-12;
+    if (!finite || !psd) {
       res.poses[i].used = false;
-      res.poses[i].reason = "not finite: corners, covariance or pixel sigma";
+      res.poses[i].reason = !finite ? "not finite: corners, covariance or pixel sigma"
+                                    : "the LiDAR corners' covariance is not positive semi-definite";
     } else {
       active.push_back(static_cast<int>(i));
     }

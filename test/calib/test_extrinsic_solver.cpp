@@ -121,6 +121,28 @@ TEST(ExtrinsicSolver, DegenerateSetNamesTheWeakDegreeOfFreedom) {
   EXPECT_NE(r.warnings[0].find("weakly constrained"), std::string::npos);
 }
 
+// Only the far tags (5-8 m, one side of the image): rotation and sideways translation trade
+// against each other; a nearer tag is asked for.
+TEST(ExtrinsicSolver, FarTagsOnlyAskForANearerOne) {
+  const Scene s = make_scene(1);
+  std::vector<TagPose> far;
+  for (const TagPose& p : s.poses)
+    if ((true_extrinsic() * p.lidar.position).norm() > 5.0) far.push_back(p);
+  ASSERT_GE(far.size(), 3u);
+  const CalibrationResult r = solve_extrinsic(test_camera(), far);
+  ASSERT_FALSE(r.weak.empty());
+  std::printf("far tags only: weak %s (%.3f deg); %s\n", r.weak[0].name.c_str(),
+              r.weak[0].sigma_deg, r.suggestion.c_str());
+  EXPECT_NE(r.weak[0].name.find("coupled with"), std::string::npos) << r.weak[0].name;
+  EXPECT_EQ(r.suggestion.rfind("add a tag at another distance", 0), 0u) << r.suggestion;
+  // A nearer one: half the nearest range.
+  const std::size_t at = r.suggestion.find("add one at about ");
+  ASSERT_NE(at, std::string::npos) << r.suggestion;
+  double nearest = 1e9;
+  for (const PoseReport& p : r.poses) nearest = std::min(nearest, p.range_m);
+  EXPECT_NEAR(std::stod(r.suggestion.substr(at + 17)), nearest / 2, 0.06) << r.suggestion;
+}
+
 TEST(ExtrinsicSolver, WrongIdAndMovedTagAreRejectedAndTheRestUsed) {
   Scene s = make_scene(21);
   // Pose 2's image paired with the LiDAR's tag of pose 6 (a wrong ID); pose 5's tag moved 10 cm
@@ -198,6 +220,12 @@ TEST(ExtrinsicSolver, RefusesNoPosesAndWarnsForFew) {
   Scene bad = s;
   for (TagPose& p : bad.poses) p.pixels[0].x() = std::numeric_limits<double>::quiet_NaN();
   EXPECT_THROW(solve_extrinsic(test_camera(), bad.poses), CalibrationError);
+  // One pose with a covariance that is no covariance: refused with the reason, the rest used.
+  Scene mixed = make_scene(11);
+  mixed.poses[4].lidar.corner_cov(0, 0) = -1.0;
+  const CalibrationResult m = solve_extrinsic(test_camera(), mixed.poses);
+  EXPECT_EQ(m.used_poses, 8);
+  EXPECT_NE(m.poses[4].reason.find("positive semi-definite"), std::string::npos);
 }
 
 }  // namespace
