@@ -14,6 +14,7 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <tuple>
 
 namespace lidartag::calib {
@@ -74,11 +75,12 @@ struct Line {
   double d;
 };
 
-// Refines one edge of the black square from a to b (the square's interior on the side of
-// `inside`): points on the edge by the area under the intensity profile across it, then a total
-// least-squares line. False when too few profiles had contrast.
-bool refine_edge(const GrayImage& im, const Eigen::Vector2d& a, const Eigen::Vector2d& b,
-                 const Eigen::Vector2d& inside, double half_window, Line& line) {
+// Points on one edge of the black square from a to b (the square's interior on the side of
+// `inside`), each by the area under the intensity profile across the edge. False when too few
+// profiles had contrast.
+bool edge_points(const GrayImage& im, const Eigen::Vector2d& a, const Eigen::Vector2d& b,
+                 const Eigen::Vector2d& inside, double half_window,
+                 std::vector<Eigen::Vector2d>& points) {
   const Eigen::Vector2d along = (b - a).normalized();
   Eigen::Vector2d out(-along.y(), along.x());  // the normal pointing out of the square
   if (out.dot(inside - a) > 0) out = -out;
@@ -86,7 +88,7 @@ bool refine_edge(const GrayImage& im, const Eigen::Vector2d& a, const Eigen::Vec
   // About 1/8 pixel along the normal, a whole number of steps across the window.
   const int steps = static_cast<int>(std::ceil(2 * half_window / 0.125));
   const double kStep = 2 * half_window / steps;
-  std::vector<Eigen::Vector2d> points;
+  points.clear();
   for (int i = 0; i < kProfiles; ++i) {
     // Stay clear of the corners, where the neighbouring edge enters the window.
     const double t = 0.12 + 0.76 * (i + 0.5) / kProfiles;
@@ -116,7 +118,12 @@ bool refine_edge(const GrayImage& im, const Eigen::Vector2d& a, const Eigen::Vec
     if (std::abs(e) > half_window) continue;
     points.push_back(p + e * out);
   }
-  if (points.size() < kProfiles / 2) return false;
+  return points.size() >= kProfiles / 2;
+}
+
+// Total least-squares line through points.
+Line fit_line(const std::vector<Eigen::Vector2d>& points) {
+  Line line;
   Eigen::Vector2d mean = Eigen::Vector2d::Zero();
   for (const auto& q : points) mean += q;
   mean /= static_cast<double>(points.size());
@@ -127,21 +134,46 @@ bool refine_edge(const GrayImage& im, const Eigen::Vector2d& a, const Eigen::Vec
   const Eigen::Vector2d dir(std::cos(angle), std::sin(angle));
   line.n = Eigen::Vector2d(-dir.y(), dir.x());
   line.d = line.n.dot(mean);
-  return true;
+  return line;
 }
+
+// With a lens model, edges are straight on the pinhole plane, not in the distorted image: the
+// lines are fitted there (in pixel units, fx * x / z and fy * y / z) and the corners projected
+// back. Without one, the image itself is taken as pinhole.
+struct Plane {
+  const CameraModel* lens = nullptr;
+  std::optional<Eigen::Vector2d> to(const Eigen::Vector2d& px) const {
+    if (!lens) return px;
+    const Eigen::Vector3d r = lens->unproject(px);
+    if (r.z() < 1e-6) return std::nullopt;
+    return Eigen::Vector2d(lens->fx * r.x() / r.z(), lens->fy * r.y() / r.z());
+  }
+  std::optional<Eigen::Vector2d> from(const Eigen::Vector2d& q) const {
+    if (!lens) return q;
+    return lens->project(Eigen::Vector3d(q.x() / lens->fx, q.y() / lens->fy, 1.0));
+  }
+};
 
 // Corners (our convention, AprilTag's order) refined edge by edge; unchanged where an edge or an
 // intersection fails or a corner would move more than max_shift.
 void refine_corners(const GrayImage& im, std::array<Eigen::Vector2d, 4>& corners, int cells,
-                    double max_shift) {
+                    double max_shift, const Plane& plane) {
   const Eigen::Vector2d centre = (corners[0] + corners[1] + corners[2] + corners[3]) / 4.0;
   double side = 0;
   for (size_t k = 0; k < 4; ++k) side += (corners[(k + 1) % 4] - corners[k]).norm() / 4.0;
   // The window across an edge: within the black border cell inside and the white cell outside.
   const double half_window = std::clamp(0.45 * side / cells, 1.0, 4.0);
   std::array<Line, 4> lines;
-  for (size_t k = 0; k < 4; ++k)
-    if (!refine_edge(im, corners[k], corners[(k + 1) % 4], centre, half_window, lines[k])) return;
+  std::vector<Eigen::Vector2d> points;
+  for (size_t k = 0; k < 4; ++k) {
+    if (!edge_points(im, corners[k], corners[(k + 1) % 4], centre, half_window, points)) return;
+    for (Eigen::Vector2d& p : points) {
+      const auto q = plane.to(p);
+      if (!q) return;
+      p = *q;
+    }
+    lines[k] = fit_line(points);
+  }
   std::array<Eigen::Vector2d, 4> refined;
   for (size_t k = 0; k < 4; ++k) {
     // Corner k joins edge k - 1 (from corner k - 1) and edge k (to corner k + 1).
@@ -150,7 +182,9 @@ void refine_corners(const GrayImage& im, std::array<Eigen::Vector2d, 4>& corners
     Eigen::Matrix2d m;
     m << l1.n.transpose(), l2.n.transpose();
     if (std::abs(m.determinant()) < 1e-3) return;
-    refined[k] = m.inverse() * Eigen::Vector2d(l1.d, l2.d);
+    const auto px = plane.from(m.inverse() * Eigen::Vector2d(l1.d, l2.d));
+    if (!px) return;
+    refined[k] = *px;
     if ((refined[k] - corners[k]).norm() > max_shift) return;
   }
   corners = refined;
@@ -212,6 +246,14 @@ ImageTagDetector::ImageTagDetector(ImageTagDetector&&) noexcept = default;
 ImageTagDetector& ImageTagDetector::operator=(ImageTagDetector&&) noexcept = default;
 
 std::vector<ImageTag> ImageTagDetector::detect(const GrayImage& image) {
+  return detect(image, nullptr);
+}
+
+std::vector<ImageTag> ImageTagDetector::detect(const GrayImage& image, const CameraModel& lens) {
+  return detect(image, &lens);
+}
+
+std::vector<ImageTag> ImageTagDetector::detect(const GrayImage& image, const CameraModel* lens) {
   std::vector<ImageTag> tags;
   if (image.width <= 0 || image.height <= 0 ||
       image.pixels.size() != static_cast<size_t>(image.width) * static_cast<size_t>(image.height))
@@ -236,7 +278,8 @@ std::vector<ImageTag> ImageTagDetector::detect(const GrayImage& image) {
       t.corners[k] = Eigen::Vector2d(d->p[k][0], d->p[k][1]).array() + kAprilTagToLidartag;
     t.center = Eigen::Vector2d(d->c[0], d->c[1]).array() + kAprilTagToLidartag;
     if (options_.refine_corners) {
-      refine_corners(image, t.corners, d->family->width_at_border, options_.max_corner_shift_px);
+      refine_corners(image, t.corners, d->family->width_at_border, options_.max_corner_shift_px,
+                     Plane{lens});
       // The centre: the diagonals' intersection (the homography's image of the tag centre).
       const Eigen::Vector2d p = t.corners[0], r = t.corners[2] - t.corners[0];
       const Eigen::Vector2d q = t.corners[1], s2 = t.corners[3] - t.corners[1];
