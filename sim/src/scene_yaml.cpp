@@ -526,7 +526,8 @@ Scene parse_scene(const std::string& yaml_text, const std::string& source) {
   Scene scene;
   try {
     if (!root || root.IsNull()) fail("scene", "empty");
-    check_map(root, "", {"sensor", "camera", "world", "tags", "boards", "seed", "rotations"});
+    check_map(root, "",
+              {"sensor", "camera", "world", "tags", "boards", "series", "seed", "rotations"});
     scene.sensor.noise = noise_defaults(scene.sensor.model);
     if (root["sensor"]) parse_sensor(root["sensor"], "sensor", scene.sensor);
     if (root["world"]) parse_world(root["world"], "world", scene.world);
@@ -549,6 +550,23 @@ Scene parse_scene(const std::string& yaml_text, const std::string& source) {
         scene.boards.push_back(b);
       }
     }
+    if (const YAML::Node series = root["series"]) {
+      if (!series.IsSequence()) fail("series", "expected a list of tag poses");
+      if (series.size() > 1000) fail("series", "at most 1000 poses");
+      if (scene.tags.empty()) fail("series", "moves the first tag: give 'tags'");
+      for (size_t i = 0; i < series.size(); ++i) {
+        const std::string p = "series[" + std::to_string(i) + "]";
+        check_map(series[i], p, {"center", "normal", "rotation"});
+        if (!series[i]["center"]) fail(p, "needs 'center' ([x, y, z], metres)");
+        TagPose pose;
+        pose.normal = scene.tags[0].normal;
+        pose.rotation_deg = scene.tags[0].rotation_deg;
+        read(series[i], p, "center", pose.center);
+        read(series[i], p, "normal", pose.normal);
+        read_rotation(series[i], p, pose.rotation_deg);
+        scene.series.push_back(pose);
+      }
+    }
     read(root, "", "seed", scene.seed);
     read(root, "", "rotations", scene.rotations, 1, 100000);
   } catch (const SceneError& e) {
@@ -557,6 +575,17 @@ Scene parse_scene(const std::string& yaml_text, const std::string& source) {
     throw SceneError(source + ": " + e.what());
   }
   return scene;
+}
+
+Scene series_scene(const Scene& scene, size_t index) {
+  Scene out = scene;
+  out.series.clear();
+  const TagPose& pose = scene.series.at(index);
+  TagOptions& tag = out.tags.at(0);
+  tag.center = pose.center;
+  tag.normal = pose.normal;
+  tag.rotation_deg = pose.rotation_deg;
+  return out;
 }
 
 Scene load_scene(const std::string& path) {

@@ -215,5 +215,32 @@ TEST(SimCamera, CameraSectionErrorsNameTheKey) {
   EXPECT_FALSE(parse_scene("seed: 1\n").camera.has_value());
 }
 
+TEST(SimCamera, SeriesMovesTheFirstTag) {
+  const Scene scene = parse_scene(std::string(kScene) + R"(
+series:
+  - {center: [3, 0.5, 1.1]}
+  - {center: [6, -1, 1.3], normal: [-1, 0.2, 0], rotation: square}
+)");
+  ASSERT_EQ(scene.series.size(), 2u);
+  const Scene a = series_scene(scene, 0);
+  EXPECT_EQ(a.tags[0].center, (std::array<double, 3>{3, 0.5, 1.1}));
+  EXPECT_DOUBLE_EQ(a.tags[0].rotation_deg, 20.0);  // the tag's own, kept
+  EXPECT_DOUBLE_EQ(a.tags[0].size, 1.2);
+  EXPECT_TRUE(a.series.empty());
+  const Scene b = series_scene(scene, 1);
+  EXPECT_EQ(b.tags[0].normal, (std::array<double, 3>{-1, 0.2, 0}));
+  EXPECT_DOUBLE_EQ(b.tags[0].rotation_deg, 0.0);
+  EXPECT_THROW((void)series_scene(scene, 2), std::out_of_range);
+  // The truth of a series pose has the tag where the pose put it.
+  Simulator sim(b);
+  const Truth t = sim.run(1, 1, [](std::span<const uint8_t>, int64_t, uint16_t) {});
+  EXPECT_NEAR(t.rotations[0].tags[0].position.x(), 6.0, 1e-9);
+  EXPECT_THROW((void)parse_scene("series: [{center: [1, 2, 3]}]\n"), SceneError);
+  EXPECT_THROW((void)parse_scene(std::string(kScene) + "series: [{normal: [1, 0, 0]}]\n"),
+               SceneError);
+  EXPECT_THROW((void)parse_scene(std::string(kScene) + "series: [{center: [1, 2, 3], id: 3}]\n"),
+               SceneError);
+}
+
 }  // namespace
 }  // namespace lidartag::sim

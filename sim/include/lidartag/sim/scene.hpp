@@ -212,15 +212,28 @@ struct CameraOptions {
   static std::array<double, 4> forward_wxyz();
 };
 
+// One pose of a calibration series: where the scene's first tag is put (TagOptions' meanings).
+struct TagPose {
+  std::array<double, 3> center{3.0, 0.0, 1.0};
+  std::array<double, 3> normal{0.0, 0.0, 0.0};
+  double rotation_deg = 45.0;
+};
+
 struct Scene {
   SensorOptions sensor{};
   std::optional<CameraOptions> camera;  // the `camera:` section; none: no image
   WorldOptions world{};
   std::vector<TagOptions> tags;
   std::vector<CalibrationBoardOptions> boards;
+  // A calibration series: `lidartag sim` writes one capture, truth and image per pose, the first
+  // tag moved there (the other keys of the tag kept). Empty: one capture of the scene as given.
+  std::vector<TagPose> series;
   uint64_t seed = 1;   // noise seed (the --seed option overrides it)
   int rotations = 10;  // rotations written (the --rotations option overrides it)
 };
+
+// The scene of pose `index` of its series: the first tag moved to it.
+Scene series_scene(const Scene& scene, size_t index);
 
 // Parses a scene; `source` names the text in error messages. Throws SceneError.
 Scene parse_scene(const std::string& yaml_text, const std::string& source = "scene");
