@@ -242,5 +242,33 @@ series:
                SceneError);
 }
 
+// A series at 3, 5 and 7 m (square, turned 30 degrees and obliquely, diamond) with a stand and
+// a room: each pose's image gives the tag at its truth corners, the lens known, to a tenth of a
+// pixel.
+TEST(SimCamera, SeriesPosesDetectAtTheirTruthCorners) {
+  const Scene scene = parse_scene(std::string(kScene) + R"(
+series:
+  - {center: [3.0, 0.5, 1.1], rotation: square}
+  - {center: [5.0, -0.8, 1.3], normal: [-1, 0.3, 0.1], rotation: 30}
+  - {center: [7.0, 1.0, 1.0], rotation: diamond}
+)");
+  calib::ImageTagDetector detector;
+  for (size_t i = 0; i < scene.series.size(); ++i) {
+    Simulator sim(series_scene(scene, i));
+    const Truth truth = sim.run(1, i, [](std::span<const uint8_t>, int64_t, uint16_t) {});
+    const calib::GrayImage image = sim.render_image(truth.rotations[0], i);
+    const auto found = detector.detect(image, truth.camera->model);
+    ASSERT_EQ(found.size(), 1u) << "pose " << i;
+    const auto& expected = *truth.rotations[0].tags[0].image_corners;
+    std::vector<double> errors;
+    for (size_t k = 0; k < 4; ++k) errors.push_back((found[0].corners[k] - expected[k]).norm());
+    std::printf("pose %zu (%.0f m): corner errors %.3f %.3f %.3f %.3f px\n", i,
+                scene.series[i].center[0], errors[0], errors[1], errors[2], errors[3]);
+    std::sort(errors.begin(), errors.end());
+    EXPECT_LT((errors[1] + errors[2]) / 2.0, 0.1) << "pose " << i;
+    EXPECT_LT(errors[3], 0.2) << "pose " << i;
+  }
+}
+
 }  // namespace
 }  // namespace lidartag::sim
