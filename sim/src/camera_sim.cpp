@@ -1,5 +1,8 @@
 #include "lidartag/sim/camera_sim.hpp"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
@@ -63,21 +66,26 @@ calib::GrayImage render_camera(const World& world, const CameraOptions& camera,
   const int s = camera.supersample;
   const int w = m.width, h = m.height;
   std::vector<double> img(static_cast<size_t>(w) * static_cast<size_t>(h));
-  Ray ray;
-  ray.origin = origin;
-  for (int v = 0; v < h; ++v)
-    for (int u = 0; u < w; ++u) {
-      double sum = 0;
-      for (int j = 0; j < s; ++j)
-        for (int i = 0; i < s; ++i) {
-          // Sub-pixel positions spread evenly over the pixel [u - 0.5, u + 0.5).
-          const Eigen::Vector2d px(u - 0.5 + (i + 0.5) / s, v - 0.5 + (j + 0.5) / s);
-          ray.dir = (r_wc * m.unproject(px)).normalized();
-          const Hit hit = world.cast(ray, kMaxRange);
-          sum += hit.hit() ? std::min(255.0, hit.reflectivity * camera.gain) : camera.background;
-        }
-      img[static_cast<size_t>(v) * static_cast<size_t>(w) + static_cast<size_t>(u)] = sum / (s * s);
-    }
+  // Rows in parallel: each pixel's value depends on its rays alone, so the image is the same for
+  // any number of threads (the noise is drawn afterwards, in pixel order).
+  tbb::parallel_for(tbb::blocked_range<int>(0, h), [&](const tbb::blocked_range<int>& rows) {
+    Ray ray;
+    ray.origin = origin;
+    for (int v = rows.begin(); v < rows.end(); ++v)
+      for (int u = 0; u < w; ++u) {
+        double sum = 0;
+        for (int j = 0; j < s; ++j)
+          for (int i = 0; i < s; ++i) {
+            // Sub-pixel positions spread evenly over the pixel [u - 0.5, u + 0.5).
+            const Eigen::Vector2d px(u - 0.5 + (i + 0.5) / s, v - 0.5 + (j + 0.5) / s);
+            ray.dir = (r_wc * m.unproject(px)).normalized();
+            const Hit hit = world.cast(ray, kMaxRange);
+            sum += hit.hit() ? std::min(255.0, hit.reflectivity * camera.gain) : camera.background;
+          }
+        img[static_cast<size_t>(v) * static_cast<size_t>(w) + static_cast<size_t>(u)] =
+            sum / (s * s);
+      }
+  });
   if (camera.blur_sigma > 0.0) blur(img, w, h, camera.blur_sigma);
   Rng rng(seed ^ 0x63616d657261ull);  // "camera": a stream apart from the LiDAR's noise
   calib::GrayImage out(w, h);

@@ -2,6 +2,7 @@
 // says (corners projected with the camera model, lidartag's pixel convention), the truth file's
 // camera round trip, determinism.
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -153,6 +154,11 @@ TEST(SimCamera, SameSeedSameImageOtherSeedOtherNoise) {
   const calib::GrayImage c = sim.render_image(truth.rotations[0], 8);
   EXPECT_EQ(a.pixels, b.pixels);
   EXPECT_NE(a.pixels, c.pixels);
+  {
+    // Rows are rendered in parallel: one thread gives the same image.
+    const tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
+    EXPECT_EQ(sim.render_image(truth.rotations[0], 7).pixels, a.pixels);
+  }
   // Noise sigma 2: the two images differ by about 2 * sqrt(2) grey levels RMS.
   double sq = 0;
   for (size_t i = 0; i < a.pixels.size(); ++i) {
