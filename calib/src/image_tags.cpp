@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <cmath>
 #include <optional>
+#include <string>
 #include <tuple>
 
 namespace lidartag::calib {
@@ -250,6 +251,10 @@ std::vector<ImageTag> ImageTagDetector::detect(const GrayImage& image) {
 }
 
 std::vector<ImageTag> ImageTagDetector::detect(const GrayImage& image, const CameraModel& lens) {
+  if (lens.width != image.width || lens.height != image.height)
+    throw ImageTagError("image tags: the image is " + std::to_string(image.width) + "x" +
+                        std::to_string(image.height) + " but the camera model is " +
+                        std::to_string(lens.width) + "x" + std::to_string(lens.height));
   return detect(image, &lens);
 }
 

@@ -240,5 +240,36 @@ TEST(ImageTags, DetectorsMoveAndDetectAgain) {
   EXPECT_EQ(a.detect(img).size(), 1u);
 }
 
+// With the lens given, edges are fitted on the pinhole plane; a distortion-free model changes
+// nothing, and a model of another size is refused.
+TEST(ImageTags, LensModelMustMatchTheImage) {
+  const tags::TagFamily& fam = tags::builtin_family("tag36h11");
+  Placement pl;
+  pl.turn_deg = 17.0;
+  const GrayImage img = render(fam, 7, pl);
+  CameraModel lens;
+  lens.width = 200;
+  lens.height = 200;
+  lens.fx = lens.fy = 300;
+  lens.cx = 99.5;
+  lens.cy = 99.5;
+  ImageTagDetector detector;
+  const auto with = detector.detect(img, lens);
+  const auto without = detector.detect(img);
+  ASSERT_EQ(with.size(), 1u);
+  ASSERT_EQ(without.size(), 1u);
+  for (size_t k = 0; k < 4; ++k)
+    EXPECT_LT((with[0].corners[k] - without[0].corners[k]).norm(), 1e-6);
+  lens.width = 640;
+  try {
+    (void)detector.detect(img, lens);
+    FAIL();
+  } catch (const ImageTagError& e) {
+    EXPECT_NE(std::string(e.what()).find("200x200 but the camera model is 640x200"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace lidartag::calib

@@ -97,6 +97,8 @@ class ImageTagDetector {
   // The same with the camera's lens model: the corner refinement fits each edge as a straight
   // line on the undistorted (pinhole) plane, where it is straight, instead of in the image, where
   // distortion bends it (k1 = -0.12 bends a 270 px edge by ~0.6 px at 1280x720, fx 900).
+  // Throws ImageTagError when the image's size is not the model's (intrinsics of another
+  // camera or resolution).
   std::vector<ImageTag> detect(const GrayImage& image, const CameraModel& lens);
 
   const ImageTagOptions& options() const { return options_; }
