@@ -105,20 +105,6 @@ void print_trace_prefix(const Cell& c, int run) {
               c.distance, c.angle, run);
 }
 
-// Metres between the two beams whose elevations enclose the direction of a point `above` metres
-// above the sensor's height at `distance` (2 degrees on a VLP-16, 0.33 near the horizon on a
-// VLP-32C), measured at that distance.
-double beam_spacing_m(velodyne::Model model, double distance, double above) {
-  std::vector<double> el = velodyne::beam_elevations_deg(model);
-  std::sort(el.begin(), el.end());
-  const double e = std::atan2(above, distance) * 180.0 / std::numbers::pi;
-  auto hi = std::upper_bound(el.begin(), el.end(), e);
-  if (hi == el.begin()) ++hi;
-  if (hi == el.end()) --hi;
-  const double deg = std::numbers::pi / 180.0;
-  return distance * (std::tan(*hi * deg) - std::tan(*(hi - 1) * deg));
-}
-
 // The tag centre's height above the sensor's in run `run`: the cell's, moved by a share of the
 // beam spacing there, ((11 run) mod 30 + 0.5) / 30 - 0.5 of it (each of 30 offsets once in 30
 // runs, in another order than the codes), so that a cell's figure is no lucky or unlucky crossing
@@ -126,7 +112,7 @@ double beam_spacing_m(velodyne::Model model, double distance, double above) {
 double run_height(const Cell& c, int run, bool fixed) {
   if (fixed) return c.above;
   const double share = ((11 * run) % 30 + 0.5) / 30.0 - 0.5;
-  return c.above + share * beam_spacing_m(c.model, c.distance, c.above);
+  return c.above + share * eval::beam_spacing_m(c.model, c.distance, c.above);
 }
 
 // R rotations of a static tag; counts from rotation index 3 (the 4th) on.

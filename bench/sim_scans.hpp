@@ -1,6 +1,7 @@
 // Simulated rotations in memory, and detections scored against the simulator's truth: what
-// bench_accuracy and the detector's end-to-end tests share. The simulator's packets go straight
-// through the project's own Decoder and ScanBatcher (no pcap file), one rotation at a time.
+// bench_accuracy, bench_tracker, the detector's end-to-end tests and `lidartag plan` share. The
+// simulator's packets go straight through the project's own Decoder and ScanBatcher (no pcap
+// file), one rotation at a time.
 #pragma once
 
 #include <Eigen/Geometry>
@@ -19,6 +20,7 @@
 #include "lidartag/driver/velodyne/decoder.hpp"
 #include "lidartag/driver/velodyne/packet.hpp"
 #include "lidartag/driver/velodyne/sensor_clock.hpp"
+#include "lidartag/driver/velodyne/sensor_model.hpp"
 #include "lidartag/sim/sensor_sim.hpp"
 #include "lidartag/sim/simulator.hpp"
 
@@ -164,6 +166,20 @@ inline int false_positives(std::span<const detector::Detection> detections,
              ? 1
              : 0;
   return n;
+}
+
+// Metres between the two beams whose elevations enclose the direction of a point `above` metres
+// above the sensor's height at `distance` (2 degrees on a VLP-16, 0.33 near the horizon on a
+// VLP-32C), measured at that distance.
+inline double beam_spacing_m(velodyne::Model model, double distance, double above) {
+  std::vector<double> el = velodyne::beam_elevations_deg(model);
+  std::sort(el.begin(), el.end());
+  const double e = std::atan2(above, distance) * 180.0 / std::numbers::pi;
+  auto hi = std::upper_bound(el.begin(), el.end(), e);
+  if (hi == el.begin()) ++hi;
+  if (hi == el.end()) --hi;
+  const double deg = std::numbers::pi / 180.0;
+  return distance * (std::tan(*hi * deg) - std::tan(*(hi - 1) * deg));
 }
 
 // The accuracy scene of the paper's Table I: a tag16h5 of `size` metres (1.2 by default) on an

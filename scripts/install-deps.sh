@@ -8,8 +8,8 @@ packages=(
   libspdlog-dev libfmt-dev libyaml-cpp-dev libcli11-dev nlohmann-json3-dev
   # VeloView XML calibration files; PCD binary_compressed (LZF)
   libtinyxml2-dev liblzf-dev
-  # camera-LiDAR calibration: tags in images (AprilTag 3), PNG and JPEG images
-  libapriltag-dev libpng-dev libjpeg-dev
+  # camera-LiDAR calibration: PNG and JPEG images (libapriltag-dev below finds the tags in them)
+  libpng-dev libjpeg-dev
   # the Python module (for /usr/bin/python3) and its tests
   python3-dev pybind11-dev python3-numpy python3-pytest
   libgtest-dev libgmock-dev libbenchmark-dev
@@ -26,6 +26,8 @@ packages=(
   # Fuzz targets (libFuzzer and the sanitizers' runtimes of clang 14); lidartagd.service booted in
   # a container (scripts/systemd-container-test.sh)
   clang-14 libclang-rt-14-dev mmdebstrap systemd-container
+  # camera-LiDAR calibration (issue 30): AprilTag 3 finds the tags in images
+  libapriltag-dev
 )
 missing=()
 for p in "${packages[@]}"; do

@@ -140,6 +140,24 @@ bool storage_matches(const Scan& scan) {
          scan.column_azimuth_deg.size() >= static_cast<size_t>(scan.columns);
 }
 
+// A cluster's edge features as points (every one on the outline; the intensity of the return).
+void features_as_points(const Scan& scan, std::span<const Feature> features,
+                        std::span<const int> members, std::vector<ClusterPoint>& out) {
+  out.clear();
+  for (int m : members) {
+    const Feature& f = features[static_cast<size_t>(m)];
+    ClusterPoint p;
+    p.x = f.x;
+    p.y = f.y;
+    p.z = f.z;
+    p.intensity = scan.intensity[scan.at(0, f.ring, f.col)];
+    p.ring = f.ring;
+    p.col = f.col;
+    p.edge = true;
+    out.push_back(p);
+  }
+}
+
 ClusterDiagnostic diagnostic_of(const Cluster& cl) {
   ClusterDiagnostic d;
   d.features = cl.features;
@@ -227,7 +245,12 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
   Rejection r = fill_cluster(scan, b.features, members, b.clusters[c], opt_.validation,
                              limits_.max_extent_m, b.points, b.ring_cols);
   diag.points = static_cast<int>(b.points.size());
-  if (r != Rejection::kNone) return finish(Stage::kClustering, r);
+  if (r != Rejection::kNone) {
+    // Dropped before the fill-in: its edge features are all it has, kept as its points so that a
+    // tag too far or too sparse still shows where it was (render, detect --clusters).
+    if (opt_.keep_cluster_points) features_as_points(scan, b.features, members, b.points);
+    return finish(Stage::kClustering, r);
+  }
   r = check_point_counts(b.points, limits_.min_points, limits_.board_max, res, opt_.validation);
   if (r != Rejection::kNone) return finish(Stage::kValidation, r);
   diag.boundary_points = count_boundary_points(b.points, opt_.validation);

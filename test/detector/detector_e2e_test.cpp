@@ -212,6 +212,52 @@ CellResult run_cell(velodyne::Model model, double distance, int angle, int id, i
   return c;
 }
 
+// A tag too far for its rings (a 0.8 m tag at 14 m on a VLP-16: two rings cross it) is dropped at
+// clustering; with keep_cluster_points its edge features are its points, so that render shows
+// where it was and what it had.
+TEST(DetectorEndToEnd, ATagDroppedAtClusteringKeepsItsEdgeFeaturesAsPoints) {
+  const sim::Simulator simulator(eval::accuracy_scene(velodyne::Model::kVLP16, 14.0, 0, 3, 0.8));
+  eval::SimScans scans(simulator);
+  DetectorOptions o;
+  o.tag_sizes_m = {0.8};
+  o.cluster_diagnostics = true;
+  o.keep_cluster_points = true;
+  Detector det(o);
+  ScanResult result;
+  int seen = 0, rotations = 0;  // rotations, and those with a cluster at the tag
+  scans.run(3, 5, [&](const Scan& s, size_t) {
+    ++rotations;
+    bool at_tag = false;
+    det.detect(s, result);
+    EXPECT_TRUE(result.detections.empty());
+    for (const auto& d : result.diagnostics) {
+      if (d.min_x > 14.1f || d.max_x < 13.9f || d.min_y > 0.1f || d.max_y < -0.1f) continue;
+      at_tag = true;
+      EXPECT_EQ(d.rejection, Rejection::kFewFeatures);
+      EXPECT_LT(d.max_ring - d.min_ring + 1, o.validation.min_rings);
+      EXPECT_EQ(d.points, 0);  // nothing was filled in
+      ASSERT_EQ(d.point_count, d.features);
+      for (const auto& p : result.points_of(d)) {
+        EXPECT_TRUE(p.edge);
+        EXPECT_GE(p.x, d.min_x - 1e-4f);
+        EXPECT_LE(p.x, d.max_x + 1e-4f);
+        EXPECT_GE(p.ring, d.min_ring);
+        EXPECT_LE(p.ring, d.max_ring);
+      }
+    }
+    seen += at_tag ? 1 : 0;
+  });
+  EXPECT_GE(rotations, 3);
+  EXPECT_EQ(seen, rotations);  // the tag's clusters, in every rotation
+  // Without keep_cluster_points nothing is copied.
+  o.keep_cluster_points = false;
+  Detector plain(o);
+  scans.run(1, 5, [&](const Scan& s, size_t) {
+    plain.detect(s, result);
+    EXPECT_TRUE(result.cluster_points.empty());
+  });
+}
+
 TEST(DetectorEndToEnd, Vlp32cFindsA12mTagFaceOnAndTurnedUpTo16m) {
   for (double d : {3.0, 9.0, 16.0})
     for (int angle : {0, 45}) {

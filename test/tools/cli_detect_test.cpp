@@ -158,6 +158,41 @@ TEST(CliDetect, ASizeThePointsContradictIsWarnedAboutWithTheSizeToGive) {
   EXPECT_EQ(right.out.find("warning"), std::string::npos) << right.out;
 }
 
+// A tag too far for the sensor's rings: --clusters names the cluster dropped at clustering and
+// what it lacked, in the text and in the JSON.
+TEST(CliDetect, ClustersSaysWhatATagTooFarLacked) {
+  const auto dir = fs::temp_directory_path() / ("lidartag_far_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  {
+    std::ofstream scene(dir / "far.yaml");
+    scene << "rotations: 2\nseed: 3\nsensor: {model: vlp16, rpm: 600, height: 1.0}\n"
+             "tags:\n  - {family: tag16h5, id: 3, size: 0.8, center: [14.0, 0, 1.0], "
+             "rotation: diamond, stand: {width: 0.05}}\n";
+  }
+  const std::string pcap = (dir / "far.pcap").string();
+  ASSERT_EQ(run_tool("sim " + (dir / "far.yaml").string() + " --out " + pcap).exit_code, 0);
+  const Result r = run_tool("detect " + pcap + " --tag-size 0.8 --clusters --no-tracker", false);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("-> clustering/few_features: 2 rings crossed it, 4 features; a cluster "
+                       "needs 3 rings and 4 features; the rings are 0.49 m apart at 14.0 m"),
+            std::string::npos)
+      << r.out;
+  const Result j =
+      run_tool("detect " + pcap + " --tag-size 0.8 --clusters --no-tracker --json", false);
+  ASSERT_EQ(j.exit_code, 0) << j.out;
+  std::istringstream lines(j.out);
+  int lacked = 0;
+  for (std::string line; std::getline(lines, line);) {
+    const nlohmann::json rotation = nlohmann::json::parse(line);
+    for (const auto& c : rotation["cluster_diagnostics"])
+      if (c["result"] == "few_features" && c.contains("lacked") &&
+          c["lacked"].get<std::string>().find("2 rings crossed it") != std::string::npos)
+        ++lacked;
+  }
+  EXPECT_EQ(lacked, 2);
+  fs::remove_all(dir);
+}
+
 TEST(CliDetect, ConfigFileSetsTheDetector) {
   TempDir dir;
   {

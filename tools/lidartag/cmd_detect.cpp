@@ -12,6 +12,7 @@
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <numbers>
 #include <optional>
 #include <span>
 #include <string>
@@ -81,12 +82,60 @@ nlohmann::json vec(const Eigen::Vector3d& v) {
   return nlohmann::json::array({v.x(), v.y(), v.z()});
 }
 
-// Clusters with enough features to be a tag (the many tiny ones are left out).
-bool explained(const det::ClusterDiagnostic& c) {
-  return c.rejection != det::Rejection::kFewFeatures;
+// Each ring's elevation, degrees (the median of a sample of its returns; NaN without any): how
+// far apart the rings are at a cluster's range.
+std::vector<double> ring_elevations_deg(const Scan& scan) {
+  std::vector<double> out(static_cast<size_t>(scan.rings), std::nan(""));
+  std::vector<double> e;
+  const int step = std::max(1, scan.columns / 256);
+  for (int ring = 0; ring < scan.rings; ++ring) {
+    e.clear();
+    for (int col = 0; col < scan.columns; col += step) {
+      const size_t i = scan.at(0, ring, col);
+      if (scan.range[i] <= 0) continue;
+      e.push_back(std::atan2(scan.z[i], std::hypot(scan.x[i], scan.y[i])) * 180.0 /
+                  std::numbers::pi);
+    }
+    if (e.empty()) continue;
+    std::nth_element(e.begin(), e.begin() + static_cast<long>(e.size() / 2), e.end());
+    out[static_cast<size_t>(ring)] = e[e.size() / 2];
+  }
+  return out;
 }
 
-nlohmann::json cluster_json(size_t index, const det::ClusterDiagnostic& c) {
+// What a cluster dropped for too few rings or points lacked, against the bound that dropped it;
+// empty for the other reasons (their measurements say it).
+std::string lacked(const det::ClusterDiagnostic& c, const det::Detector& detector,
+                   const std::vector<double>& elevation_deg) {
+  const auto& o = detector.options();
+  if (c.rejection == det::Rejection::kTooFewPoints)
+    return fmt::format("{} points, eq. (3) asks {} for the configured families", c.points,
+                       detector.limits().min_points);
+  if (c.rejection != det::Rejection::kFewFeatures) return {};
+  const int rings = c.max_ring - c.min_ring + 1;
+  std::string s =
+      fmt::format("{} ring{} crossed it, {} feature{}; a cluster needs {} rings and {} features",
+                  rings, rings == 1 ? "" : "s", c.features, c.features == 1 ? "" : "s",
+                  o.validation.min_rings, o.validation.min_features);
+  // The rings' spacing where it is: the next ring up (or down) from its top ring.
+  const double range = std::hypot(0.5 * (c.min_x + c.max_x), 0.5 * (c.min_y + c.max_y));
+  const auto e = [&](int ring) {
+    return ring >= 0 && ring < static_cast<int>(elevation_deg.size())
+               ? elevation_deg[static_cast<size_t>(ring)]
+               : std::nan("");
+  };
+  double gap = e(c.max_ring + 1) - e(c.max_ring);
+  if (!std::isfinite(gap)) gap = e(c.min_ring) - e(c.min_ring - 1);
+  if (std::isfinite(gap) && gap > 0)
+    s += fmt::format(
+        "; the rings are {:.2f} m apart at {:.1f} m (lidartag plan: where this sensor "
+        "sees a tag)",
+        range * std::tan(gap * std::numbers::pi / 180.0), range);
+  return s;
+}
+
+nlohmann::json cluster_json(size_t index, const det::ClusterDiagnostic& c,
+                            const std::string& lacks) {
   nlohmann::json o;
   o["index"] = index;  // what `lidartag render --cluster` takes
   o["result"] = std::string(det::rejection_name(c.rejection));
@@ -101,6 +150,7 @@ nlohmann::json cluster_json(size_t index, const det::ClusterDiagnostic& c) {
       {"coverage", c.coverage},           {"score", c.score},   {"margin", c.margin}};
   for (const auto& [key, value] : measured)
     if (value >= 0) o[key] = value;
+  if (!lacks.empty()) o["lacked"] = lacks;
   return o;
 }
 
@@ -132,7 +182,8 @@ struct Reported {
   const det::TrackerResult* tracked = nullptr;  // null: tracker off
 };
 
-nlohmann::json rotation_json(const Scan& scan, const Reported& rep, bool clusters) {
+nlohmann::json rotation_json(const Scan& scan, const Reported& rep, const det::Detector& detector,
+                             bool clusters) {
   const det::ScanResult& r = *rep.result;
   nlohmann::json j;
   j["sequence"] = scan.sequence;  // the rotation's number, as the daemon and Python give it
@@ -190,8 +241,11 @@ nlohmann::json rotation_json(const Scan& scan, const Reported& rep, bool cluster
   j["rejected"] = rejected;
   if (clusters) {
     nlohmann::json list = nlohmann::json::array();
+    const std::vector<double> elevation = ring_elevations_deg(scan);
     for (size_t i = 0; i < r.diagnostics.size(); ++i)
-      if (explained(r.diagnostics[i])) list.push_back(cluster_json(i, r.diagnostics[i]));
+      if (worth_explaining(r.diagnostics[i], detector.options().tag_sizes_m))
+        list.push_back(
+            cluster_json(i, r.diagnostics[i], lacked(r.diagnostics[i], detector, elevation)));
     j["cluster_diagnostics"] = list;
   }
   return j;
@@ -246,9 +300,11 @@ void print_rotation(const Scan& scan, const Reported& rep, const det::Detector& 
   } else {
     for (const auto& d : r.detections) print_detection(d, nullptr);
   }
+  const std::vector<double> elevation =
+      clusters ? ring_elevations_deg(scan) : std::vector<double>();
   for (size_t i = 0; clusters && i < r.diagnostics.size(); ++i) {
     const auto& c = r.diagnostics[i];
-    if (!explained(c)) continue;
+    if (!worth_explaining(c, detector.options().tag_sizes_m)) continue;
     fmt::print(
         "  cluster {} x [{:.2f}, {:.2f}] y [{:.2f}, {:.2f}] rings {}-{}: {} features, {} points, "
         "{} boundary",
@@ -260,8 +316,10 @@ void print_rotation(const Scan& scan, const Reported& rep, const det::Detector& 
     if (c.mean_cost_m >= 0) fmt::print(", cost {:.4f} m", c.mean_cost_m);
     if (c.coverage >= 0) fmt::print(", coverage {:.2f}", c.coverage);
     if (c.score >= 0) fmt::print(", score {:.2f} margin {:.2f}", c.score, c.margin);
-    fmt::print(" -> {}/{}{}\n", det::rejection_stage(c.rejection), det::rejection_name(c.rejection),
+    fmt::print(" -> {}/{}{}", det::rejection_stage(c.rejection), det::rejection_name(c.rejection),
                other_family_note(detector.other_family_of(r, c)));
+    const std::string lacks = lacked(c, detector, elevation);
+    fmt::print("{}\n", lacks.empty() ? "" : ": " + lacks);
   }
 }
 
@@ -404,7 +462,7 @@ int run_detect(const DetectArgs& args) {
     }
     totals.add(rep);
     if (args.json) {
-      fmt::print("{}\n", rotation_json(scan, rep, args.clusters).dump());
+      fmt::print("{}\n", rotation_json(scan, rep, detector, args.clusters).dump());
       std::fflush(stdout);
     } else {
       print_rotation(scan, rep, detector, args.clusters);

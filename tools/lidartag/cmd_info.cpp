@@ -1,13 +1,22 @@
 // `lidartag info CAPTURE`: what a capture holds: sensor, return mode, rate, packets by kind,
-// rotations, losses, GPS state.
+// rotations, losses, GPS state. An Ouster capture (--metadata FILE.json, or NAME.json beside
+// NAME.pcap when that is an Ouster sensor's metadata): profile, frames, packets, refusals.
 #include <fmt/format.h>
 
+#include <array>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 
 #include "lidartag/commands.hpp"
 #include "lidartag/common.hpp"
+#include "lidartag/driver/io/pcap_source.hpp"
+#include "lidartag/driver/ouster/decoder.hpp"
+#include "lidartag/driver/scan_batcher.hpp"
 #include "lidartag/driver/velodyne/decoder.hpp"
 #include "lidartag/driver/velodyne/io/capture_reader.hpp"
 
@@ -19,12 +28,132 @@ using velodyne::DecodeStatus;
 struct InfoArgs {
   CaptureArgs capture;
   bool json = false;
+  std::string metadata;  // Ouster metadata; empty: NAME.json beside the capture, if Ouster's
 };
+
+// The Ouster metadata to read the capture with: --metadata, else NAME.json beside NAME.pcap when
+// it holds an Ouster sensor's beam intrinsics (another JSON there, e.g. a simulator's truth, is
+// not taken for one). Empty: not an Ouster capture.
+std::optional<std::string> ouster_metadata(const InfoArgs& args) {
+  if (!args.metadata.empty()) return args.metadata;
+  std::filesystem::path beside = args.capture.capture;
+  beside.replace_extension(".json");
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(beside, ec)) return std::nullopt;
+  std::ifstream in(beside);
+  const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
+  if (j.is_object() && (j.contains("beam_intrinsics") || j.contains("beam_altitude_angles")))
+    return beside.string();
+  return std::nullopt;
+}
+
+int run_info_ouster(const InfoArgs& args, const std::string& metadata) {
+  namespace ou = driver::ouster;
+  const ou::SensorInfo info = ou::load_metadata(metadata);
+  ou::Decoder decoder(info);
+  // The Ouster ports unless others were given.
+  driver::PcapSourceOptions source_options = reader_options(args.capture).source;
+  if (args.capture.data_port == velodyne::kDefaultDataPort)
+    source_options.data_port = ou::kLidarPort;
+  if (args.capture.position_port == velodyne::kDefaultPositionPort)
+    source_options.position_port = ou::kImuPort;
+  driver::PcapSource source(args.capture.capture, source_options);
+  driver::ScanBatcher batcher(decoder.layout(),
+                              static_cast<uint8_t>(ou::kReturnModeBase + uint8_t(info.profile)),
+                              info.returns(), driver::BatcherOptions{});
+  std::array<Scan, 2> scans;
+  size_t current = 0;
+  uint64_t lidar = 0, imu = 0, imu_wrong_size = 0, frames = 0, complete = 0, points = 0;
+  int max_columns = 0;
+  int64_t first_ns = 0, last_ns = 0;
+  auto done = [&] {
+    const Scan& s = scans[current];
+    ++frames;
+    complete += s.complete ? 1 : 0;
+    points += s.point_count();
+    max_columns = std::max(max_columns, s.columns);
+    current ^= 1;
+  };
+  driver::RawPacket raw;
+  ou::PacketColumns parsed;
+  while (source.next(raw, std::chrono::milliseconds(0)) == driver::ReadStatus::kPacket) {
+    if (lidar + imu + imu_wrong_size == 0) first_ns = raw.receive_time_ns;
+    last_ns = raw.receive_time_ns;
+    if (raw.destination_port != source_options.data_port) {
+      ++(raw.payload.size() == ou::kImuPacketSize ? imu : imu_wrong_size);
+      continue;
+    }
+    ++lidar;
+    if (decoder.parse(raw.payload, parsed) != ou::DecodeStatus::kOk) continue;
+    if (batcher.add(parsed, scans[current])) done();
+  }
+  while (batcher.flush(scans[current])) done();
+  const auto& st = decoder.stats();
+  const auto& bs = batcher.stats();
+  const auto src = source.stats();
+  const double duration_s = static_cast<double>(last_ns - first_ns) * 1e-9;
+  const std::string mode = fmt::format("{}x{}", info.mode_columns, info.mode_rate_hz);
+  if (args.json) {
+    nlohmann::json j;
+    j["capture"] = args.capture.capture;
+    j["metadata"] = metadata;
+    j["vendor"] = "ouster";
+    j["product"] = info.prod_line;
+    j["serial_number"] = info.serial_number;
+    j["firmware"] = info.firmware;
+    j["lidar_mode"] = mode;
+    j["profile"] = std::string(ou::profile_name(info.profile));
+    j["beams"] = info.pixels_per_column;
+    j["duration_s"] = duration_s;
+    j["packets"] = {{"lidar", lidar},
+                    {"imu", imu},
+                    {"other", imu_wrong_size},
+                    {"ignored", src.ignored},
+                    {"truncated", src.truncated},
+                    {"malformed", src.malformed}};
+    nlohmann::json refused = nlohmann::json::object();
+    for (int i = 1; i < ou::kDecodeStatusCount; ++i)
+      refused[std::string(ou::decode_status_name(ou::DecodeStatus(i)))] = st.by_status[size_t(i)];
+    j["refused"] = refused;
+    j["invalid_columns"] = st.invalid_columns;
+    j["frames"] = {{"total", frames},
+                   {"complete", complete},
+                   {"incomplete", frames - complete},
+                   {"most_columns", max_columns},
+                   {"points", points}};
+    j["missing_packets"] = bs.missing_packets;
+    j["frame_jumps"] = bs.azimuth_jumps;
+    fmt::print("{}\n", j.dump(2));
+    return 0;
+  }
+  fmt::print("capture:        {}\n", args.capture.capture);
+  fmt::print("metadata:       {}\n", metadata);
+  fmt::print("sensor:         Ouster {} serial {} firmware {}\n",
+             info.prod_line.empty() ? "(unnamed)" : info.prod_line, info.serial_number,
+             info.firmware.empty() ? "unknown" : info.firmware);
+  fmt::print("lidar mode:     {}, {} beams, profile {}\n", mode, info.pixels_per_column,
+             ou::profile_name(info.profile));
+  fmt::print("duration:       {:.3f} s\n", duration_s);
+  fmt::print("packets:        lidar {}, imu {}, other {}, ignored {}, truncated {}, malformed {}\n",
+             lidar, imu, imu_wrong_size, src.ignored, src.truncated, src.malformed);
+  std::string refused;
+  for (int i = 1; i < ou::kDecodeStatusCount; ++i)
+    refused += fmt::format("{}{} {}", refused.empty() ? "" : ", ",
+                           ou::decode_status_name(ou::DecodeStatus(i)), st.by_status[size_t(i)]);
+  fmt::print("refused:        {}\n", refused);
+  fmt::print("frames:         total {}, complete {}, incomplete {} (most columns {} of {})\n",
+             frames, complete, frames - complete, max_columns, info.columns_per_frame);
+  fmt::print("points:         {}\n", points);
+  fmt::print("missing:        {} packets, {} frame jumps, {} invalid columns\n", bs.missing_packets,
+             bs.azimuth_jumps, st.invalid_columns);
+  return 0;
+}
 
 constexpr DecodeStatus kDecodeErrors[] = {DecodeStatus::kWrongSize, DecodeStatus::kBadBlockFlag,
                                           DecodeStatus::kBadAzimuth, DecodeStatus::kBadReturnMode};
 
 int run_info(const InfoArgs& args) {
+  if (const auto metadata = ouster_metadata(args)) return run_info_ouster(args, *metadata);
   velodyne::CaptureReader reader(args.capture.capture, reader_options(args.capture));
   uint64_t rotations = 0, complete = 0, points = 0, rated = 0;
   double rpm_complete = 0, rpm_any = 0;
@@ -146,6 +275,9 @@ const Registrar kInfo("info", "Summarise a capture: sensor, mode, rotations, los
                         auto args = std::make_shared<InfoArgs>();
                         add_capture_options(app, args->capture);
                         app.add_flag("--json", args->json, "Print JSON instead of text");
+                        app.add_option("--metadata", args->metadata,
+                                       "Ouster sensor metadata JSON (default: NAME.json beside "
+                                       "NAME.pcap when it is an Ouster sensor's)");
                         return [args] { return run_info(*args); };
                       });
 

@@ -273,8 +273,10 @@ int run_render(const RenderArgs& args) {
 
   std::vector<draw::ViewCluster> clusters;
   for (size_t i = 0; i < result.diagnostics.size(); ++i)
-    clusters.push_back(
-        {static_cast<int>(i), &result.diagnostics[i], result.points_of(result.diagnostics[i])});
+    if (worth_explaining(result.diagnostics[i], options.tag_sizes_m) ||
+        static_cast<int>(i) == args.cluster)
+      clusters.push_back(
+          {static_cast<int>(i), &result.diagnostics[i], result.points_of(result.diagnostics[i])});
 
   const std::string prefix = fmt::format("{}-rotation{}", output_prefix(args), number);
   const std::string name = fs::path(args.capture.capture).filename().string();

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <filesystem>
 #include <optional>
 #include <span>
@@ -160,6 +161,14 @@ void load_pcd_scan(const CaptureArgs& args, int rings, double resolution_deg, Sc
   }
   if (report.intensity_scaled)
     spdlog::warn("{}: every intensity is within [0, 1]: read as 0..1 and scaled to 0..255", path);
+}
+
+bool worth_explaining(const detector::ClusterDiagnostic& c, std::span<const double> tag_sizes_m) {
+  if (c.rejection != detector::Rejection::kFewFeatures) return true;
+  if (tag_sizes_m.empty()) return false;
+  const double span = std::hypot(c.max_x - c.min_x, c.max_y - c.min_y);
+  const auto [lo, hi] = std::minmax_element(tag_sizes_m.begin(), tag_sizes_m.end());
+  return c.features >= 2 && span >= 0.5 * *lo && span <= 1.5 * *hi;
 }
 
 }  // namespace lidartag::cli

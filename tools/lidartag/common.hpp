@@ -3,10 +3,12 @@
 
 #include <cstddef>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 
 #include "lidartag/cli11.hpp"
+#include "lidartag/detector/result.hpp"
 #include "lidartag/driver/scan.hpp"
 #include "lidartag/driver/velodyne/io/capture_reader.hpp"
 #include "lidartag/driver/velodyne/sensor_model.hpp"
@@ -56,6 +58,11 @@ void load_pcd_scan(const CaptureArgs& args, int rings, double resolution_deg, Sc
 // " (tag36h11 fits better)" after a rejection of other_family that names the family
 // (Detector::other_family_of); "" when it names none.
 std::string other_family_note(std::string_view family);
+
+// Clusters worth explaining (detect --clusters, render): every one that got past clustering, and
+// of those dropped there the ones about as wide as a configured tag size (a tag too far or too
+// sparse: one or two rings across it); the many smaller ones (edges of clutter) are left out.
+bool worth_explaining(const detector::ClusterDiagnostic& c, std::span<const double> tag_sizes_m);
 
 // A length option given in metres, or with its unit as everywhere a length is taken ("0.8",
 // "800mm", "80cm", "31.5in"): rewritten to metres before CLI11 converts it; a text that is not a

@@ -35,8 +35,9 @@ double nice_step(double target) {
   return 10 * p;
 }
 
+// The caller chose which clusters to draw (the rejected ones of them are drawn).
 bool shown(const det::ClusterDiagnostic& d) {
-  return d.rejection != det::Rejection::kNone && d.rejection != det::Rejection::kFewFeatures;
+  return d.rejection != det::Rejection::kNone;
 }
 
 // Reached the plane fit or later.
@@ -210,7 +211,7 @@ BirdsEyeMapping write_birds_eye(const Scan& scan, const det::ScanResult& result,
   std::vector<Entry> legend = {
       {from_hex(kDetection), fmt::format("detection ({})", result.detections.size())}};
   const std::array<const char*, det::kStageCount> what = {"",
-                                                          "clustering: too large",
+                                                          "clustering: too few rings, too large",
                                                           "validation: point counts",
                                                           "plane: not flat",
                                                           "corners: no tag-sized square",

@@ -36,7 +36,7 @@ Colour stage_colour(detector::Stage stage) {
   switch (stage) {
     case detector::Stage::kFeatures:
     case detector::Stage::kClustering:
-      return from_hex(0x9aa0a6);  // grey: too large to be a tag
+      return from_hex(0x9aa0a6);  // grey: too few rings or features, or too large, to be a tag
     case detector::Stage::kValidation:
       return from_hex(0xf5a623);  // orange: point counts
     case detector::Stage::kPlane:

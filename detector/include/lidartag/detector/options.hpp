@@ -58,10 +58,11 @@ struct DetectorOptions {
   // what the tag was found from. Default false: a copy of each detection's points (about 1,300
   // for a 0.8 m tag at 4 m on a VLP-32C).
   bool keep_tag_points = false;
-  // Also return the points of every cluster that got past the fill-in, as they were when the
-  // cluster was accepted or dropped (ScanResult::cluster_points; ClusterDiagnostic and Candidate
-  // say where each cluster's are), e.g. to draw why a cluster was rejected. Default false: a copy
-  // of every cluster's points (tens of thousands in a cluttered rotation).
+  // Also return the points of every cluster, as they were when the cluster was accepted or
+  // dropped (ScanResult::cluster_points; ClusterDiagnostic and Candidate say where each cluster's
+  // are), e.g. to draw why a cluster was rejected; a cluster dropped at clustering, before the
+  // fill-in, has its edge features. Default false: a copy of every cluster's points (tens of
+  // thousands in a cluttered rotation).
   bool keep_cluster_points = false;
 };
 

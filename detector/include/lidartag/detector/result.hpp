@@ -87,7 +87,8 @@ struct ClusterDiagnostic {
   int candidate = -1;         // index into ScanResult::candidates when it reached decoding
   // With keep_cluster_points: its points in ScanResult::cluster_points, as they were when it was
   // accepted or dropped (after fill-in; after the plane fit only the plane's inliers, without
-  // the narrow top and bottom rings). -1 / 0 otherwise.
+  // the narrow top and bottom rings; dropped at clustering, its edge features). -1 / 0
+  // otherwise.
   int first_point = -1;
   int point_count = 0;
 };
@@ -195,7 +196,8 @@ struct ScanResult {
   // When DetectorOptions::keep_tag_points: the points each detection's pose was fitted to (sensor
   // frame), one detection after the other; one vector for all, so that it is reused.
   std::vector<ClusterPoint> tag_points;
-  // When DetectorOptions::keep_cluster_points: every cluster's points past the fill-in.
+  // When DetectorOptions::keep_cluster_points: every cluster's points (past the fill-in, or its
+  // edge features when it was dropped at clustering).
   std::vector<ClusterPoint> cluster_points;
 
   double total_ms() const;
