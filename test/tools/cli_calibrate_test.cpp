@@ -91,8 +91,15 @@ std::pair<double, double> errors(const nlohmann::json& j) {
 
 TEST_F(CliCalibrate, FindsTheHiddenExtrinsicFromImagesAndCaptures) {
   ASSERT_EQ(sim_.exit_code, 0) << sim_.out;
-  const ToolResult r = run_tool(command(all_pairs()) + " -o " + path("result.json"), false);
+  const ToolResult r = run_tool(
+      command(all_pairs()) + " -o " + path("result.json") + " --pictures " + path("view"), false);
   ASSERT_EQ(r.exit_code, 0) << r.out;
+  // A picture per pair, the image's width, taller by the caption.
+  for (int i = 0; i < 6; ++i) {
+    const std::string png =
+        run_command("od -An -tx1 -j16 -N8 " + path("view-pair") + std::to_string(i) + ".png").out;
+    EXPECT_NE(png.find("00 00 02 80 00 00 01"), std::string::npos) << i << ": " << png;
+  }
   const nlohmann::json j = nlohmann::json::parse(run_command("cat " + path("result.json")).out);
   const auto [rot_deg, trans_m] = errors(j);
   EXPECT_LT(rot_deg, 0.1);

@@ -30,6 +30,8 @@
 #include "lidartag/detector/detector.hpp"
 #include "lidartag/detector/tag_family.hpp"
 #include "lidartag/detector/tracker.hpp"
+#include "lidartag/draw/cairo_util.hpp"
+#include "lidartag/draw/calibration_view.hpp"
 #include "lidartag/exit_codes.hpp"
 
 namespace lidartag::cli {
@@ -48,7 +50,8 @@ struct CalibrateArgs {
   double pixel_sigma = 0.3;
   std::string lidar_frame = "lidar";
   std::string camera_frame = "camera_optical_frame";
-  std::string model;  // of the captures, when their packets do not say
+  std::string model;     // of the captures, when their packets do not say
+  std::string pictures;  // PREFIX: PREFIX-pairN.png per pair
 };
 
 // One pair's inputs as found, and why it could not be used when it could not.
@@ -56,8 +59,10 @@ struct PairInput {
   std::string image, capture;
   std::vector<calib::ImageTagCorners> image_tags;
   std::vector<calib::LidarTag> lidar_tags;
-  int rotations = 0;  // complete rotations of the capture read
-  std::string error;  // the pair was dropped whole (unreadable, wrong size)
+  calib::GrayImage image_pixels;        // kept for the picture
+  std::vector<Eigen::Vector3f> points;  // the capture's last rotation, for the picture
+  int rotations = 0;                    // complete rotations of the capture read
+  std::string error;                    // the pair was dropped whole (unreadable, wrong size)
   calib::Pairing pairing;
 };
 
@@ -65,7 +70,8 @@ struct PairInput {
 // every rotation; its spread is the corners' uncertainty); a single rotation (a PCD) gives its
 // detections.
 std::vector<calib::LidarTag> lidar_tags_of(const std::string& path, const CalibrateArgs& args,
-                                           const det::DetectorOptions& options, int& rotations) {
+                                           const det::DetectorOptions& options, int& rotations,
+                                           std::vector<Eigen::Vector3f>& points) {
   det::Detector detector(options);
   det::Tracker tracker(det::TrackerOptions{}, options);
   det::ScanResult result;
@@ -80,6 +86,12 @@ std::vector<calib::LidarTag> lidar_tags_of(const std::string& path, const Calibr
     detector.detect(scan, result);
     tracker.update(result, scan.stamp_ns, tracked);
     last_detections = result.detections;
+    points.clear();
+    for (int ring = 0; ring < scan.rings; ++ring)
+      for (int col = 0; col < scan.columns; ++col) {
+        const size_t i = scan.at(0, ring, col);
+        if (scan.range[i] > 0) points.emplace_back(scan.x[i], scan.y[i], scan.z[i]);
+      }
     for (const det::TrackedDetection& t : tracked.tags)
       if (t.track.confirmed || t.decoded) latest[t.track.track_id] = t;
     ++rotations;
@@ -129,8 +141,9 @@ std::vector<calib::LidarTag> lidar_tags_of(const std::string& path, const Calibr
 std::vector<calib::ImageTagCorners> image_tags_of(const std::string& path,
                                                   const calib::CameraModel& camera,
                                                   calib::ImageTagDetector& detector,
-                                                  const CalibrateArgs& args) {
-  const calib::GrayImage image = calib::read_gray(path);
+                                                  const CalibrateArgs& args,
+                                                  calib::GrayImage& image) {
+  image = calib::read_gray(path);
   if (image.width != camera.width || image.height != camera.height)
     throw calib::ImageError(fmt::format(
         "{}: the image is {} x {} px but the camera's intrinsics ({}) are for {} x {}: another "
@@ -228,6 +241,43 @@ void print_text(const calib::CalibrationResult& r, const std::vector<PairInput>&
   if (!args.out.empty()) fmt::print("wrote {}\n", args.out);
 }
 
+// One picture per usable pair: its image, the capture's points through the extrinsic, and its
+// tags' corners from both sensors.
+void write_pictures(const calib::CalibrationResult& r, const calib::CameraModel& camera,
+                    const std::vector<PairInput>& inputs, const std::string& prefix) {
+  const draw::FontCacheRelease release_fonts;  // after every surface below
+  std::map<std::string, const calib::PoseReport*> reports;
+  for (const auto& p : r.poses) reports[p.label] = &p;
+  for (size_t i = 0; i < inputs.size(); ++i) {
+    const PairInput& p = inputs[i];
+    if (!p.error.empty()) continue;
+    draw::CalibrationView v;
+    v.image = &p.image_pixels;
+    v.camera = &camera;
+    v.camera_from_lidar = r.camera_from_lidar;
+    v.points = p.points;
+    std::string errors;
+    for (const calib::TagPose& pose : p.pairing.poses) {
+      draw::CalibrationViewTag t;
+      t.label = fmt::format("{}:{}", pose.lidar.family, pose.lidar.id);
+      t.image = pose.pixels;
+      t.lidar = pose.lidar.corners;
+      const auto it = reports.find(pose.label);
+      t.used = it != reports.end() && it->second->used;
+      if (it != reports.end())
+        errors += fmt::format("{}{} {}", errors.empty() ? "" : "; ", t.label,
+                              t.used ? fmt::format("{:.2f} px RMS", it->second->rms_px)
+                                     : "rejected: " + it->second->reason);
+      v.tags.push_back(t);
+    }
+    v.title = {fmt::format("pair {}: {} + {}", i, p.image, p.capture),
+               errors.empty() ? std::string("no tag paired") : errors};
+    const std::string path = fmt::format("{}-pair{}.png", prefix, i);
+    draw::write_calibration_view(v, path);
+    fmt::print(stderr, "wrote {}\n", path);
+  }
+}
+
 int run_calibrate(const CalibrateArgs& args) {
   const calib::CameraModel camera = calib::load_intrinsics(args.camera);
   det::DetectorOptions options;
@@ -245,8 +295,8 @@ int run_calibrate(const CalibrateArgs& args) {
     p.image = args.pairs[i].first;
     p.capture = args.pairs[i].second;
     try {
-      p.image_tags = image_tags_of(p.image, camera, image_detector, args);
-      p.lidar_tags = lidar_tags_of(p.capture, args, options, p.rotations);
+      p.image_tags = image_tags_of(p.image, camera, image_detector, args, p.image_pixels);
+      p.lidar_tags = lidar_tags_of(p.capture, args, options, p.rotations, p.points);
     } catch (const std::exception& e) {
       // One bad pair is reported; the others still calibrate.
       p.error = e.what();
@@ -275,6 +325,7 @@ int run_calibrate(const CalibrateArgs& args) {
     f << j.dump(2) << "\n";
     if (!f) throw std::runtime_error(fmt::format("{}: cannot write the result", args.out));
   }
+  if (!args.pictures.empty()) write_pictures(r, camera, inputs, args.pictures);
   if (args.json) {
     fmt::print("{}\n", j.dump());
   } else {
@@ -311,6 +362,9 @@ const Registrar kCalibrate(
       app.add_option("--camera-frame", args->camera_frame, "the camera's optical frame name")
           ->capture_default_str();
       app.add_option("--model", args->model, "the captures' model, when their packets do not say");
+      app.add_option("--pictures", args->pictures,
+                     "PREFIX: write PREFIX-pairN.png per pair: the image with the LiDAR's points "
+                     "and both sensors' tag corners");
       return [args] { return run_calibrate(*args); };
     });
 
