@@ -26,8 +26,6 @@ packages=(
   # Fuzz targets (libFuzzer and the sanitizers' runtimes of clang 14); lidartagd.service booted in
   # a container (scripts/systemd-container-test.sh)
   clang-14 libclang-rt-14-dev mmdebstrap systemd-container
-  # camera-LiDAR calibration (issue 30): AprilTag 3 finds the tags in images
-  libapriltag-dev
 )
 missing=()
 for p in "${packages[@]}"; do
