@@ -12,13 +12,16 @@
 #include <string_view>
 #include <vector>
 
+#include "lidartag/driver/io/errors.hpp"
+
 namespace lidartag::driver::bag {
 
 // A file that cannot be opened as a bag at all (not a bag, unreadable, a missing table, a topic
-// that is not there): setup errors, thrown by open_bag() and the sources' constructors.
-class BagError : public std::runtime_error {
+// that is not there): setup errors, thrown by open_bag() and the sources' constructors. An IoError:
+// whatever opens captures catches it as it catches a pcap that cannot be opened.
+class BagError : public IoError {
  public:
-  using std::runtime_error::runtime_error;
+  using IoError::IoError;
 };
 
 enum class BagFormat : uint8_t {
