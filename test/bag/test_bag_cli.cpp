@@ -52,9 +52,27 @@ TEST(BagCli, TopicOptionAndRefusals) {
   r = run_tool("info " + bag("mcap/talker.mcap"));
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.out.find("no LiDAR topic"), std::string::npos) << r.out;
+  // dump takes packets only: a PointCloud2 topic is refused by name.
   r = run_tool("dump " + bag("ros1/luminar_pointcloud2_lz4.bag") + " --out /nonexistent/x");
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.out.find("not velodyne_msgs/VelodyneScan"), std::string::npos) << r.out;
+}
+
+TEST(BagCli, DetectRunsOnEveryPointCloudOfALuminarBag) {
+  LIDARTAG_REQUIRE_BAGS();
+  // Five PointCloud2 clouds (laser_id as the ring field), no tags in them.
+  const auto r = run_tool("detect --json " + bag("ros1/luminar_pointcloud2_lz4.bag"), false);
+  EXPECT_EQ(r.exit_code, 0);
+  std::vector<nlohmann::json> rotations;
+  size_t start = 0;
+  for (size_t end = r.out.find('\n'); end != std::string::npos;
+       start = end + 1, end = r.out.find('\n', start))
+    rotations.push_back(nlohmann::json::parse(r.out.substr(start, end - start)));
+  ASSERT_EQ(rotations.size(), 5u) << r.out;
+  for (size_t i = 0; i < rotations.size(); ++i) {
+    EXPECT_EQ(rotations[i]["detections"].size(), 0u);
+    EXPECT_GT(rotations[i]["points"].get<int>(), 0);
+  }
 }
 
 TEST(BagCli, DumpOfABagWritesItsRotations) {
