@@ -2,19 +2,10 @@
 
 namespace lidartag::driver::bag {
 
-namespace {
-std::unique_ptr<MessageReader> open_for_topic(const std::string& path,
-                                              BagPacketSourceOptions& options) {
-  // The connections first (a cheap open), then a reader of the chosen topic alone.
-  options.topic = choose_lidar_topic(open_bag(path)->connections(), options.topic, path);
-  ReaderOptions reader;
-  reader.topics = {options.topic};
-  return open_bag(path, reader);
-}
-}  // namespace
-
+// One open: the topic is chosen from the reader's connections (the constructor below) and the
+// other topics' messages are passed over by connection.
 BagPacketSource::BagPacketSource(const std::string& path, BagPacketSourceOptions options)
-    : BagPacketSource(open_for_topic(path, options), options, path) {}
+    : BagPacketSource(open_bag(path), std::move(options), path) {}
 
 BagPacketSource::BagPacketSource(std::unique_ptr<MessageReader> reader,
                                  BagPacketSourceOptions options, const std::string& path)
