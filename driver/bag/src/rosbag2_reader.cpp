@@ -70,8 +70,9 @@ class Rosbag2Reader final : public MessageReader {
                                      SQLITE_OPEN_READONLY | SQLITE_OPEN_URI, nullptr);
       dbs_.emplace_back(db);
       if (rc != SQLITE_OK) throw BagError(f.string() + ": " + sqlite3_errstr(rc));
-      // Pages read through a memory map, not one read() each: a 1 MB message spans 250 pages.
-      sqlite3_exec(db, "PRAGMA mmap_size=1073741824", nullptr, nullptr, nullptr);
+      // Pages read through a memory map (of the file's first 256 MiB), not one read() each: a
+      // message of 1 MB spans 250 pages.
+      sqlite3_exec(db, "PRAGMA mmap_size=268435456", nullptr, nullptr, nullptr);
       read_topics(db, f.string());
     }
     // Per topic counts, all files (before any message is read).
