@@ -93,9 +93,9 @@ class Ros1Reader final : public MessageReader {
     const uint64_t index_pos = header.fields.number<uint64_t>("index_pos").value_or(0);
     if (index_pos >= after && index_pos < file_.size()) read_index(index_pos);
     if (!indexed_) {
-      note(at(index_pos) +
-           "no usable index (an unfinished recording?): the connections and "
-           "counts are those read");
+      note((index_pos == 0 ? std::string("no index (index_pos 0)")
+                           : at(index_pos) + "no usable index") +
+           " (an unfinished recording?): the connections and counts are those read");
       connections_.clear();
       ids_.clear();
     }
