@@ -215,6 +215,37 @@ TEST(BagDamage, McapWrongCrcCorruptChunkAndUnknownCompression) {
   }
 }
 
+TEST(BagDamage, McapStatisticsWithAShortCountEntry) {
+  LIDARTAG_REQUIRE_BAGS();
+  // The summary's Statistics record with its per-channel count map one byte short: the last
+  // entry is cut (a hang once, found by a byte-flip run under ASan); the messages are still read.
+  Bytes b = read_bytes(bag("mcap/talker.mcap"));
+  uint64_t summary = 0;
+  std::memcpy(&summary, &b[b.size() - 8 - 29 + 9], 8);
+  ASSERT_GT(summary, 8u);
+  size_t stats = 0;
+  for (size_t pos = summary; pos + 9 < b.size() - 8 - 29;) {
+    uint64_t length = 0;
+    std::memcpy(&length, &b[pos + 1], 8);
+    if (b[pos] == 0x0B) stats = pos;
+    pos += 9 + length;
+  }
+  ASSERT_GT(stats, 0u);
+  // message_count 8, schema_count 2, four u32 counts 16, two times 16: the map's length next.
+  const size_t map_len = stats + 9 + 8 + 2 + 16 + 16;
+  uint32_t n = 0;
+  std::memcpy(&n, &b[map_len], 4);
+  ASSERT_GT(n, 0u);
+  --n;
+  std::memcpy(&b[map_len], &n, 4);
+  TempDir dir;
+  const std::string path = dir.file("stats.mcap");
+  write_bytes(path, b);
+  const Outcome o = read_all(path);
+  EXPECT_TRUE(o.opened) << o.open_error;
+  EXPECT_EQ(o.messages, 20u);
+}
+
 // Offset of the first occurrence of `text` in `b` at or after `from` (b.size() if none).
 size_t find(const Bytes& b, std::string_view text, size_t from = 0) {
   const auto it =

@@ -214,7 +214,7 @@ class McapReader final : public MessageReader {
         t.take(16);         // start and end times
         const auto map_len = t.get<uint32_t>();
         Cursor m(t.take(map_len));
-        while (t.ok() && m.left() > 0) {
+        while (t.ok() && m.ok() && m.left() > 0) {  // a short entry ends it
           const auto id = m.get<uint16_t>();
           counts[id] = m.get<uint64_t>();
         }
