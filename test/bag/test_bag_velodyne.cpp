@@ -148,5 +148,74 @@ TEST(BagVelodyne, TopicOfAnotherTypeIsRefused) {
   EXPECT_THROW(BagPacketSource(bag("mcap/talker.mcap")), BagError);  // no LiDAR topic
 }
 
+// A reader of hand-made CDR VelodyneScan messages on one topic.
+class FakeReader final : public MessageReader {
+ public:
+  explicit FakeReader(std::vector<std::vector<uint8_t>> messages) : messages_(std::move(messages)) {
+    connections_.push_back(
+        {"/v", "velodyne_msgs/msg/VelodyneScan", Encoding::kCdr, messages_.size()});
+  }
+  bool next(BagMessage& out) override {
+    if (next_ >= messages_.size()) return false;
+    out.connection = 0;
+    out.time_ns = 1;
+    out.data = messages_[next_++];
+    return true;
+  }
+  BagFormat format() const override { return BagFormat::kMcap; }
+
+ private:
+  std::vector<std::vector<uint8_t>> messages_;
+  size_t next_ = 0;
+};
+
+// A CDR VelodyneScan whose packets have these stamps (seconds) and payloads filled with their
+// index.
+std::vector<uint8_t> velodyne_scan(const std::vector<int32_t>& stamps_s) {
+  std::vector<uint8_t> b = {0, 1, 0, 0};
+  auto put = [&b](auto v) {
+    while ((b.size() - 4) % sizeof(v) != 0) b.push_back(0);
+    const auto* p = reinterpret_cast<const uint8_t*>(&v);
+    b.insert(b.end(), p, p + sizeof(v));
+  };
+  put(int32_t{7});
+  put(uint32_t{0});
+  put(uint32_t{2});
+  b.insert(b.end(), {'v', 0});
+  put(static_cast<uint32_t>(stamps_s.size()));
+  for (size_t i = 0; i < stamps_s.size(); ++i) {
+    put(stamps_s[i]);
+    put(uint32_t{500});
+    b.insert(b.end(), kVelodynePacketBytes, static_cast<uint8_t>(i + 1));
+  }
+  return b;
+}
+
+TEST(BagVelodyne, PacketSourceCountsCorruptStampsAndTruncatedMessages) {
+  std::vector<uint8_t> cut = velodyne_scan({3, 4});
+  cut.resize(cut.size() - 100);  // the second packet cut short
+  auto reader = std::make_unique<FakeReader>(
+      std::vector<std::vector<uint8_t>>{velodyne_scan({1, -5, 2}), cut});
+  BagPacketSource source(std::move(reader), {}, "fake");
+  EXPECT_EQ(source.topic(), "/v");
+  std::vector<int64_t> stamps;
+  std::vector<uint8_t> first_bytes;
+  RawPacket p;
+  while (source.next(p, std::chrono::milliseconds(0)) == ReadStatus::kPacket) {
+    ASSERT_EQ(p.payload.size(), kVelodynePacketBytes);
+    EXPECT_EQ(p.destination_port, kDefaultDataPort);
+    stamps.push_back(p.receive_time_ns);
+    first_bytes.push_back(p.payload[0]);
+  }
+  // The negative stamp is dropped; the whole packet before the cut is kept.
+  EXPECT_EQ(stamps, (std::vector<int64_t>{1'000'000'500, 2'000'000'500, 3'000'000'500}));
+  EXPECT_EQ(first_bytes, (std::vector<uint8_t>{1, 3, 1}));
+  EXPECT_EQ(source.stats().packets, 3u);
+  EXPECT_EQ(source.stats().malformed, 2u);  // the stamp, the cut message
+  EXPECT_EQ(source.stats().truncated, 1u);
+  EXPECT_EQ(source.counts().scans, 2u);
+  EXPECT_EQ(source.counts().bad_messages, 1u);
+}
+
 }  // namespace
 }  // namespace lidartag::driver::bag

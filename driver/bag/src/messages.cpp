@@ -103,8 +103,8 @@ DecodeResult decode_velodyne_scan(std::span<const uint8_t> message, Encoding enc
   header_stamp_ns = c.header();
   const auto count = c.get<uint32_t>();
   if (!c.ok()) return DecodeResult::kTruncated;
-  // Each packet: its stamp (8 bytes) and 1206 bytes (padded to 4 in CDR): never more than fit.
-  if (count > c.left() / (8 + kVelodynePacketBytes)) return DecodeResult::kTruncated;
+  // Packets up to the end of the bytes: a count larger than the message holds (a message cut
+  // short, a corrupt count) keeps the whole packets before the end.
   for (uint32_t i = 0; i < count; ++i) {
     StampedPacket p;
     p.stamp_ns = c.time();

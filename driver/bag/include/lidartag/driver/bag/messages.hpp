@@ -40,7 +40,8 @@ struct StampedPacket {
   std::span<const uint8_t> payload;  // views the message's bytes
 };
 
-// velodyne_msgs/VelodyneScan: its packets, in order, into `out` (cleared first).
+// velodyne_msgs/VelodyneScan: its packets, in order, into `out` (cleared first). A message cut
+// short gives kTruncated with the whole packets before the cut in `out`.
 [[nodiscard]] DecodeResult decode_velodyne_scan(std::span<const uint8_t> message, Encoding encoding,
                                                 int64_t& header_stamp_ns,
                                                 std::vector<StampedPacket>& out);
