@@ -67,7 +67,7 @@ class McapReader final : public MessageReader {
       const uint8_t op = head[0];
       uint64_t length = 0;
       std::memcpy(&length, head.data() + 1, 8);
-      if (length > options_.max_chunk_bytes || length > file_.size() - pos_ - 9) {
+      if (length > file_.size() - pos_ - 9) {
         ++stats_.truncated;
         note(at(pos_) + "a record of " + std::to_string(length) +
              " bytes that the file does not hold; the rest is not read");
@@ -81,6 +81,14 @@ class McapReader final : public MessageReader {
         return false;
       }
       if (op != kChunk && op != kSchema && op != kChannel && op != kMessage) continue;
+      if (length > options_.max_chunk_bytes) {
+        // Read into memory only up to the bound: larger records are skipped (attachments,
+        // which are never read, may be as large as the file).
+        ++(op == kChunk ? stats_.skipped_chunks : stats_.skipped_records);
+        note(at(here) + "a record of " + std::to_string(length) + " bytes, over the " +
+             std::to_string(options_.max_chunk_bytes) + "-byte bound, skipped");
+        continue;
+      }
       if (!file_.read(here + 9, length, record_)) {
         ++stats_.read_errors;
         done_ = true;

@@ -69,9 +69,10 @@ struct ReadStats {
 struct ReaderOptions {
   // Only messages of these topics are delivered (others are skipped without copying); empty: all.
   std::vector<std::string> topics;
-  // Largest chunk accepted, compressed or not, bytes: a chunk header claiming more is corrupt
-  // (counted in skipped_chunks). Bounds the memory a reader holds: one chunk at a time.
-  uint64_t max_chunk_bytes = uint64_t{1} << 30;
+  // Largest chunk or record read into memory, compressed or not, bytes: one claiming more is
+  // skipped as corrupt (skipped_chunks, skipped_records). Bounds the memory a reader holds (one
+  // chunk at a time). Default 256 MiB: ROS 1 writes chunks of 768 KiB, rosbag2's MCAP of 4 MiB.
+  uint64_t max_chunk_bytes = uint64_t{256} << 20;
 };
 
 class MessageReader {
