@@ -10,6 +10,8 @@ packages=(
   libtinyxml2-dev liblzf-dev
   # camera-LiDAR calibration: PNG and JPEG images (libapriltag-dev below finds the tags in them)
   libpng-dev libjpeg-dev
+  # ROS bags and MCAP (driver/bag): rosbag2 sqlite3 storage; bz2, lz4 and zstd chunks
+  libsqlite3-dev libbz2-dev liblz4-dev libzstd-dev
   # the Python module (for /usr/bin/python3) and its tests
   python3-dev pybind11-dev python3-numpy python3-pytest
   libgtest-dev libgmock-dev libbenchmark-dev

@@ -49,6 +49,9 @@ def read(path, model=None, calibration=None, cut_deg=180.0, partial=False, data_
          position_port=8308, sensor=None, rings=0, resolution_deg=0.2):
     """The rotations of a pcap/pcapng capture (or of a PCD file: one rotation), read lazily.
 
+    A ROS 1 bag, ROS 2 bag folder or MCAP file of velodyne_msgs/VelodyneScan packets is read as
+    the pcap of those packets (recognised by content; its one LiDAR topic).
+
     model: decode as this model (vlp16, puck-hires, vlp32c, hdl32e, vls128); None: the packets'
       product byte, checked against their timing (Reader.model_mismatch says when they disagree).
     calibration: a calibration file (ros-drivers YAML or VeloView XML); None: the built-in table.

@@ -199,7 +199,8 @@ class Reader {
   Reader(const std::string& path, const Options& o) : path_(path), partial_(o.partial) {
     const auto model = model_option(o.model);
     std::error_code ec;
-    if (!std::filesystem::is_regular_file(path, ec))
+    // A file, or a folder (a ROS 2 bag): the capture reader tells them apart by content.
+    if (!std::filesystem::exists(path, ec))
       throw driver::IoError("no such file: '" + path + "'");
     if (is_pcd(path)) {
       pcd_ = rotation_of_pcd(path, model, o.rings, o.resolution_deg);

@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "lidartag/bag_clouds.hpp"
 #include "lidartag/commands.hpp"
 #include "lidartag/common.hpp"
 #include "lidartag/detector/cloud_scan.hpp"
@@ -473,6 +474,9 @@ int run_detect(const DetectArgs& args) {
     Scan scan;
     load_pcd_scan(args.capture, args.rings, args.resolution_deg, scan);
     report(scan);
+  } else if (is_point_cloud_bag(args.capture)) {
+    if (for_each_bag_cloud(args.capture, args.rings, args.resolution_deg, report) == 0)
+      throw std::runtime_error(args.capture.capture + ": no point cloud could be read");
   } else {
     velodyne::CaptureReader reader(args.capture.capture, reader_options(args.capture));
     std::error_code ec;
@@ -504,7 +508,9 @@ const Registrar kDetect(
     [](CLI::App& app) -> RunFunction {
       auto args = std::make_shared<DetectArgs>();
       add_capture_options(app, args->capture);
-      app.get_option("capture")->description("pcap or pcapng file, or a PCD point cloud");
+      app.get_option("capture")->description(
+          "pcap or pcapng file, a PCD point cloud, or a ROS bag / MCAP file of VelodyneScan "
+          "packets or PointCloud2 clouds");
       app.add_option("--config", args->config,
                      "YAML file whose `detector:` and `tracker:` sections set the detector's and "
                      "the tracker's options (config/lidartagd.yaml)")
@@ -528,10 +534,11 @@ const Registrar kDetect(
       app.add_flag("--partial", args->partial,
                    "Also detect in incomplete rotations (first, last, lossy)");
       app.add_option("--rings", args->rings,
-                     "PCD without a ring field and no --model: number of beams to regress")
+                     "PCD or PointCloud2 without a ring field and no --model: number of beams to "
+                     "regress")
           ->check(CLI::Range(1, 256));
       app.add_option("--resolution", args->resolution_deg,
-                     "PCD: horizontal resolution (column width), degrees")
+                     "PCD or PointCloud2: horizontal resolution (column width), degrees")
           ->capture_default_str()
           ->check(CLI::Range(0.01, 5.0));
       return [args] { return run_detect(*args); };

@@ -37,9 +37,11 @@ CLI::Validator length_in_metres() {
 }
 
 void add_capture_options(CLI::App& app, CaptureArgs& args) {
-  app.add_option("capture", args.capture, "pcap or pcapng file")
+  app.add_option("capture", args.capture,
+                 "pcap or pcapng file, or a ROS 1 bag, ROS 2 bag folder or MCAP file of "
+                 "VelodyneScan packets (recognised by content)")
       ->required()
-      ->check(CLI::ExistingFile);
+      ->check(CLI::ExistingPath);
   const std::string names = velodyne::model_names();
   std::string set = names;
   set.erase(std::remove(set.begin(), set.end(), ' '), set.end());
@@ -69,6 +71,8 @@ void add_capture_options(CLI::App& app, CaptureArgs& args) {
                        : "not an IPv4 address: '" + text + "'";
           },
           "IPV4"));
+  app.add_option("--topic", args.topic,
+                 "ROS bag / MCAP: the VelodyneScan topic (default: the bag's one LiDAR topic)");
 }
 
 velodyne::CaptureReaderOptions reader_options(const CaptureArgs& args) {
@@ -81,6 +85,7 @@ velodyne::CaptureReaderOptions reader_options(const CaptureArgs& args) {
   }
   if (!args.model.empty()) options.model = velodyne::model_from_name(args.model);
   options.calibration_file = args.calibration;
+  options.topic = args.topic;
   options.batcher.cut_azimuth_deg = args.cut_deg;
   return options;
 }

@@ -24,9 +24,11 @@ struct CaptureArgs {
   uint16_t data_port = velodyne::kDefaultDataPort;
   uint16_t position_port = velodyne::kDefaultPositionPort;
   std::string sensor;  // sender address filter, dotted quad
+  std::string topic;   // ROS bag / MCAP: the VelodyneScan topic; empty: the bag's one LiDAR topic
 };
 
-// Adds CAPTURE, --model, --calibration, --cut, --data-port, --position-port, --sensor to `app`.
+// Adds CAPTURE, --model, --calibration, --cut, --data-port, --position-port, --sensor, --topic to
+// `app`.
 void add_capture_options(CLI::App& app, CaptureArgs& args);
 
 // The reader options for `args` (names already validated by CLI11).

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "lidartag/driver/bag/bag_packet_source.hpp"
 #include "lidartag/driver/velodyne/io/calibration_file.hpp"
 
 namespace lidartag::velodyne {
@@ -14,10 +15,19 @@ namespace {
 constexpr size_t kMinHeld = 1024;
 // Data packets per model check after the decision.
 constexpr size_t kModelEpochPackets = 64;
+
+// A bag (by content) or a pcap.
+std::unique_ptr<driver::PacketSource> open_capture(const std::string& path,
+                                                   const CaptureReaderOptions& options) {
+  if (driver::bag::detect_bag_format(path) == driver::bag::BagFormat::kNone)
+    return std::make_unique<driver::PcapSource>(path, options.source);
+  return std::make_unique<driver::bag::BagPacketSource>(
+      path, driver::bag::BagPacketSourceOptions{options.topic, options.source.data_port});
+}
 }  // namespace
 
 CaptureReader::CaptureReader(const std::string& path, CaptureReaderOptions options)
-    : CaptureReader(std::make_unique<driver::PcapSource>(path, options.source), options) {}
+    : CaptureReader(open_capture(path, options), options) {}
 
 CaptureReader::CaptureReader(std::unique_ptr<driver::PacketSource> source,
                              CaptureReaderOptions options)

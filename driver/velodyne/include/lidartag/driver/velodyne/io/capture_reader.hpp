@@ -27,6 +27,9 @@ struct CaptureReaderOptions {
   // Ports tell data from position packets; the file constructor also opens the capture with these
   // options (as fast as possible unless pacing is set).
   driver::PcapSourceOptions source;
+  // A ROS bag or MCAP file (driver/bag): the VelodyneScan topic to read; empty: the bag's one
+  // LiDAR topic. Unused for pcaps.
+  std::string topic;
   // Model to decode as. Empty: the product byte of the data packets, checked against their timing
   // by ModelCheck (see model_mismatch()); the timing's model when the byte names none.
   std::optional<Model> model;
@@ -69,6 +72,9 @@ struct CaptureCounts {
 class CaptureReader {
  public:
   // Opens the capture file (IoError) and, with a model given, the calibration (CalibrationError).
+  // The file is recognised by content: a ROS 1 bag, ROS 2 bag folder or MCAP file is read through
+  // driver::bag::BagPacketSource (its VelodyneScan packets on `options.topic`; packet stamps as
+  // receive times), anything else as a pcap or pcapng.
   CaptureReader(const std::string& path, CaptureReaderOptions options);
   // Reads from any source (live or replay); ends when the source reports kEnd or kError.
   CaptureReader(std::unique_ptr<driver::PacketSource> source, CaptureReaderOptions options);

@@ -1,0 +1,209 @@
+#include <bzlib.h>
+#include <lz4frame.h>
+#include <zstd.h>
+
+#include <algorithm>
+#include <array>
+#include <filesystem>
+#include <limits>
+
+#include "internal.hpp"
+#include "lidartag/driver/bag/message_reader.hpp"
+
+namespace lidartag::driver::bag {
+
+namespace detail {
+
+std::string at(uint64_t offset) {
+  return "at byte " + std::to_string(offset) + ": ";
+}
+
+std::string decompress(std::string_view compression, std::span<const uint8_t> in, uint64_t size,
+                       std::vector<uint8_t>& out) {
+  out.resize(size);
+  if (compression.empty() || compression == "none") {
+    if (in.size() != size)
+      return "uncompressed chunk of " + std::to_string(in.size()) + " bytes, " +
+             std::to_string(size) + " declared";
+    std::copy(in.begin(), in.end(), out.begin());
+    return {};
+  }
+  if (compression == "zstd") {
+    const size_t n = ZSTD_decompress(out.data(), out.size(), in.data(), in.size());
+    if (ZSTD_isError(n)) return std::string("zstd: ") + ZSTD_getErrorName(n);
+    if (n != size)
+      return "zstd: " + std::to_string(n) + " bytes, " + std::to_string(size) + " declared";
+    return {};
+  }
+  if (compression == "lz4") {
+    LZ4F_dctx* ctx = nullptr;
+    if (LZ4F_isError(LZ4F_createDecompressionContext(&ctx, LZ4F_VERSION)))
+      return "lz4: no decompression context";
+    size_t in_pos = 0, out_pos = 0, status = 1;
+    while (in_pos < in.size() && status != 0) {
+      size_t in_left = in.size() - in_pos, out_left = out.size() - out_pos;
+      status = LZ4F_decompress(ctx, out.data() + out_pos, &out_left, in.data() + in_pos, &in_left,
+                               nullptr);
+      if (LZ4F_isError(status)) {
+        const std::string text = LZ4F_getErrorName(status);
+        LZ4F_freeDecompressionContext(ctx);
+        return "lz4: " + text;
+      }
+      in_pos += in_left;
+      out_pos += out_left;
+      if (in_left == 0 && out_left == 0) break;  // no progress: output full or input stuck
+    }
+    LZ4F_freeDecompressionContext(ctx);
+    if (status != 0 || out_pos != size)
+      return "lz4: " + std::to_string(out_pos) + " bytes, " + std::to_string(size) + " declared" +
+             (status != 0 ? " (frame incomplete)" : "");
+    return {};
+  }
+  if (compression == "bz2") {
+    if (size > std::numeric_limits<unsigned>::max() ||
+        in.size() > std::numeric_limits<unsigned>::max())
+      return "bz2: chunk too large";
+    auto out_size = static_cast<unsigned>(size);
+    // libbz2 takes non-const input; it does not write to it.
+    const int rc =
+        BZ2_bzBuffToBuffDecompress(reinterpret_cast<char*>(out.data()), &out_size,
+                                   const_cast<char*>(reinterpret_cast<const char*>(in.data())),
+                                   static_cast<unsigned>(in.size()), 0, 0);
+    if (rc != BZ_OK) return "bz2: error " + std::to_string(rc);
+    if (out_size != size)
+      return "bz2: " + std::to_string(out_size) + " bytes, " + std::to_string(size) + " declared";
+    return {};
+  }
+  return "unknown compression '" + std::string(compression) + "'";
+}
+
+namespace {
+constexpr std::array<uint32_t, 256> make_crc_table() {
+  std::array<uint32_t, 256> t{};
+  for (uint32_t i = 0; i < 256; ++i) {
+    uint32_t c = i;
+    for (int k = 0; k < 8; ++k) c = (c & 1u) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
+    t[i] = c;
+  }
+  return t;
+}
+constexpr std::array<uint32_t, 256> kCrcTable = make_crc_table();
+}  // namespace
+
+uint32_t crc32(std::span<const uint8_t> bytes, uint32_t crc) {
+  crc = ~crc;
+  for (const uint8_t b : bytes) crc = kCrcTable[(crc ^ b) & 0xFFu] ^ (crc >> 8);
+  return ~crc;
+}
+
+File::File(const std::string& path) : owner_(std::fopen(path.c_str(), "rb")), file_(owner_.get()) {
+  if (!file_) return;
+  if (std::fseek(file_, 0, SEEK_END) == 0) {
+    const long end = std::ftell(file_);
+    if (end > 0) size_ = static_cast<uint64_t>(end);
+  }
+}
+
+bool File::read(uint64_t offset, std::span<uint8_t> out) {
+  if (!file_ || offset > size_ || out.size() > size_ - offset) return false;
+  if (std::fseek(file_, static_cast<long>(offset), SEEK_SET) != 0) return false;
+  return std::fread(out.data(), 1, out.size(), file_) == out.size();
+}
+
+bool File::read(uint64_t offset, uint64_t n, std::vector<uint8_t>& out) {
+  if (!file_ || offset > size_ || n > size_ - offset) return false;
+  out.resize(n);
+  return read(offset, std::span<uint8_t>(out));
+}
+
+}  // namespace detail
+
+void MessageReader::note(const std::string& problem) {
+  // The first few problems in full, then a count: a badly damaged file must not grow the text.
+  constexpr int kShown = 4;
+  ++notes_;
+  if (notes_ <= kShown) {
+    if (!error_.empty()) error_ += "; ";
+    error_ += problem;
+  } else if (notes_ == kShown + 1) {
+    error_ += "; more problems follow (see the counters)";
+  }
+}
+
+bool MessageReader::wanted(std::string_view topic) const {
+  return options_.topics.empty() ||
+         std::find(options_.topics.begin(), options_.topics.end(), topic) != options_.topics.end();
+}
+
+std::string_view format_name(BagFormat format) {
+  switch (format) {
+    case BagFormat::kRos1:
+      return "ROS 1 bag";
+    case BagFormat::kRosbag2:
+      return "ROS 2 bag (sqlite3)";
+    case BagFormat::kMcap:
+      return "MCAP";
+    case BagFormat::kNone:
+      break;
+  }
+  return "not a bag";
+}
+
+namespace {
+constexpr std::string_view kRos1Magic = "#ROSBAG V2.0\n";
+constexpr std::string_view kMcapMagic = "\x89MCAP0\r\n";
+constexpr std::string_view kSqliteMagic{"SQLite format 3\0", 16};
+
+bool starts_with(const std::string& path, std::string_view magic) {
+  detail::File f(path);
+  std::vector<uint8_t> head;
+  if (!f.is_open() || !f.read(0, magic.size(), head)) return false;
+  return std::equal(magic.begin(), magic.end(), head.begin(),
+                    [](char a, uint8_t b) { return static_cast<uint8_t>(a) == b; });
+}
+}  // namespace
+
+BagFormat detect_bag_format(const std::string& path) {
+  std::error_code ec;
+  const std::filesystem::path p(path);
+  if (std::filesystem::is_directory(p, ec)) {
+    if (std::filesystem::is_regular_file(p / "metadata.yaml", ec)) return BagFormat::kRosbag2;
+    for (const auto& entry : std::filesystem::directory_iterator(p, ec)) {
+      if (entry.is_regular_file(ec) && starts_with(entry.path().string(), kSqliteMagic))
+        return BagFormat::kRosbag2;
+    }
+    return BagFormat::kNone;
+  }
+  if (!std::filesystem::is_regular_file(p, ec)) return BagFormat::kNone;
+  if (starts_with(path, kRos1Magic)) return BagFormat::kRos1;
+  if (starts_with(path, kMcapMagic)) return BagFormat::kMcap;
+  if (starts_with(path, kSqliteMagic)) return BagFormat::kRosbag2;
+  // A rosbag2 metadata.yaml named directly: its folder.
+  if (p.filename() == "metadata.yaml" && starts_with(path, "rosbag2_bagfile_information"))
+    return BagFormat::kRosbag2;
+  return BagFormat::kNone;
+}
+
+std::unique_ptr<MessageReader> open_bag(const std::string& path, ReaderOptions options) {
+  switch (detect_bag_format(path)) {
+    case BagFormat::kRos1:
+      return detail::open_ros1(path, options);
+    case BagFormat::kRosbag2:
+      return detail::open_rosbag2(path, options);
+    case BagFormat::kMcap:
+      return detail::open_mcap(path, options);
+    case BagFormat::kNone:
+      break;
+  }
+  throw BagError(path +
+                 ": not a ROS 1 bag, ROS 2 bag (metadata.yaml + .db3) or MCAP file (by content)");
+}
+
+std::string normalized_type(std::string_view type) {
+  std::string t(type);
+  const auto pos = t.find("/msg/");
+  if (pos != std::string::npos) t.erase(pos, 4);
+  return t;
+}
+
+}  // namespace lidartag::driver::bag

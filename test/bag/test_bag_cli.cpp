@@ -1,0 +1,90 @@
+// `lidartag info/dump/detect` on bags, run as a user would: a bag of the same packets as a pcap
+// reports the same, and a bag without a VelodyneScan topic, or with an unknown --topic, is refused
+// with one clear line and exit code 1.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "bag/bag_files.hpp"
+#include "tools/run_tool.hpp"
+
+namespace lidartag::driver::bag {
+namespace {
+
+using lidartag::testing::run_tool;
+using testing::bag;
+using testing::capture;
+
+nlohmann::json info(const std::string& path) {
+  const auto r = run_tool("info --json " + path, false);
+  EXPECT_EQ(r.exit_code, 0) << r.out;
+  return nlohmann::json::parse(r.out);
+}
+
+TEST(BagCli, InfoOnEachRosbag2MatchesItsPcap) {
+  LIDARTAG_REQUIRE_BAGS();
+  for (const auto& [b, p] : std::vector<std::pair<std::string, std::string>>{
+           {"rosbag2/vlp16_dual", "vlp16_dual_nebula.pcap"},
+           {"rosbag2/vlp32c", "vlp32c_nebula_fov.pcap"},
+           {"rosbag2/vls128", "vls128_nebula.pcap"}}) {
+    SCOPED_TRACE(b);
+    nlohmann::json from_bag = info(bag(b)), from_pcap = info(capture(p));
+    ASSERT_GT(from_pcap["rotations"]["total"].get<int>(), 1);
+    for (const char* key : {"model", "return_mode", "rotations", "packets", "rpm"})
+      EXPECT_EQ(from_bag[key], from_pcap[key]) << key;
+    // The pcaps keep microseconds, the bags' packet stamps nanoseconds (the rotations' stamps
+    // come from the packets' own clock and are equal: test_bag_velodyne.cpp).
+    EXPECT_NEAR(from_bag["duration_s"].get<double>(), from_pcap["duration_s"].get<double>(), 1e-6);
+  }
+}
+
+TEST(BagCli, TopicOptionAndRefusals) {
+  LIDARTAG_REQUIRE_BAGS();
+  auto r = run_tool("info --topic /sensing/lidar/front/velodyne_packets " + bag("rosbag2/vlp32c"));
+  EXPECT_EQ(r.exit_code, 0) << r.out;
+  r = run_tool("info --topic /nope " + bag("rosbag2/vlp32c"));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("no topic /nope; its topics: /sensing/lidar/front/velodyne_packets"),
+            std::string::npos)
+      << r.out;
+  r = run_tool("info " + bag("mcap/talker.mcap"));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("no LiDAR topic"), std::string::npos) << r.out;
+  // dump takes packets only: a PointCloud2 topic is refused by name.
+  r = run_tool("dump " + bag("ros1/luminar_pointcloud2_lz4.bag") + " --out /nonexistent/x");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("not velodyne_msgs/VelodyneScan"), std::string::npos) << r.out;
+}
+
+TEST(BagCli, DetectRunsOnEveryPointCloudOfALuminarBag) {
+  LIDARTAG_REQUIRE_BAGS();
+  // Five PointCloud2 clouds (laser_id as the ring field), no tags in them.
+  const auto r = run_tool("detect --json " + bag("ros1/luminar_pointcloud2_lz4.bag"), false);
+  EXPECT_EQ(r.exit_code, 0);
+  std::vector<nlohmann::json> rotations;
+  size_t start = 0;
+  for (size_t end = r.out.find('\n'); end != std::string::npos;
+       start = end + 1, end = r.out.find('\n', start))
+    rotations.push_back(nlohmann::json::parse(r.out.substr(start, end - start)));
+  ASSERT_EQ(rotations.size(), 5u) << r.out;
+  for (size_t i = 0; i < rotations.size(); ++i) {
+    EXPECT_EQ(rotations[i]["detections"].size(), 0u);
+    EXPECT_GT(rotations[i]["points"].get<int>(), 0);
+  }
+}
+
+TEST(BagCli, DumpOfABagWritesItsRotations) {
+  LIDARTAG_REQUIRE_BAGS();
+  testing::TempDir dir;
+  const auto r = run_tool("dump " + bag("rosbag2/vlp32c") + " --out " + dir.file("out"));
+  EXPECT_EQ(r.exit_code, 0) << r.out;
+  size_t files = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir.file("out")))
+    files += e.path().extension() == ".pcd" ? 1u : 0u;
+  EXPECT_EQ(files, info(bag("rosbag2/vlp32c"))["rotations"]["complete"].get<size_t>());
+}
+
+}  // namespace
+}  // namespace lidartag::driver::bag
