@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "../../bench/sim_scans.hpp"
 #include "lidartag/detector/detector.hpp"
 #include "lidartag/driver/io/pcap_source.hpp"
 #include "lidartag/driver/io/pcap_writer.hpp"
@@ -351,6 +352,44 @@ INSTANTIATE_TEST_SUITE_P(Models, OusterSimCapture,
                                            Case{"os1_128_2048_rng19", ouster::Model::kOs1_128, 2048,
                                                 Profile::kRng19Rfl8Sig16Nir16}),
                          [](const auto& p) { return std::string(p.param.name); });
+
+// The same scene in memory (eval::SimScans, what the benches and `lidartag plan` use): every
+// frame delivered complete, destaggered, in the truth's order, and detected at its truth.
+TEST(OusterSimScans, InMemoryFramesAreDestaggeredAndTheTagIsDetectedAtItsTruth) {
+  constexpr int kRotations = 4;
+  const Simulator simulator(
+      tag_scene({"os1_64", ouster::Model::kOs1_64, 1024, Profile::kRng19Rfl8Sig16Nir16}));
+  eval::SimScans scans(simulator);
+  detector::DetectorOptions options;
+  options.tag_sizes_m = {1.2};
+  options.families = {"tag16h5"};
+  detector::Detector det(options);
+  detector::ScanResult result;
+  std::vector<int64_t> stamps;
+  int detected = 0, wrong = 0;
+  double worst_m = 0.0;
+  std::vector<std::vector<detector::Detection>> found;
+  const Truth truth = scans.run(kRotations, 3, [&](const Scan& scan, size_t index) {
+    EXPECT_EQ(index, stamps.size());
+    EXPECT_TRUE(scan.complete);
+    EXPECT_EQ(scan.columns, 1024);
+    EXPECT_EQ(scan.rings, 64);
+    stamps.push_back(scan.stamp_ns);
+    det.detect(scan, result);
+    found.push_back(result.detections);
+  });
+  ASSERT_EQ(stamps.size(), static_cast<size_t>(kRotations));
+  for (size_t i = 0; i < stamps.size(); ++i) {
+    EXPECT_LT(std::llabs(stamps[i] - truth.rotations[i].stamp_ns), 1000);
+    const eval::TagScore score = eval::score_tag(found[i], truth.rotations[i].tags[0]);
+    detected += score.detected ? 1 : 0;
+    wrong += score.wrong_id ? 1 : 0;
+    if (score.detected) worst_m = std::max(worst_m, score.translation_m);
+  }
+  EXPECT_GE(detected, kRotations - 1);
+  EXPECT_EQ(wrong, 0);
+  EXPECT_LT(worst_m, 0.05);
+}
 
 }  // namespace
 }  // namespace lidartag::sim
