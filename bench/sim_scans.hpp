@@ -202,8 +202,8 @@ inline int false_positives(std::span<const detector::Detection> detections,
 // Metres between the two beams whose elevations enclose the direction of a point `above` metres
 // above the sensor's height at `distance` (2 degrees on a VLP-16, 0.33 near the horizon on a
 // VLP-32C), measured at that distance.
-inline double beam_spacing_m(velodyne::Model model, double distance, double above) {
-  std::vector<double> el = velodyne::beam_elevations_deg(model);
+// The same for any beam table (elevations in degrees, any order).
+inline double beam_spacing_m(std::vector<double> el, double distance, double above) {
   std::sort(el.begin(), el.end());
   const double e = std::atan2(above, distance) * 180.0 / std::numbers::pi;
   auto hi = std::upper_bound(el.begin(), el.end(), e);
@@ -211,6 +211,10 @@ inline double beam_spacing_m(velodyne::Model model, double distance, double abov
   if (hi == el.end()) --hi;
   const double deg = std::numbers::pi / 180.0;
   return distance * (std::tan(*hi * deg) - std::tan(*(hi - 1) * deg));
+}
+
+inline double beam_spacing_m(velodyne::Model model, double distance, double above) {
+  return beam_spacing_m(velodyne::beam_elevations_deg(model), distance, above);
 }
 
 // The accuracy scene of the paper's Table I: a tag16h5 of `size` metres (1.2 by default) on an
