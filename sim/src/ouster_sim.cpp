@@ -134,7 +134,7 @@ Truth run_ouster(const Scene& scene, const World& world, const std::vector<TagTa
       if (select_returns(echoes, velodyne::ReturnMode::kStrongest, picked) == 0) continue;
       const Echo e = add_noise(picked[0], noise, rng);
       if (e.range < min_range || e.range > max_range) continue;
-      // The range is measured from the lidar origin's side of the beam origin: r = n + distance.
+      // The formula's point is beam origin + (r - n) direction: r = n + the distance along the ray.
       col.range_mm[b] = static_cast<uint32_t>(std::max(1L, std::lround((e.range + n_m) * 1e3)));
       col.reflectivity[b] = static_cast<uint8_t>(std::clamp(std::lround(e.reflectivity), 0L, 255L));
       col.signal[b] = static_cast<uint16_t>(
