@@ -9,13 +9,15 @@
 // mount, face-on and turned 45 degrees about the vertical, at 2-20 m in 2 m steps; VLP-32C,
 // VLP-16 and VLS-128 at 600 rpm with the simulator's default noise; then issue 11's rows: the
 // VLP-16 at 5 and 7 m, the VLP-32C at 22 and 24 m, and 0.6 and 1.0 m tags in the VLP-32C's sparse
-// upper beams. N rotations per cell (default 50), each with its own noise seed. Per cell:
-// detection rate, wrong IDs, translation and rotation (geodesic, eq. (23)) error, mean and median.
-// False positives: the real captures in --captures (none holds a tag) and N simulated rotations of
-// tagless clutter (default 1000) from a moving sensor, with three families and three sizes, each
-// capture and scene also through a tracker (what lidartagd reports by default).
-// With --out DIR: DIR/accuracy.md (tables, the command, targets met or not) and DIR/accuracy.png
-// (gnuplot). --quick: 3 rotations per cell and 30 clutter rotations (a smoke test for CI).
+// upper beams; then issue 32's rows: the simulated Ouster OS1-64 and OS1-128 (1024x10) at 2-20 m
+// (MODEL os1-64 / os1-128 in --cell too). N rotations per cell (default 50), each with its own
+// noise seed. Per cell: detection rate, wrong IDs, translation and rotation (geodesic, eq. (23))
+// error, mean and median. False positives: the real captures in --captures (none holds a tag) and N
+// simulated rotations of tagless clutter (default 1000) from a moving sensor, with three families
+// and three sizes, each capture and scene also through a tracker (what lidartagd reports by
+// default). With --out DIR: DIR/accuracy.md (tables, the command, targets met or not) and
+// DIR/accuracy.png (gnuplot). --quick: 3 rotations per cell and 30 clutter rotations (a smoke test
+// for CI).
 // --cell: only these cells (tag SIZE metres, its centre ABOVE the sensor's height, code ID or
 // "all" for every code in turn), no
 // false-positive part, no files; --verbose: what happened in each rotation; --board-outline: the
@@ -31,6 +33,7 @@
 #include <map>
 #include <memory>
 #include <numbers>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <string>
@@ -61,6 +64,8 @@ struct Args {
 
 struct Cell {
   velodyne::Model model{};
+  // Set: an Ouster sensor (nominal beam table, 1024x10, RNG19) instead of `model`.
+  std::optional<driver::ouster::Model> ouster;
   double distance = 0;
   int angle = 0;
   double size = 1.2;          // tag size, metres
@@ -75,7 +80,12 @@ struct Cell {
 
   double rate() const { return rotations ? 100.0 * detected / rotations : 0.0; }
   // The paper's setup: a 1.2 m tag at the sensor's height.
-  bool standard() const { return size == 1.2 && above == 0.0 && !sweep; }
+  // (Velodyne only: the Ouster cells have their own tables.)
+  bool standard() const { return size == 1.2 && above == 0.0 && !sweep && !ouster; }
+  std::string sensor() const {
+    return std::string(ouster ? driver::ouster::model_spec(*ouster).name
+                              : velodyne::model_spec(model).name);
+  }
 };
 
 // The cells: the paper's Table I grid (1.2 m tag at the sensor's height, 2-20 m, face-on and 45
@@ -124,13 +134,20 @@ std::vector<Cell> all_cells(int rotations, bool quick) {
     for (double d : {20, 24}) sweep(velodyne::Model::kVLP32C, d, angle);
     sweep(velodyne::Model::kVLP32C, 4, angle, 0.6, 0.3);
   }
+  // Issue 32: the 1.2 m tag on the simulated OS1-64 and OS1-128 (1024x10), 2-20 m.
+  for (auto om : {driver::ouster::Model::kOs1_64, driver::ouster::Model::kOs1_128})
+    for (double d : {2, 4, 6, 8, 10, 12, 14, 16, 18, 20})
+      for (int angle : {0, 45}) {
+        add(velodyne::Model::kVLP32C, d, angle);
+        cells.back().ouster = om;
+      }
   std::stable_sort(cells.begin(), cells.end(), [](const Cell& a, const Cell& b) {
-    const auto order = [](velodyne::Model m) {
-      return m == velodyne::Model::kVLP32C ? 0 : m == velodyne::Model::kVLP16 ? 1 : 2;
+    const auto order = [](const Cell& c) {
+      if (c.ouster) return 3 + static_cast<int>(*c.ouster);
+      return c.model == velodyne::Model::kVLP32C ? 0 : c.model == velodyne::Model::kVLP16 ? 1 : 2;
     };
-    return std::make_tuple(a.sweep, order(a.model), !a.standard(), a.size, a.above, a.distance,
-                           a.angle) < std::make_tuple(b.sweep, order(b.model), !b.standard(),
-                                                      b.size, b.above, b.distance, b.angle);
+    return std::make_tuple(a.sweep, order(a), !a.standard(), a.size, a.above, a.distance, a.angle) <
+           std::make_tuple(b.sweep, order(b), !b.standard(), b.size, b.above, b.distance, b.angle);
   });
   return cells;
 }
@@ -142,8 +159,9 @@ bool parse_cell(const std::string& spec, int rotations, Cell& c) {
   for (std::string part; std::getline(in, part, ',');) f.push_back(part);
   if (f.size() != 3 && f.size() != 5 && f.size() != 6) return false;
   const auto model = velodyne::model_from_name(f[0]);
-  if (!model) return false;
-  c.model = *model;
+  c.ouster = driver::ouster::model_from_name(f[0]);
+  if (!model && !c.ouster) return false;
+  if (model) c.model = *model;
   c.distance = std::atof(f[1].c_str());
   c.angle = std::atoi(f[2].c_str());
   if (f.size() >= 5) {
@@ -197,8 +215,13 @@ void run_cell(Cell& c, int id, bool verbose, bool border_refine) {
   std::unique_ptr<sim::Simulator> simulator;
   std::unique_ptr<eval::SimScans> scans;
   auto scene_for = [&](int code) {
-    simulator = std::make_unique<sim::Simulator>(
-        eval::accuracy_scene(c.model, c.distance, c.angle, code, c.size, c.above));
+    sim::Scene scene = eval::accuracy_scene(c.model, c.distance, c.angle, code, c.size, c.above);
+    if (c.ouster) {
+      scene.sensor.ouster = sim::OusterSensorOptions{*c.ouster, 1024, 10,
+                                                     driver::ouster::Profile::kRng19Rfl8Sig16Nir16};
+      scene.sensor.noise = sim::NoiseOptions{};
+    }
+    simulator = std::make_unique<sim::Simulator>(std::move(scene));
     scans = std::make_unique<eval::SimScans>(*simulator);
   };
   if (!c.sweep) scene_for(id);
@@ -357,13 +380,22 @@ std::string table(const std::vector<Cell>& cells, velodyne::Model model) {
   return o.str();
 }
 
+// The 1.2 m tag at the sensor's height on a simulated Ouster sensor.
+std::string ouster_table(const std::vector<Cell>& cells, driver::ouster::Model model) {
+  std::ostringstream o;
+  o << "| " << kColumns << "|" << kAlign;
+  for (const auto& c : cells)
+    if (c.ouster == model) o << "| " << row(c) << "\n";
+  return o.str();
+}
+
 // The other tags (sizes and heights).
 std::string small_table(const std::vector<Cell>& cells) {
   std::ostringstream o;
   o << "| sensor | tag (m) | centre above the sensor (m) | " << kColumns << "|---|---:|---:|"
     << kAlign;
   for (const auto& c : cells)
-    if (!c.standard() && !c.sweep)
+    if (!c.standard() && !c.sweep && !c.ouster)
       o << "| " << velodyne::model_spec(c.model).name << " | " << fmt_num(c.size, 1) << " | "
         << fmt_num(c.above, 1) << " | " << row(c) << "\n";
   return o.str();
@@ -515,9 +547,8 @@ int run(const Args& args) {
     std::printf(
         "%-8s %4.0f m %2d deg %.1f m +%.1f m: detected %5.1f %%, wrong %d, fp %d, translation "
         "median %6.1f mm, rotation median %5.2f deg (lowest score %.2f, margin %.1f)\n",
-        std::string(velodyne::model_spec(c.model).name).c_str(), c.distance, c.angle, c.size,
-        c.above, c.rate(), c.wrong, c.false_pos, 1000 * median(c.trans_m), median(c.rot_deg),
-        c.min_score, c.min_margin);
+        c.sensor().c_str(), c.distance, c.angle, c.size, c.above, c.rate(), c.wrong, c.false_pos,
+        1000 * median(c.trans_m), median(c.rot_deg), c.min_score, c.min_margin);
     if (c.sweep) std::printf("    every code in turn: %zu of 30 detected\n", c.codes_found.size());
     for (const auto& [why, count] : c.misses)
       std::printf("    missed %d: %s\n", count, why.c_str());
@@ -585,6 +616,13 @@ int run(const Args& args) {
      << tgt;
   for (auto model : {velodyne::Model::kVLP32C, velodyne::Model::kVLP16, velodyne::Model::kVLS128})
     md << "\n## " << velodyne::model_spec(model).display_name << "\n\n" << table(cells, model);
+  for (auto model : {driver::ouster::Model::kOs1_64, driver::ouster::Model::kOs1_128})
+    md << "\n## Ouster " << driver::ouster::model_spec(model).prod_line
+       << " (simulated, 1024x10, RNG19)\n\nThe same setup on the simulator's nominal "
+       << driver::ouster::model_spec(model).prod_line
+       << " (`docs/ouster.md`, \"Simulated sensors\": a representative beam table, not a unit's "
+          "calibration), 10 rotations a second, its frames destaggered; default noise.\n\n"
+       << ouster_table(cells, model);
   md << "\n## Small tags in the VLP-32C's sparse upper beams\n\nThe same setup with a smaller "
         "tag, its centre raised above the sensor's height: above about 1.7° of elevation the "
         "VLP-32C's beams are 0.7–3.3° apart, so the upper half of a 0.6 m tag 0.3 m above the "

@@ -8,7 +8,8 @@
 // the sensor's height (run k raised or lowered by a share of the spacing of the beams there, so
 // that the runs of a cell see every offset of the rings across the tag; --fixed-height: exactly at
 // the sensor's height, one offset), face-on and turned 45 degrees, at 5, 6, 7, 8 and 10 m of a
-// VLP-16 (and the VLP-32C at 20 and 24 m, and a 0.6 m tag 0.3 m above the VLP-32C at 4 m); N runs
+// VLP-16 (and the VLP-32C at 20 and 24 m, a 0.6 m tag 0.3 m above the VLP-32C at 4 m, and issue
+// 32's simulated Ouster OS1-64 and OS1-128 at 1024x10, 5-20 m, target 95 %); N runs
 // per cell (default 30: every code of tag16h5 once, each with its own noise seed) of R consecutive
 // rotations of a static sensor (default 20). Per cell, over the rotations from the 4th on: the
 // share with the right ID from the detector alone and with the tracker, wrong IDs of both. Moving
@@ -30,6 +31,7 @@
 #include <filesystem>
 #include <fstream>
 #include <numbers>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -68,6 +70,8 @@ struct Args {
 
 struct Cell {
   velodyne::Model model{};
+  // Set: a simulated Ouster sensor (nominal beam table, 1024x10, RNG19) instead of `model`.
+  std::optional<driver::ouster::Model> ouster;
   double distance = 0;
   int angle = 0;
   double size = 1.2;            // tag side, m (the detector is given it)
@@ -86,6 +90,14 @@ struct Cell {
   std::vector<double> track_error_mm;  // the track's pose against the truth at the tag's time
 
   double pct(int n) const { return counted ? 100.0 * n / counted : 0.0; }
+  std::string name() const {
+    return std::string(ouster ? driver::ouster::model_spec(*ouster).name
+                              : velodyne::model_spec(model).name);
+  }
+  std::string display_name() const {
+    return ouster ? "Ouster " + std::string(driver::ouster::model_spec(*ouster).prod_line)
+                  : std::string(velodyne::model_spec(model).display_name);
+  }
 };
 
 // "1.2 m", or "0.6 m, 0.3 m above" for a tag whose centre is above the sensor's height.
@@ -100,9 +112,8 @@ std::string tag_text(const Cell& c) {
 
 // "trace: vlp16 1.2 m 6 m 0 deg, run 3": what each --trace line starts with.
 void print_trace_prefix(const Cell& c, int run) {
-  std::printf("trace: %s %s %g m %d deg, run %d",
-              std::string(velodyne::model_spec(c.model).name).c_str(), tag_text(c).c_str(),
-              c.distance, c.angle, run);
+  std::printf("trace: %s %s %g m %d deg, run %d", c.name().c_str(), tag_text(c).c_str(), c.distance,
+              c.angle, run);
 }
 
 // The tag centre's height above the sensor's in run `run`: the cell's, moved by a share of the
@@ -112,7 +123,13 @@ void print_trace_prefix(const Cell& c, int run) {
 double run_height(const Cell& c, int run, bool fixed) {
   if (fixed) return c.above;
   const double share = ((11 * run) % 30 + 0.5) / 30.0 - 0.5;
-  return c.above + share * eval::beam_spacing_m(c.model, c.distance, c.above);
+  const double spacing =
+      c.ouster ? eval::beam_spacing_m(driver::ouster::nominal_sensor_info(
+                                          *c.ouster, 1024, 10, driver::ouster::Profile::kLegacy)
+                                          .beam_altitude_deg,
+                                      c.distance, c.above)
+               : eval::beam_spacing_m(c.model, c.distance, c.above);
+  return c.above + share * spacing;
 }
 
 // R rotations of a static tag; counts from rotation index 3 (the 4th) on.
@@ -120,6 +137,11 @@ void run_cell(Cell& c, int run, int rotations, bool trace, bool fixed_height) {
   const int code = (7 * run + 3 * static_cast<int>(c.distance) + c.angle) % 30;
   const double above = run_height(c, run, fixed_height);
   sim::Scene scene = eval::accuracy_scene(c.model, c.distance, c.angle, code, c.size, above);
+  if (c.ouster) {
+    scene.sensor.ouster = sim::OusterSensorOptions{*c.ouster, 1024, 10,
+                                                   driver::ouster::Profile::kRng19Rfl8Sig16Nir16};
+    scene.sensor.noise = sim::NoiseOptions{};
+  }
   scene.sensor.velocity = c.velocity;
   scene.sensor.angular_velocity = {0.0, 0.0, c.turn_deg_s};
   const sim::Simulator simulator(scene);
@@ -300,11 +322,17 @@ int run(const Args& args) {
   // A 0.6 m tag whose upper half only the sparse upper beams cross (0.3 m above the sensor).
   for (int angle : {0, 45})
     cells.push_back(cell(velodyne::Model::kVLP32C, 4.0, angle, 95.0, 0.6, 0.3));
+  // Issue 32: the simulated OS1-64 and OS1-128 (1024x10), 95 % wherever a VLP-32C reaches it.
+  for (auto om : {driver::ouster::Model::kOs1_64, driver::ouster::Model::kOs1_128})
+    for (double d : {5.0, 10.0, 15.0, 20.0})
+      for (int angle : {0, 45}) {
+        cells.push_back(cell(velodyne::Model::kVLP32C, d, angle, 95.0));
+        cells.back().ouster = om;
+      }
   if (!args.only.empty()) {
     std::erase_if(cells, [&](const Cell& c) {
       char key[64];
-      std::snprintf(key, sizeof key, "%s:%g:%d",
-                    std::string(velodyne::model_spec(c.model).name).c_str(), c.distance, c.angle);
+      std::snprintf(key, sizeof key, "%s:%g:%d", c.name().c_str(), c.distance, c.angle);
       return std::find(args.only.begin(), args.only.end(), key) == args.only.end();
     });
     if (cells.empty()) throw std::invalid_argument("--cell matches no cell of the grid");
@@ -321,13 +349,13 @@ int run(const Args& args) {
     // are shown here.
     never += c.wrong_by_track;
     const bool met = c.pct(c.tracked) >= c.target;
-    const std::string sensor(velodyne::model_spec(c.model).display_name);
+    const std::string sensor = c.display_name();
     std::printf(
         "%-8s %-17s %4.0f m %2d deg: alone %5.1f %%  tracked %5.1f %% (%d by a track only)  "
         "wrong %d / %d  target %.0f %% %s\n",
-        std::string(velodyne::model_spec(c.model).name).c_str(), tag_text(c).c_str(), c.distance,
-        c.angle, c.pct(c.single), c.pct(c.tracked), c.confirmed_only, c.wrong_single,
-        c.wrong_tracked, c.target, met ? "met" : "NOT MET");
+        c.name().c_str(), tag_text(c).c_str(), c.distance, c.angle, c.pct(c.single),
+        c.pct(c.tracked), c.confirmed_only, c.wrong_single, c.wrong_tracked, c.target,
+        met ? "met" : "NOT MET");
     std::fflush(stdout);
     grid << "| " << sensor << " | " << tag_text(c) << " | " << fmt(c.distance, 0) << " m | "
          << c.angle << "° | " << c.counted << " | " << fmt(c.pct(c.single), 1) << " % | "

@@ -1,7 +1,8 @@
 // Simulated rotations in memory, and detections scored against the simulator's truth: what
 // bench_accuracy, bench_tracker, the detector's end-to-end tests and `lidartag plan` share. The
 // simulator's packets go straight through the project's own Decoder and ScanBatcher (no pcap
-// file), one rotation at a time.
+// file), one rotation at a time: Velodyne's, or for an Ouster sensor Ouster's decoder, the
+// frame-id batcher and destaggering.
 #pragma once
 
 #include <Eigen/Geometry>
@@ -15,12 +16,14 @@
 #include <vector>
 
 #include "lidartag/detector/detector.hpp"
+#include "lidartag/driver/ouster/decoder.hpp"
 #include "lidartag/driver/scan_batcher.hpp"
 #include "lidartag/driver/velodyne/calibration.hpp"
 #include "lidartag/driver/velodyne/decoder.hpp"
 #include "lidartag/driver/velodyne/packet.hpp"
 #include "lidartag/driver/velodyne/sensor_clock.hpp"
 #include "lidartag/driver/velodyne/sensor_model.hpp"
+#include "lidartag/sim/ouster_sim.hpp"
 #include "lidartag/sim/sensor_sim.hpp"
 #include "lidartag/sim/simulator.hpp"
 
@@ -34,13 +37,14 @@ class SimScans final {
 
   explicit SimScans(const sim::Simulator& simulator) : sim_(simulator) {
     const auto& sensor = sim_.scene().sensor;
-    calibration_ = velodyne::Calibration::builtin(sensor.model);
+    if (!sensor.ouster) calibration_ = velodyne::Calibration::builtin(sensor.model);
   }
 
   // Simulates `rotations` rotations with noise seed `seed`; `on_scan` gets the k-th complete
   // rotation as index k (the truth's rotation k once run() returns it).
   sim::Truth run(int rotations, uint64_t seed, const OnScan& on_scan) {
     const auto& sensor = sim_.scene().sensor;
+    if (sensor.ouster) return run_ouster(rotations, seed, on_scan);
     const auto& spec = velodyne::model_spec(sensor.model);
     velodyne::Decoder decoder(calibration_);
     velodyne::SensorClock clock;
@@ -63,9 +67,35 @@ class SimScans final {
   }
 
  private:
+  // An Ouster sensor: its frames, destaggered (a column's cells point the same way).
+  sim::Truth run_ouster(int rotations, uint64_t seed, const OnScan& on_scan) {
+    namespace ouster = driver::ouster;
+    const ouster::SensorInfo info = sim::ouster_sensor_info(sim_.scene().sensor);
+    ouster::Decoder decoder(info);
+    driver::ScanBatcher batcher(
+        ouster::sensor_layout(info),
+        static_cast<uint8_t>(ouster::kReturnModeBase + static_cast<uint8_t>(info.profile)),
+        info.returns(), driver::BatcherOptions{});
+    if (!ouster_packet_) ouster_packet_ = std::make_unique<ouster::PacketColumns>();
+    on_scan_ = &on_scan;
+    index_ = 0;
+    sim::Truth truth =
+        sim_.run(rotations, seed, [&](std::span<const uint8_t> payload, int64_t, uint16_t port) {
+          if (port != ouster::kLidarPort) return;
+          if (decoder.parse(payload, *ouster_packet_) == ouster::DecodeStatus::kOk &&
+              batcher.add(*ouster_packet_, scans_[next_])) {
+            deliver(&decoder);
+          }
+        });
+    while (batcher.flush(scans_[next_])) deliver(&decoder);
+    on_scan_ = nullptr;
+    return truth;
+  }
+
   // The rotation just finished goes to the callback; the other scan takes the next one.
-  void deliver() {
-    const Scan& scan = scans_[next_];
+  void deliver(const driver::ouster::Decoder* ouster = nullptr) {
+    Scan& scan = scans_[next_];
+    if (ouster != nullptr && scan.complete) (void)ouster->destagger(scan);
     next_ = 1 - next_;
     if (scan.complete && on_scan_ != nullptr) (*on_scan_)(scan, index_++);
   }
@@ -73,6 +103,7 @@ class SimScans final {
   const sim::Simulator& sim_;
   velodyne::Calibration calibration_;
   velodyne::DecodedPacket packet_;
+  std::unique_ptr<driver::ouster::PacketColumns> ouster_packet_;
   std::array<Scan, 2> scans_;  // sized by the batcher on first use
   size_t next_ = 0;
   const OnScan* on_scan_ = nullptr;
@@ -171,8 +202,8 @@ inline int false_positives(std::span<const detector::Detection> detections,
 // Metres between the two beams whose elevations enclose the direction of a point `above` metres
 // above the sensor's height at `distance` (2 degrees on a VLP-16, 0.33 near the horizon on a
 // VLP-32C), measured at that distance.
-inline double beam_spacing_m(velodyne::Model model, double distance, double above) {
-  std::vector<double> el = velodyne::beam_elevations_deg(model);
+// The same for any beam table (elevations in degrees, any order).
+inline double beam_spacing_m(std::vector<double> el, double distance, double above) {
   std::sort(el.begin(), el.end());
   const double e = std::atan2(above, distance) * 180.0 / std::numbers::pi;
   auto hi = std::upper_bound(el.begin(), el.end(), e);
@@ -180,6 +211,10 @@ inline double beam_spacing_m(velodyne::Model model, double distance, double abov
   if (hi == el.end()) --hi;
   const double deg = std::numbers::pi / 180.0;
   return distance * (std::tan(*hi * deg) - std::tan(*(hi - 1) * deg));
+}
+
+inline double beam_spacing_m(velodyne::Model model, double distance, double above) {
+  return beam_spacing_m(velodyne::beam_elevations_deg(model), distance, above);
 }
 
 // The accuracy scene of the paper's Table I: a tag16h5 of `size` metres (1.2 by default) on an

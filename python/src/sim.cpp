@@ -64,6 +64,12 @@ SimOutput simulate(const std::string& scene_text, bool is_path, const std::strin
   const int n = rotations.value_or(scene.rotations);
   if (n < 1 || n > 100000) throw py::value_error("rotations must be within 1..100000");
   const uint64_t s = seed.value_or(scene.seed);
+  // The module reads Velodyne captures only so far (issue 32): no Ouster rotations decoded as
+  // Velodyne's.
+  if (scene.sensor.ouster)
+    throw py::value_error(
+        "Ouster scenes are not simulated from Python yet: use `lidartag sim` (it writes NAME.pcap "
+        "and its metadata NAME.json)");
   const auto model = scene.sensor.model;
   const double cut = scene.sensor.cut_azimuth_deg;
   sim::Simulator simulator(std::move(scene));

@@ -196,19 +196,62 @@ void parse_noise(const YAML::Node& node, const std::string& path, NoiseOptions& 
     fail(join(path, "max_range_m"), "must be larger than min_range_m");
 }
 
+// An Ouster model's keys: `lidar_mode` (COLUMNSxRATE) and `profile`; the Velodyne-only keys
+// are refused.
+void parse_ouster(const YAML::Node& node, const std::string& path, driver::ouster::Model model,
+                  SensorOptions& s) {
+  for (const char* key :
+       {"rpm", "return_mode", "cut_azimuth_deg", "position_packets", "position_rate_hz"})
+    if (node[key]) fail(join(path, key), "not for an Ouster model (its lidar_mode sets the rate)");
+  OusterSensorOptions o;
+  o.model = model;
+  const std::string mode = read_string(node, path, "lidar_mode", "1024x10");
+  int columns = 0, rate = 0;
+  char x = 0;
+  std::istringstream in(mode);
+  const bool parsed = (in >> columns >> x >> rate) && x == 'x' && in.eof();
+  const bool known = ((columns == 512 || columns == 1024) && (rate == 10 || rate == 20)) ||
+                     (columns == 2048 && rate == 10);
+  if (!parsed || !known)
+    fail(join(path, "lidar_mode"),
+         "unknown lidar mode '" + mode + "' (512x10, 512x20, 1024x10, 1024x20, 2048x10)");
+  o.columns = columns;
+  o.rate_hz = rate;
+  const std::string profile = read_string(node, path, "profile", "rng19");
+  using driver::ouster::Profile;
+  if (profile == "rng19" || profile == "RNG19_RFL8_SIG16_NIR16")
+    o.profile = Profile::kRng19Rfl8Sig16Nir16;
+  else if (profile == "legacy" || profile == "LEGACY")
+    o.profile = Profile::kLegacy;
+  else if (profile == "rng15" || profile == "RNG15_RFL8_NIR8")
+    o.profile = Profile::kRng15Rfl8Nir8;
+  else
+    fail(join(path, "profile"), "unknown profile '" + profile + "' (rng19, legacy, rng15)");
+  s.ouster = o;
+  s.noise = NoiseOptions{};
+}
+
 void parse_sensor(const YAML::Node& node, const std::string& path, SensorOptions& s) {
   check_map(node, path,
             {"model", "rpm", "return_mode", "position", "height", "roll_deg", "pitch_deg",
              "yaw_deg", "velocity", "angular_velocity", "start_time_s", "cut_azimuth_deg",
-             "position_packets", "position_rate_hz", "noise"});
+             "position_packets", "position_rate_hz", "noise", "lidar_mode", "profile"});
   const std::string model =
       read_string(node, path, "model", std::string(velodyne::model_spec(s.model).name));
   const auto m = velodyne::model_from_name(model);
-  if (!m)
-    fail(join(path, "model"),
-         "unknown model '" + model + "' (one of: " + velodyne::model_names() + ")");
-  s.model = *m;
-  s.noise = noise_defaults(s.model);
+  const auto ouster = driver::ouster::model_from_name(model);
+  if (!m && !ouster)
+    fail(join(path, "model"), "unknown model '" + model + "' (one of: " + velodyne::model_names() +
+                                  ", " + driver::ouster::model_names() + ")");
+  if (ouster) {
+    parse_ouster(node, path, *ouster, s);
+  } else {
+    for (const char* key : {"lidar_mode", "profile"})
+      if (node[key]) fail(join(path, key), "only for an Ouster model (" + model + " is not one)");
+    s.model = *m;
+    s.ouster.reset();
+    s.noise = noise_defaults(s.model);
+  }
   read(node, path, "rpm", s.rpm, 300.0, 1200.0);
   const std::string mode = read_string(node, path, "return_mode", "strongest");
   if (mode == "strongest")

@@ -7,8 +7,10 @@
 #include "lidartag/sim/board_target.hpp"
 #include "lidartag/sim/camera_sim.hpp"
 #include "lidartag/sim/clutter.hpp"
+#include "lidartag/sim/ouster_sim.hpp"
 #include "lidartag/sim/random.hpp"
 #include "lidartag/sim/sensor_sim.hpp"
+#include "truth_poses.hpp"
 
 namespace lidartag::sim {
 namespace {
@@ -44,6 +46,29 @@ void add_wall(World& world, const WallOptions& w) {
 }
 
 }  // namespace
+
+void fill_truth_poses(Truth& truth, const Trajectory& trajectory,
+                      const std::vector<TagTarget>& tags, int64_t start_ns) {
+  // Poses at each rotation's first firing; tags in that sensor frame.
+  for (RotationTruth& rt : truth.rotations) {
+    const Pose pose = trajectory.at(static_cast<double>(rt.stamp_ns - start_ns) * 1e-9);
+    rt.sensor_position = pose.position;
+    rt.sensor_orientation = quaternion_wxyz(pose.rotation);
+    const Eigen::Matrix3d rt_inv = pose.rotation.transpose();
+    for (size_t i = 0; i < tags.size(); ++i) {
+      const TagTarget& tag = tags[i];
+      TagTruth& tt = rt.tags[i];
+      tt.family = tag.family_name;
+      tt.id = tag.options.id;
+      tt.size = tag.options.size;
+      tt.position = rt_inv * (tag.center - pose.position);
+      tt.orientation = quaternion_wxyz(rt_inv * tag.rotation);
+      const auto corners = tag.corners_tag();
+      for (size_t c = 0; c < 4; ++c)
+        tt.corners[c] = rt_inv * (tag.center + tag.rotation * corners[c] - pose.position);
+    }
+  }
+}
 
 Simulator::Simulator(Scene scene) : scene_(std::move(scene)) {
   const SensorOptions& s = scene_.sensor;
@@ -92,6 +117,7 @@ Simulator::Simulator(Scene scene) : scene_(std::move(scene)) {
 
 Truth Simulator::run(int rotations, uint64_t seed, const PacketCallback& emit,
                      RunStats* stats) const {
+  if (scene_.sensor.ouster) return run_ouster(scene_, world_, tags_, rotations, seed, emit, stats);
   const SensorOptions& so = scene_.sensor;
   const SensorModel sensor(so, world_);
   const velodyne::ModelSpec& spec = sensor.spec();
@@ -168,29 +194,13 @@ Truth Simulator::run(int rotations, uint64_t seed, const PacketCallback& emit,
     ++st.columns;
   }
 
-  // Poses at each rotation's first firing; tags in that sensor frame.
-  for (RotationTruth& rt : truth.rotations) {
-    const Pose pose = sensor.trajectory().at(static_cast<double>(rt.stamp_ns - start_ns) * 1e-9);
-    rt.sensor_position = pose.position;
-    rt.sensor_orientation = quaternion_wxyz(pose.rotation);
-    const Eigen::Matrix3d rt_inv = pose.rotation.transpose();
-    for (size_t i = 0; i < tags_.size(); ++i) {
-      const TagTarget& tag = tags_[i];
-      TagTruth& tt = rt.tags[i];
-      tt.family = tag.family_name;
-      tt.id = tag.options.id;
-      tt.size = tag.options.size;
-      tt.position = rt_inv * (tag.center - pose.position);
-      tt.orientation = quaternion_wxyz(rt_inv * tag.rotation);
-      const auto corners = tag.corners_tag();
-      for (size_t c = 0; c < 4; ++c)
-        tt.corners[c] = rt_inv * (tag.center + tag.rotation * corners[c] - pose.position);
-      if (scene_.camera) tt.image_corners = project_corners(*scene_.camera, tt.corners);
-    }
-  }
-  if (scene_.camera)
+  fill_truth_poses(truth, sensor.trajectory(), tags_, start_ns);
+  if (scene_.camera) {
+    for (RotationTruth& rt : truth.rotations)
+      for (TagTruth& tt : rt.tags) tt.image_corners = project_corners(*scene_.camera, tt.corners);
     truth.camera = CameraTruth{scene_.camera->model, camera_rotation(*scene_.camera),
                                camera_translation(*scene_.camera)};
+  }
   st.data_packets = packetizer.data_packets();
   st.position_packets = packetizer.position_packets();
   if (stats) *stats = st;

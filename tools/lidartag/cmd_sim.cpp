@@ -1,7 +1,8 @@
 // `lidartag sim SCENE.yaml --out FILE.pcap --truth FILE.json [--image FILE.png] [--rotations N]
-// [--seed S]`: writes the capture a real Velodyne would record of the scene, its ground truth and,
-// with a `camera:` section, the camera's image (docs/simulator.md, docs/camera.md). A scene with a
-// `series:` of tag poses writes one capture, truth and image per pose, numbered FILE_00.pcap, ...
+// [--seed S]`: writes the capture a real Velodyne or Ouster would record of the scene, its ground
+// truth and, with a `camera:` section, the camera's image (docs/simulator.md, docs/camera.md). An
+// Ouster capture's metadata goes beside it: FILE.pcap -> FILE.json. A scene with a `series:` of
+// tag poses writes one capture, truth and image per pose, numbered FILE_00.pcap, ...
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -13,7 +14,9 @@
 #include "lidartag/calib/image_io.hpp"
 #include "lidartag/commands.hpp"
 #include "lidartag/driver/io/pcap_writer.hpp"
+#include "lidartag/exit_codes.hpp"
 #include "lidartag/progress.hpp"
+#include "lidartag/sim/ouster_sim.hpp"
 #include "lidartag/sim/simulator.hpp"
 
 namespace lidartag::cli {
@@ -66,12 +69,22 @@ int run_one(const SimArgs& args, sim::Scene scene, uint64_t seed) {
   std::string image = args.image;
   if (scene.camera && image.empty())
     image = std::filesystem::path(args.out).replace_extension(".png").string();
+  // An Ouster capture is read with its metadata, NAME.json beside NAME.pcap.
+  std::string metadata;
+  if (scene.sensor.ouster) {
+    metadata = std::filesystem::path(args.out).replace_extension(".json").string();
+    if (metadata == args.out || (!args.truth.empty() && std::filesystem::path(args.truth) ==
+                                                            std::filesystem::path(metadata)))
+      throw UsageError("--truth: '" + metadata +
+                       "' is where the Ouster capture's metadata goes: "
+                       "name the truth file otherwise");
+  }
   sim::Simulator simulator(std::move(scene));
   driver::PcapWriter writer(args.out);
   sim::RunStats stats;
   // Progress by the packets' time: `rotations` periods from the scene's start time.
   const auto& so = simulator.scene().sensor;
-  const double period_ns = 60e9 / so.rpm;
+  const double period_ns = so.ouster ? 1e9 / so.ouster->rate_hz : 60e9 / so.rpm;
   const auto start_ns = static_cast<int64_t>(so.start_time_s * 1e9);
   Progress progress(static_cast<uint64_t>(period_ns * rotations));
   const sim::Truth truth = simulator.run(
@@ -94,9 +107,17 @@ int run_one(const SimArgs& args, sim::Scene scene, uint64_t seed) {
     calib::write_png(simulator.render_image(truth.rotations.front(), seed), image);
 
   const auto& sensor = simulator.scene().sensor;
-  fmt::print("{}: {} {} rpm {}, {} rotations, seed {}\n", args.scene,
-             velodyne::model_spec(sensor.model).display_name, sensor.rpm,
-             velodyne::return_mode_name(sensor.return_mode), rotations, seed);
+  if (sensor.ouster) {
+    const auto info = sim::ouster_sensor_info(sensor);
+    driver::ouster::write_metadata(info, metadata);
+    fmt::print("{}: {} {}x{} {}, {} rotations, seed {}\n", args.scene, info.prod_line,
+               info.mode_columns, info.mode_rate_hz, driver::ouster::profile_name(info.profile),
+               rotations, seed);
+  } else {
+    fmt::print("{}: {} {} rpm {}, {} rotations, seed {}\n", args.scene,
+               velodyne::model_spec(sensor.model).display_name, sensor.rpm,
+               velodyne::return_mode_name(sensor.return_mode), rotations, seed);
+  }
   fmt::print("wrote {}: {} data packets, {} position packets, {} points\n", args.out,
              stats.data_packets, stats.position_packets, stats.points);
   for (size_t i = 0; i < simulator.tags().size(); ++i) {
@@ -109,6 +130,7 @@ int run_one(const SimArgs& args, sim::Scene scene, uint64_t seed) {
                    ? 0.0
                    : static_cast<double>(returns) / static_cast<double>(truth.rotations.size()));
   }
+  if (!metadata.empty()) fmt::print("wrote {} (the sensor's metadata)\n", metadata);
   if (!args.truth.empty()) fmt::print("wrote {}\n", args.truth);
   if (!image.empty()) {
     const auto& m = simulator.scene().camera->model;
@@ -117,7 +139,8 @@ int run_one(const SimArgs& args, sim::Scene scene, uint64_t seed) {
   return 0;
 }
 
-const Registrar kSim("sim", "Simulate a scene: write a Velodyne pcap and its ground truth",
+const Registrar kSim("sim",
+                     "Simulate a scene: write a Velodyne or Ouster pcap and its ground truth",
                      [](CLI::App& app) {
                        auto args = std::make_shared<SimArgs>();
                        app.add_option("scene", args->scene, "scene file (YAML)")

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "lidartag/calib/camera_model.hpp"
+#include "lidartag/driver/ouster/models.hpp"
 #include "lidartag/driver/velodyne/sensor_model.hpp"
 
 namespace lidartag::sim {
@@ -50,8 +51,19 @@ struct NoiseOptions {
 // older electronics: 0.02 m).
 NoiseOptions noise_defaults(velodyne::Model model);
 
+// An Ouster sensor (docs/simulator.md, "Ouster sensors"): its model's nominal beam table.
+struct OusterSensorOptions {
+  driver::ouster::Model model = driver::ouster::Model::kOs1_64;
+  int columns = 1024;  // lidar mode: columns per rotation (512, 1024, 2048)
+  int rate_hz = 10;    // and rotations per second (10, 20; 2048 only at 10)
+  driver::ouster::Profile profile = driver::ouster::Profile::kRng19Rfl8Sig16Nir16;
+};
+
 struct SensorOptions {
   velodyne::Model model = velodyne::Model::kVLP32C;
+  // Set when `model` names an Ouster sensor: then `model`, `rpm`, `return_mode`,
+  // `cut_azimuth_deg` and the position packets are unused (rotations are the sensor's frames).
+  std::optional<OusterSensorOptions> ouster;
   double rpm = 600.0;  // 300..1200
   velodyne::ReturnMode return_mode = velodyne::ReturnMode::kStrongest;
   std::array<double, 2> position{0.0, 0.0};               // metres, world x, y

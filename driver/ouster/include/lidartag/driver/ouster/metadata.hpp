@@ -79,4 +79,11 @@ SensorInfo parse_metadata(std::string_view json_text, std::string_view origin = 
 // Reads and parses a metadata file. Throws MetadataError (also when it cannot be read).
 SensorInfo load_metadata(const std::string& path);
 
+// The JSON a sensor reports for `info`, in the layout info.nested_layout names (nested: the keys
+// of newer firmware; flat: those of firmware <= 2.x with `data_format`): what parse_metadata()
+// reads back to the same SensorInfo. Identity keys left 0 or empty are left out.
+std::string metadata_to_json(const SensorInfo& info);
+// Writes metadata_to_json() to `path` (2-space indent). Throws MetadataError when it cannot.
+void write_metadata(const SensorInfo& info, const std::string& path);
+
 }  // namespace lidartag::driver::ouster

@@ -1,0 +1,45 @@
+// Nominal Ouster sensors (the simulator's, and model names such as `os1-128`): per model its beam
+// table as data, turned into the SensorInfo a sensor of that model would report for a lidar mode
+// and profile. The numbers are representative of the product line (docs/ouster.md, "Simulated
+// sensors"), not any unit's factory calibration: a real sensor's metadata always wins.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include "lidartag/driver/ouster/metadata.hpp"
+
+namespace lidartag::driver::ouster {
+
+enum class Model : uint8_t { kOs1_64, kOs1_128 };
+
+struct ModelSpec {
+  Model model;
+  std::string_view name;       // "os1-64"
+  std::string_view prod_line;  // "OS-1-64"
+  int beams;
+  // Beam altitudes: `beams` angles evenly spaced from the top to the bottom, degrees.
+  double altitude_top_deg;
+  double altitude_bottom_deg;
+  // Beam azimuth offsets (+ clockwise, the metadata's sign), repeating every 4 beams, degrees.
+  std::array<double, 4> azimuth_pattern_deg;
+  double lidar_origin_to_beam_origin_mm;
+  double min_range_m;  // closer returns are not reported
+  double max_range_m;  // farthest reported return (80 % reflective target)
+};
+
+const ModelSpec& model_spec(Model m);
+std::optional<Model> model_from_name(std::string_view name);
+std::string model_names();  // "os1-64, os1-128"
+
+// The SensorInfo (nested layout) a sensor of model `m` reports in lidar mode `columns` x
+// `rate_hz` with `profile`: the model's beam table, pixel_shift_by_row = each beam's azimuth
+// offset in columns (rounded), 16 columns a packet, the whole rotation, the documented default
+// lidar_to_sensor_transform (180 deg about z, 36.18 mm up). Throws std::invalid_argument for a
+// lidar mode the sensors lack (columns 512/1024/2048, rate 10/20; 2048 only at 10).
+SensorInfo nominal_sensor_info(Model m, int columns, int rate_hz, Profile profile);
+
+}  // namespace lidartag::driver::ouster
