@@ -2,6 +2,7 @@
 
 #include "lidartag/detector/detector.hpp"
 #include "lidartag/detector/tag_family.hpp"
+#include "lidartag/driver/ouster/metadata.hpp"
 #include "lidartag/driver/velodyne/io/calibration_file.hpp"
 #include "lidartag/sim/scene.hpp"
 #ifdef LIDARTAG_HAVE_CONFIG
@@ -15,6 +16,7 @@ int exit_code_of(const std::exception& e) {
       dynamic_cast<const detector::OptionsError*>(&e) != nullptr ||
       dynamic_cast<const tags::FamilyError*>(&e) != nullptr ||
       dynamic_cast<const velodyne::CalibrationError*>(&e) != nullptr ||
+      dynamic_cast<const driver::ouster::MetadataError*>(&e) != nullptr ||
       dynamic_cast<const sim::SceneError*>(&e) != nullptr)
     return kExitUsage;
 #ifdef LIDARTAG_HAVE_CONFIG
