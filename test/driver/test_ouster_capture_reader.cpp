@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -62,6 +63,30 @@ TEST(OusterCaptureReader, FramesAreWholeWhenEveryPacketCameAndImuIsCountedApart)
     EXPECT_EQ(n.destaggered, part ? 0u : c.frames);
     EXPECT_NO_THROW(reader.require_frames(c.pcap));
   }
+}
+
+TEST(OusterCaptureReader, CaptureTimingReplaysAtTheCapturesPaceWithTheSameFrames) {
+  if (!fs::exists(ouster_dir())) GTEST_SKIP() << "Ouster captures not found at " << ouster_dir();
+  const std::string stem = "OS-2-128-U1_v2.3.0_1024x10";
+  CaptureReader fast(pcap_of(stem), info_of(stem));
+  const auto a = read_all(fast);
+  CaptureReaderOptions options;
+  options.source.pacing = ReplayPacing::kCaptureTime;
+  options.source.rate = 1.0;
+  CaptureReader paced(pcap_of(stem), info_of(stem), options);
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto b = read_all(paced);
+  const double elapsed_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const auto& n = paced.counts();
+  const double span_s = static_cast<double>(n.last_time_ns - n.first_time_ns) * 1e-9;
+  EXPECT_GT(span_s, 0.05);  // a frame at 10 Hz, and the IMU packets around it
+  EXPECT_GE(elapsed_s, 0.9 * span_s);
+  ASSERT_EQ(a.size(), 1u);
+  ASSERT_EQ(b.size(), 1u);
+  EXPECT_EQ(a[0].point_count(), b[0].point_count());
+  EXPECT_EQ(n.lidar_packets, fast.counts().lidar_packets);
+  EXPECT_EQ(n.imu_packets, fast.counts().imu_packets);
 }
 
 // The widest spread of the azimuths of a column's cells (over the rings), degrees.
