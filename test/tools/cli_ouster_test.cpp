@@ -170,7 +170,7 @@ TEST(CliOuster, DumpWritesOnePcdPerWholeFrameWithEveryPoint) {
     }
     EXPECT_EQ(files, e.whole);
     EXPECT_EQ(dumped, points);
-    EXPECT_NE(r.out.find("(" + std::to_string(points) + " points)"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find(std::to_string(points) + " points)"), std::string::npos) << r.out;
   }
   // Organised: the destaggered image, columns x rings (x returns).
   const Expected& e = kCaptures[3];  // OS-0-128, one return
@@ -225,6 +225,19 @@ TEST(CliOuster, MetadataOfAnotherSensorIsRefusedWithExitTwo) {
           << r.out;
       EXPECT_NE(r.out.find(c.says), std::string::npos) << r.out;
     }
+  }
+}
+
+TEST(CliOuster, VelodyneOptionsAreRefusedForAnOusterCapture) {
+  if (!fs::exists(kDir)) GTEST_SKIP() << "Ouster captures not found at " << kDir;
+  for (const char* option : {"--model vlp16", "--cut 90"}) {
+    SCOPED_TRACE(option);
+    std::string args = "detect ";
+    args += option;
+    args += capture_args(kCaptures[0]);
+    const auto r = run_tool(args);
+    EXPECT_EQ(r.exit_code, 2) << r.out;
+    EXPECT_NE(r.out.find("is for Velodyne captures"), std::string::npos) << r.out;
   }
 }
 

@@ -206,6 +206,17 @@ std::unique_ptr<driver::ouster::CaptureReader> ouster_reader(const CaptureArgs& 
                                                              const OusterArgs& ouster,
                                                              const std::string& metadata) {
   namespace ou = driver::ouster;
+  // Velodyne's options have no meaning here: the metadata describes the sensor, frames end where
+  // the frame id changes.
+  const char* velodyne_only = !args.model.empty()         ? "--model"
+                              : !args.calibration.empty() ? "--calibration"
+                              : args.cut_deg != driver::BatcherOptions{}.cut_azimuth_deg ? "--cut"
+                                                                                         : nullptr;
+  if (velodyne_only != nullptr)
+    throw UsageError(fmt::format(
+        "{} is for Velodyne captures; {} is read as an Ouster capture with the metadata {} (the "
+        "sensor and its frames come from there)",
+        velodyne_only, args.capture, metadata));
   const ou::SensorInfo info = ou::load_metadata(metadata);
   ou::CaptureReaderOptions options;
   const driver::PcapSourceOptions source = reader_options(args).source;
