@@ -8,6 +8,8 @@ packages=(
   libspdlog-dev libfmt-dev libyaml-cpp-dev libcli11-dev nlohmann-json3-dev
   # VeloView XML calibration files; PCD binary_compressed (LZF)
   libtinyxml2-dev liblzf-dev
+  # camera-LiDAR calibration: PNG and JPEG images (libapriltag-dev below finds the tags in them)
+  libpng-dev libjpeg-dev
   # the Python module (for /usr/bin/python3) and its tests
   python3-dev pybind11-dev python3-numpy python3-pytest
   libgtest-dev libgmock-dev libbenchmark-dev

@@ -51,6 +51,10 @@ if [ "${1:-}" != "--no-sanitizers" ]; then
   targets="$targets test_daemon_config test_daemon_setup"
   # The lidartag tool's drawing (tag, render), run as a user would (they build the tool).
   targets="$targets test_cli_tag test_cli_render"
+  # Calibration: intrinsics files and the result's forms (issue 30).
+  targets="$targets test_intrinsics_file test_calibration_report"
+  # Camera images: corrupt and truncated PNG/JPEG files, the AprilTag wrapper's C memory.
+  targets="$targets test_image_io test_image_tags"
   # The detector's unit tests, one target per stage (*_test).
   targets="$targets $(cmake --build build-asan --target help | sed -n 's/^\([a-z_]*_test\):.*/\1/p' | sort -u | tr '\n' ' ')"
   cmake --build build-asan -j "$jobs" --target $targets

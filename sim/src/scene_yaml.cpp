@@ -447,7 +447,74 @@ void parse_board(const YAML::Node& node, const std::string& path, CalibrationBoa
   read(node, path, "text_seed", b.text_seed);
 }
 
+calib::Distortion parse_distortion(const std::string& name, const std::string& path) {
+  if (name == "none" || name == "pinhole") return calib::Distortion::kNone;
+  if (name == "plumb_bob" || name == "radtan") return calib::Distortion::kPlumbBob;
+  if (name == "equidistant" || name == "fisheye") return calib::Distortion::kEquidistant;
+  fail(path, "unknown distortion model '" + name + "' (expected none, plumb_bob, equidistant)");
+}
+
+void parse_camera(const YAML::Node& node, const std::string& path, CameraOptions& c) {
+  check_map(node, path,
+            {"width", "height", "fx", "fy", "cx", "cy", "skew", "distortion_model",
+             "distortion_coefficients", "rotation_wxyz", "translation_m", "noise_sigma",
+             "blur_sigma", "supersample", "gain", "background"});
+  calib::CameraModel& m = c.model;
+  read(node, path, "width", m.width, 1, 16384);
+  read(node, path, "height", m.height, 1, 16384);
+  // Principal point: the image centre unless given.
+  m.cx = (m.width - 1) / 2.0;
+  m.cy = (m.height - 1) / 2.0;
+  read(node, path, "fx", m.fx, 1e-3, 1e6);
+  m.fy = m.fx;
+  read(node, path, "fy", m.fy, 1e-3, 1e6);
+  read(node, path, "cx", m.cx, -1e6, 1e6);
+  read(node, path, "cy", m.cy, -1e6, 1e6);
+  read(node, path, "skew", m.skew, -1e6, 1e6);
+  m.distortion = parse_distortion(read_string(node, path, "distortion_model", "none"),
+                                  join(path, "distortion_model"));
+  if (const YAML::Node d = node["distortion_coefficients"]) {
+    const std::string p = join(path, "distortion_coefficients");
+    if (!d.IsSequence() || d.size() > 5) fail(p, "expected a list of at most 5 numbers");
+    m.d = {};
+    for (size_t i = 0; i < d.size(); ++i)
+      m.d[i] = as_double(d[i], p + "[" + std::to_string(i) + "]");
+  }
+  try {
+    m.check();
+  } catch (const calib::CameraModelError& e) {
+    fail(path, e.what());
+  }
+  read(node, path, "rotation_wxyz", c.rotation_wxyz);
+  const double qn =
+      std::sqrt(c.rotation_wxyz[0] * c.rotation_wxyz[0] + c.rotation_wxyz[1] * c.rotation_wxyz[1] +
+                c.rotation_wxyz[2] * c.rotation_wxyz[2] + c.rotation_wxyz[3] * c.rotation_wxyz[3]);
+  if (qn < 1e-9) fail(join(path, "rotation_wxyz"), "must not be zero");
+  for (double& q : c.rotation_wxyz) q /= qn;
+  read(node, path, "translation_m", c.translation_m);
+  read(node, path, "noise_sigma", c.noise_sigma, 0.0, 100.0);
+  read(node, path, "blur_sigma", c.blur_sigma, 0.0, 20.0);
+  read(node, path, "supersample", c.supersample, 1, 8);
+  read(node, path, "gain", c.gain, 0.0, 100.0);
+  read(node, path, "background", c.background, 0.0, 255.0);
+}
+
 }  // namespace
+
+calib::CameraModel CameraOptions::default_model() {
+  calib::CameraModel m;
+  m.width = 1280;
+  m.height = 720;
+  m.fx = m.fy = 900.0;
+  m.cx = 639.5;
+  m.cy = 359.5;
+  return m;
+}
+
+std::array<double, 4> CameraOptions::forward_wxyz() {
+  // Rows of R: x_c = -y_l, y_c = -z_l, z_c = x_l; its quaternion (w, x, y, z).
+  return {0.5, 0.5, -0.5, 0.5};
+}
 
 Scene parse_scene(const std::string& yaml_text, const std::string& source) {
   YAML::Node root;
@@ -459,10 +526,12 @@ Scene parse_scene(const std::string& yaml_text, const std::string& source) {
   Scene scene;
   try {
     if (!root || root.IsNull()) fail("scene", "empty");
-    check_map(root, "", {"sensor", "world", "tags", "boards", "seed", "rotations"});
+    check_map(root, "",
+              {"sensor", "camera", "world", "tags", "boards", "series", "seed", "rotations"});
     scene.sensor.noise = noise_defaults(scene.sensor.model);
     if (root["sensor"]) parse_sensor(root["sensor"], "sensor", scene.sensor);
     if (root["world"]) parse_world(root["world"], "world", scene.world);
+    if (root["camera"]) parse_camera(root["camera"], "camera", scene.camera.emplace());
     if (const YAML::Node tags = root["tags"]) {
       if (!tags.IsSequence()) fail("tags", "expected a list");
       if (tags.size() > 100) fail("tags", "at most 100 tags");
@@ -481,6 +550,23 @@ Scene parse_scene(const std::string& yaml_text, const std::string& source) {
         scene.boards.push_back(b);
       }
     }
+    if (const YAML::Node series = root["series"]) {
+      if (!series.IsSequence()) fail("series", "expected a list of tag poses");
+      if (series.size() > 1000) fail("series", "at most 1000 poses");
+      if (scene.tags.empty()) fail("series", "moves the first tag: give 'tags'");
+      for (size_t i = 0; i < series.size(); ++i) {
+        const std::string p = "series[" + std::to_string(i) + "]";
+        check_map(series[i], p, {"center", "normal", "rotation"});
+        if (!series[i]["center"]) fail(p, "needs 'center' ([x, y, z], metres)");
+        TagPose pose;
+        pose.normal = scene.tags[0].normal;
+        pose.rotation_deg = scene.tags[0].rotation_deg;
+        read(series[i], p, "center", pose.center);
+        read(series[i], p, "normal", pose.normal);
+        read_rotation(series[i], p, pose.rotation_deg);
+        scene.series.push_back(pose);
+      }
+    }
     read(root, "", "seed", scene.seed);
     read(root, "", "rotations", scene.rotations, 1, 100000);
   } catch (const SceneError& e) {
@@ -489,6 +575,17 @@ Scene parse_scene(const std::string& yaml_text, const std::string& source) {
     throw SceneError(source + ": " + e.what());
   }
   return scene;
+}
+
+Scene series_scene(const Scene& scene, size_t index) {
+  Scene out = scene;
+  out.series.clear();
+  const TagPose& pose = scene.series.at(index);
+  TagOptions& tag = out.tags.at(0);
+  tag.center = pose.center;
+  tag.normal = pose.normal;
+  tag.rotation_deg = pose.rotation_deg;
+  return out;
 }
 
 Scene load_scene(const std::string& path) {

@@ -5,6 +5,7 @@
 #include <numbers>
 
 #include "lidartag/sim/board_target.hpp"
+#include "lidartag/sim/camera_sim.hpp"
 #include "lidartag/sim/clutter.hpp"
 #include "lidartag/sim/random.hpp"
 #include "lidartag/sim/sensor_sim.hpp"
@@ -184,12 +185,23 @@ Truth Simulator::run(int rotations, uint64_t seed, const PacketCallback& emit,
       const auto corners = tag.corners_tag();
       for (size_t c = 0; c < 4; ++c)
         tt.corners[c] = rt_inv * (tag.center + tag.rotation * corners[c] - pose.position);
+      if (scene_.camera) tt.image_corners = project_corners(*scene_.camera, tt.corners);
     }
   }
+  if (scene_.camera)
+    truth.camera = CameraTruth{scene_.camera->model, camera_rotation(*scene_.camera),
+                               camera_translation(*scene_.camera)};
   st.data_packets = packetizer.data_packets();
   st.position_packets = packetizer.position_packets();
   if (stats) *stats = st;
   return truth;
+}
+
+calib::GrayImage Simulator::render_image(const RotationTruth& rotation, uint64_t seed) const {
+  if (!scene_.camera) throw SceneError("the scene has no camera section");
+  const Eigen::Vector4d& q = rotation.sensor_orientation;
+  const Eigen::Matrix3d r = Eigen::Quaterniond(q[0], q[1], q[2], q[3]).toRotationMatrix();
+  return render_camera(world_, *scene_.camera, rotation.sensor_position, r, seed);
 }
 
 }  // namespace lidartag::sim

@@ -465,7 +465,10 @@ TEST(Detector, ClusterPointsOnlyWhenAskedForAsEachClusterWasLeft) {
     const auto pts = res.points_of(c);
     total += pts.size();
     if (c.rejection == Rejection::kFewFeatures || c.rejection == Rejection::kTooLarge) {
-      EXPECT_TRUE(pts.empty());  // never filled in
+      // Never filled in: its edge features stand for its points.
+      EXPECT_EQ(c.points, 0);
+      EXPECT_EQ(pts.size(), static_cast<size_t>(c.features));
+      for (const auto& p : pts) EXPECT_TRUE(p.edge);
       continue;
     }
     // Before the plane fit, every point of the fill-in; after it, at most that many.

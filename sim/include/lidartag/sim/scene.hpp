@@ -5,10 +5,12 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
+#include "lidartag/calib/camera_model.hpp"
 #include "lidartag/driver/velodyne/sensor_model.hpp"
 
 namespace lidartag::sim {
@@ -190,14 +192,48 @@ struct CalibrationBoardOptions {
   uint64_t text_seed = 1;
 };
 
+// A camera beside the LiDAR (issue 30): renders the scene into an 8-bit grey image per run
+// (camera_sim.hpp). Grey level = reflectivity (0..100 diffuse) * gain, clipped to 255.
+struct CameraOptions {
+  // Intrinsics, pixels, in lidartag's convention (pixel centres at integers). Defaults: 1280x720,
+  // fx = fy = 900, the principal point at the image centre, no distortion.
+  calib::CameraModel model = default_model();
+  // lidar_to_camera: p_camera = R p_lidar + t (camera optical frame: x right, y down, z forward).
+  // Default rotation: looking along the LiDAR's +x with its z up; translation 0.
+  std::array<double, 4> rotation_wxyz = forward_wxyz();
+  std::array<double, 3> translation_m{0.0, 0.0, 0.0};
+  double noise_sigma = 2.0;   // Gaussian pixel noise, grey levels (0..255)
+  double blur_sigma = 0.5;    // Gaussian blur (optics), pixels; 0: none
+  int supersample = 4;        // samples per pixel along each axis (anti-aliasing), 1..8
+  double gain = 2.55;         // grey levels per reflectivity unit
+  double background = 200.0;  // grey level where a ray hits nothing (sky)
+
+  static calib::CameraModel default_model();
+  static std::array<double, 4> forward_wxyz();
+};
+
+// One pose of a calibration series: where the scene's first tag is put (TagOptions' meanings).
+struct TagPose {
+  std::array<double, 3> center{3.0, 0.0, 1.0};
+  std::array<double, 3> normal{0.0, 0.0, 0.0};
+  double rotation_deg = 45.0;
+};
+
 struct Scene {
   SensorOptions sensor{};
+  std::optional<CameraOptions> camera;  // the `camera:` section; none: no image
   WorldOptions world{};
   std::vector<TagOptions> tags;
   std::vector<CalibrationBoardOptions> boards;
+  // A calibration series: `lidartag sim` writes one capture, truth and image per pose, the first
+  // tag moved there (the other keys of the tag kept). Empty: one capture of the scene as given.
+  std::vector<TagPose> series;
   uint64_t seed = 1;   // noise seed (the --seed option overrides it)
   int rotations = 10;  // rotations written (the --rotations option overrides it)
 };
+
+// The scene of pose `index` of its series: the first tag moved to it.
+Scene series_scene(const Scene& scene, size_t index);
 
 // Parses a scene; `source` names the text in error messages. Throws SceneError.
 Scene parse_scene(const std::string& yaml_text, const std::string& source = "scene");

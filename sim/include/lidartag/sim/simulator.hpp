@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "lidartag/calib/image_io.hpp"
 #include "lidartag/sim/geometry.hpp"
 #include "lidartag/sim/packetizer.hpp"
 #include "lidartag/sim/scene.hpp"
@@ -33,6 +34,10 @@ class Simulator {
   // rotations matching the truth. Same scene and seed: identical packets and truth.
   Truth run(int rotations, uint64_t seed, const PacketCallback& emit,
             RunStats* stats = nullptr) const;
+
+  // The camera's image (scene.camera required) at the LiDAR pose of `rotation` (a rotation of
+  // run()'s truth: its first firing). Noise from `seed`.
+  calib::GrayImage render_image(const RotationTruth& rotation, uint64_t seed) const;
 
   const Scene& scene() const { return scene_; }
   const World& world() const { return world_; }
