@@ -39,6 +39,7 @@ namespace det = lidartag::detector;
 
 struct DetectArgs {
   CaptureArgs capture;
+  OusterArgs ouster;
   std::string config;
   bool json = false;
   bool partial = false;
@@ -478,24 +479,32 @@ int run_detect(const DetectArgs& args) {
     if (for_each_bag_cloud(args.capture, args.rings, args.resolution_deg, report) == 0)
       throw std::runtime_error(args.capture.capture + ": no point cloud could be read");
   } else {
-    velodyne::CaptureReader reader(args.capture.capture, reader_options(args.capture));
-    std::error_code ec;
-    Progress progress(std::filesystem::file_size(args.capture.capture, ec));
-    size_t n = 0;
-    while (const Scan* scan = reader.next()) {
-      if (scan->complete || args.partial) {
-        report(*scan);
-        ++n;
-      } else {
-        ++totals.skipped;
+    // The rotations (Ouster: the frames, destaggered) of a Velodyne or an Ouster reader.
+    auto detect_all = [&](auto& reader) {
+      std::error_code ec;
+      Progress progress(std::filesystem::file_size(args.capture.capture, ec));
+      size_t n = 0;
+      while (const Scan* scan = reader.next()) {
+        if (scan->complete || args.partial) {
+          report(*scan);
+          ++n;
+        } else {
+          ++totals.skipped;
+        }
+        progress.update(capture_bytes_read(reader), fmt::format("{} rotations", n));
       }
-      progress.update(capture_bytes_read(reader), fmt::format("{} rotations", n));
+      progress.done();
+      warn_model_mismatch(reader, args.capture);
+      if (!args.json) totals.print();
+      if (args.json) totals.print_size_warnings(stderr);
+      require_rotations(reader, args.capture, n, totals.skipped, "detects in them");
+    };
+    if (const auto metadata = ouster_metadata(args.capture.capture, args.ouster.metadata)) {
+      detect_all(*ouster_reader(args.capture, args.ouster, *metadata));
+    } else {
+      velodyne::CaptureReader reader(args.capture.capture, reader_options(args.capture));
+      detect_all(reader);
     }
-    progress.done();
-    warn_model_mismatch(reader, args.capture);
-    if (!args.json) totals.print();
-    if (args.json) totals.print_size_warnings(stderr);
-    require_rotations(reader, args.capture, n, totals.skipped, "detects in them");
     return 0;
   }
   if (!args.json) totals.print();
@@ -511,6 +520,7 @@ const Registrar kDetect(
       app.get_option("capture")->description(
           "pcap or pcapng file, a PCD point cloud, or a ROS bag / MCAP file of VelodyneScan "
           "packets or PointCloud2 clouds");
+      add_ouster_options(app, args->ouster, true);
       app.add_option("--config", args->config,
                      "YAML file whose `detector:` and `tracker:` sections set the detector's and "
                      "the tracker's options (config/lidartagd.yaml)")

@@ -1,5 +1,6 @@
 // `lidartag dump CAPTURE --out DIR [--organized] [--force]`: one binary PCD per rotation, its
-// stamp in the header (pcd.hpp).
+// stamp in the header (pcd.hpp). Ouster captures (--metadata, or NAME.json beside NAME.pcap): one
+// per frame, destaggered.
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
@@ -24,6 +25,7 @@ namespace fs = std::filesystem;
 
 struct DumpArgs {
   CaptureArgs capture;
+  OusterArgs ouster;
   std::string out;
   bool partial = false;
   bool organized = false;
@@ -70,8 +72,9 @@ void prepare_output(const DumpArgs& args) {
   }
 }
 
-int run_dump(const DumpArgs& args) {
-  velodyne::CaptureReader reader(args.capture.capture, reader_options(args.capture));
+// Writes the rotations (Ouster: the frames) of a Velodyne or an Ouster reader.
+template <typename Reader>
+int dump_rotations(const DumpArgs& args, Reader& reader) {
   prepare_output(args);
   std::error_code ec;
   Progress progress(fs::file_size(args.capture.capture, ec));
@@ -97,11 +100,21 @@ int run_dump(const DumpArgs& args) {
   return 0;
 }
 
+int run_dump(const DumpArgs& args) {
+  if (const auto metadata = ouster_metadata(args.capture.capture, args.ouster.metadata)) {
+    const auto reader = ouster_reader(args.capture, args.ouster, *metadata);
+    return dump_rotations(args, *reader);
+  }
+  velodyne::CaptureReader reader(args.capture.capture, reader_options(args.capture));
+  return dump_rotations(args, reader);
+}
+
 const Registrar kDump(
     "dump", "Write each rotation of a capture as a binary PCD file",
     [](CLI::App& app) -> RunFunction {
       auto args = std::make_shared<DumpArgs>();
       add_capture_options(app, args->capture);
+      add_ouster_options(app, args->ouster, true);
       app.add_option("--out", args->out,
                      "Output directory (created; must be empty unless --force): one "
                      "rotation_NNNNNN.pcd per rotation, NNNNNN its number (rotation_000001.pcd, "

@@ -5,8 +5,6 @@
 
 #include <array>
 #include <chrono>
-#include <filesystem>
-#include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -30,22 +28,6 @@ struct InfoArgs {
   bool json = false;
   std::string metadata;  // Ouster metadata; empty: NAME.json beside the capture, if Ouster's
 };
-
-// The Ouster metadata to read the capture with: --metadata, else NAME.json beside NAME.pcap when
-// it holds an Ouster sensor's beam intrinsics (another JSON there, e.g. a simulator's truth, is
-// not taken for one). Empty: not an Ouster capture.
-std::optional<std::string> ouster_metadata(const InfoArgs& args) {
-  if (!args.metadata.empty()) return args.metadata;
-  std::filesystem::path beside = args.capture.capture;
-  beside.replace_extension(".json");
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(beside, ec)) return std::nullopt;
-  std::ifstream in(beside);
-  const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
-  if (j.is_object() && (j.contains("beam_intrinsics") || j.contains("beam_altitude_angles")))
-    return beside.string();
-  return std::nullopt;
-}
 
 int run_info_ouster(const InfoArgs& args, const std::string& metadata) {
   namespace ou = driver::ouster;
@@ -153,7 +135,8 @@ constexpr DecodeStatus kDecodeErrors[] = {DecodeStatus::kWrongSize, DecodeStatus
                                           DecodeStatus::kBadAzimuth, DecodeStatus::kBadReturnMode};
 
 int run_info(const InfoArgs& args) {
-  if (const auto metadata = ouster_metadata(args)) return run_info_ouster(args, *metadata);
+  if (const auto metadata = ouster_metadata(args.capture.capture, args.metadata))
+    return run_info_ouster(args, *metadata);
   velodyne::CaptureReader reader(args.capture.capture, reader_options(args.capture));
   uint64_t rotations = 0, complete = 0, points = 0, rated = 0;
   double rpm_complete = 0, rpm_any = 0;

@@ -42,6 +42,7 @@ namespace fs = std::filesystem;
 
 struct RenderArgs {
   CaptureArgs capture;
+  OusterArgs ouster;
   std::string config;
   std::vector<double> tag_sizes;
   std::vector<std::string> families;
@@ -221,6 +222,7 @@ int run_render(const RenderArgs& args) {
   Scan pcd_scan;
   const Scan* scan = nullptr;
   std::unique_ptr<velodyne::CaptureReader> reader;
+  std::unique_ptr<driver::ouster::CaptureReader> ouster;  // an Ouster capture's
   if (is_pcd(args.capture.capture)) {
     load_pcd_scan(args.capture, args.rings, args.resolution_deg, pcd_scan);
     if (args.rotation >= 0 && static_cast<uint64_t>(args.rotation) != pcd_scan.sequence) {
@@ -229,36 +231,45 @@ int run_render(const RenderArgs& args) {
     }
     scan = &pcd_scan;
   } else {
-    reader = std::make_unique<velodyne::CaptureReader>(args.capture.capture,
-                                                       reader_options(args.capture));
-    size_t complete = 0, skipped = 0;
-    std::optional<uint64_t> first, last;
-    std::error_code ec;
-    Progress progress(fs::file_size(args.capture.capture, ec));  // a late rotation of a long one
-    while (const Scan* s = reader->next()) {
-      progress.update(capture_bytes_read(*reader), fmt::format("rotation {}", s->sequence));
-      if (!first) first = s->sequence;
-      last = s->sequence;
-      complete += s->complete ? 1 : 0;
-      skipped += s->complete ? 0 : 1;
-      const bool wanted = args.rotation < 0 ? s->complete || args.partial
-                                            : s->sequence == static_cast<uint64_t>(args.rotation);
-      if (!wanted) continue;
-      if (!s->complete && !args.partial) {
-        throw UsageError(fmt::format(
-            "--rotation {}: rotation {} of {} is incomplete (a capture's first and last, or "
-            "lossy); --partial draws it",
-            args.rotation, s->sequence, args.capture.capture));
+    // The rotations (Ouster: the frames, destaggered) of a Velodyne or an Ouster reader.
+    auto find = [&](auto& rd) {
+      size_t complete = 0, skipped = 0;
+      std::optional<uint64_t> first, last;
+      std::error_code ec;
+      Progress progress(fs::file_size(args.capture.capture, ec));  // a late rotation of a long one
+      while (const Scan* s = rd.next()) {
+        progress.update(capture_bytes_read(rd), fmt::format("rotation {}", s->sequence));
+        if (!first) first = s->sequence;
+        last = s->sequence;
+        complete += s->complete ? 1 : 0;
+        skipped += s->complete ? 0 : 1;
+        const bool wanted = args.rotation < 0 ? s->complete || args.partial
+                                              : s->sequence == static_cast<uint64_t>(args.rotation);
+        if (!wanted) continue;
+        if (!s->complete && !args.partial) {
+          throw UsageError(fmt::format(
+              "--rotation {}: rotation {} of {} is incomplete (a capture's first and last, or "
+              "lossy); --partial draws it",
+              args.rotation, s->sequence, args.capture.capture));
+        }
+        scan = s;
+        break;
       }
-      scan = s;
-      break;
-    }
-    progress.done();
-    warn_model_mismatch(*reader, args.capture);
-    if (scan == nullptr) {
-      require_rotations(*reader, args.capture, complete, skipped, "renders them");
-      throw UsageError(fmt::format("--rotation {}: {} has rotations {}-{}", args.rotation,
-                                   args.capture.capture, first.value_or(0), last.value_or(0)));
+      progress.done();
+      warn_model_mismatch(rd, args.capture);
+      if (scan == nullptr) {
+        require_rotations(rd, args.capture, complete, skipped, "renders them");
+        throw UsageError(fmt::format("--rotation {}: {} has rotations {}-{}", args.rotation,
+                                     args.capture.capture, first.value_or(0), last.value_or(0)));
+      }
+    };
+    if (const auto metadata = ouster_metadata(args.capture.capture, args.ouster.metadata)) {
+      ouster = ouster_reader(args.capture, args.ouster, *metadata);
+      find(*ouster);
+    } else {
+      reader = std::make_unique<velodyne::CaptureReader>(args.capture.capture,
+                                                         reader_options(args.capture));
+      find(*reader);
     }
   }
   const uint64_t number = scan->sequence;
@@ -348,6 +359,7 @@ const Registrar kRender(
       auto a = std::make_shared<RenderArgs>();
       add_capture_options(app, a->capture);
       app.get_option("capture")->description("pcap or pcapng file, or a PCD point cloud");
+      add_ouster_options(app, a->ouster, true);
       app.add_option("--rotation", a->rotation,
                      "Rotation to draw, by its number (as detect, dump and the daemon number "
                      "them; default: the first complete one)")

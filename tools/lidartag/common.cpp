@@ -7,6 +7,8 @@
 #include <cctype>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <span>
 #include <stdexcept>
@@ -16,6 +18,7 @@
 #include "lidartag/driver/io/errors.hpp"
 #include "lidartag/driver/io/udp_frame.hpp"
 #include "lidartag/driver/velodyne/io/pcd.hpp"
+#include "lidartag/exit_codes.hpp"
 
 namespace lidartag::cli {
 
@@ -174,6 +177,88 @@ bool worth_explaining(const detector::ClusterDiagnostic& c, std::span<const doub
   const double span = std::hypot(c.max_x - c.min_x, c.max_y - c.min_y);
   const auto [lo, hi] = std::minmax_element(tag_sizes_m.begin(), tag_sizes_m.end());
   return c.features >= 2 && span >= 0.5 * *lo && span <= 1.5 * *hi;
+}
+
+void add_ouster_options(CLI::App& app, OusterArgs& args, bool intensity) {
+  app.add_option("--metadata", args.metadata,
+                 "Ouster sensor metadata JSON (default: NAME.json beside NAME.pcap when it is an "
+                 "Ouster sensor's)")
+      ->check(CLI::ExistingFile);
+  if (intensity) {
+    app.add_option("--intensity", args.intensity,
+                   "Ouster: the points' intensity, calibrated reflectivity or signal photons "
+                   "(clamped to 255; RNG19 profiles only)")
+        ->check(CLI::IsMember({"reflectivity", "signal"}))
+        ->capture_default_str();
+  }
+}
+
+std::optional<std::string> ouster_metadata(const std::string& capture,
+                                           const std::string& metadata) {
+  if (!metadata.empty()) return metadata;
+  std::filesystem::path beside = capture;
+  beside.replace_extension(".json");
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(beside, ec)) return std::nullopt;
+  std::ifstream in(beside);
+  const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
+  if (j.is_object() && (j.contains("beam_intrinsics") || j.contains("beam_altitude_angles")))
+    return beside.string();
+  return std::nullopt;
+}
+
+std::unique_ptr<driver::ouster::CaptureReader> ouster_reader(const CaptureArgs& args,
+                                                             const OusterArgs& ouster,
+                                                             const std::string& metadata) {
+  namespace ou = driver::ouster;
+  // Velodyne's options have no meaning here: the metadata describes the sensor, frames end where
+  // the frame id changes.
+  const char* velodyne_only = !args.model.empty()         ? "--model"
+                              : !args.calibration.empty() ? "--calibration"
+                              : args.cut_deg != driver::BatcherOptions{}.cut_azimuth_deg ? "--cut"
+                                                                                         : nullptr;
+  if (velodyne_only != nullptr)
+    throw UsageError(fmt::format(
+        "{} is for Velodyne captures; {} is read as an Ouster capture with the metadata {} (the "
+        "sensor and its frames come from there)",
+        velodyne_only, args.capture, metadata));
+  const ou::SensorInfo info = ou::load_metadata(metadata);
+  ou::CaptureReaderOptions options;
+  const driver::PcapSourceOptions source = reader_options(args).source;
+  options.source.sensor_ipv4 = source.sensor_ipv4;
+  // The Ouster ports unless others were given.
+  if (args.data_port != velodyne::kDefaultDataPort) options.source.data_port = args.data_port;
+  if (args.position_port != velodyne::kDefaultPositionPort)
+    options.source.position_port = args.position_port;
+  if (ouster.intensity == "signal") options.decoder.intensity = ou::IntensitySource::kSignal;
+  try {
+    return std::make_unique<ou::CaptureReader>(args.capture, info, options);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(fmt::format("--intensity {}: {}", ouster.intensity, e.what()));
+  }
+}
+
+uint64_t capture_bytes_read(const driver::ouster::CaptureReader& reader) {
+  const auto s = reader.source_stats();
+  return s.bytes + 58 * (s.packets + s.ignored);
+}
+
+void warn_model_mismatch(const driver::ouster::CaptureReader& reader, const CaptureArgs& args) {
+  // Without any packet accepted, require_rotations() says it as an error.
+  const std::string mismatch = reader.metadata_mismatch();
+  if (!mismatch.empty() && reader.decoder_stats().by_status[0] > 0)
+    spdlog::warn("{}: packets refused against the metadata: {}", args.capture, mismatch);
+}
+
+void require_rotations(const driver::ouster::CaptureReader& reader, const CaptureArgs& args,
+                       size_t used, size_t skipped, const char* partial_effect) {
+  if (used > 0) return;
+  reader.require_frames(args.capture);  // no frame at all, or metadata of another sensor
+  if (skipped > 0)
+    throw std::runtime_error(
+        fmt::format("{}: no whole frame, only {} partial one{} (a truncated or very short "
+                    "capture?); --partial {}",
+                    args.capture, skipped, skipped == 1 ? "" : "s", partial_effect));
 }
 
 }  // namespace lidartag::cli

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstddef>
+#include <memory>
 #include <optional>
 #include <span>
 #include <string>
@@ -9,6 +10,7 @@
 
 #include "lidartag/cli11.hpp"
 #include "lidartag/detector/result.hpp"
+#include "lidartag/driver/ouster/io/capture_reader.hpp"
 #include "lidartag/driver/scan.hpp"
 #include "lidartag/driver/velodyne/io/capture_reader.hpp"
 #include "lidartag/driver/velodyne/sensor_model.hpp"
@@ -70,5 +72,34 @@ bool worth_explaining(const detector::ClusterDiagnostic& c, std::span<const doub
 // "800mm", "80cm", "31.5in"): rewritten to metres before CLI11 converts it; a text that is not a
 // length is refused naming it.
 CLI::Validator length_in_metres();
+
+// Ouster captures (docs/ouster.md): what info, dump, detect and render take besides CaptureArgs.
+struct OusterArgs {
+  std::string metadata;                    // --metadata; empty: NAME.json beside NAME.pcap
+  std::string intensity = "reflectivity";  // --intensity: reflectivity or signal
+};
+
+// Adds --metadata and, with `intensity`, --intensity to `app`.
+void add_ouster_options(CLI::App& app, OusterArgs& args, bool intensity);
+
+// The Ouster metadata to read `capture` with: `metadata` (--metadata) when given, else NAME.json
+// beside NAME.pcap when it holds an Ouster sensor's beam intrinsics (another JSON there, e.g. a
+// simulator's truth, is not taken for one). Empty: not an Ouster capture (read as Velodyne's).
+std::optional<std::string> ouster_metadata(const std::string& capture, const std::string& metadata);
+
+// The Ouster reader of `args.capture` with the metadata file `metadata` (MetadataError naming the
+// key), the Ouster ports unless --data-port/--position-port say otherwise, --sensor, the
+// intensity source (UsageError: signal for a profile without SIGNAL).
+std::unique_ptr<driver::ouster::CaptureReader> ouster_reader(const CaptureArgs& args,
+                                                             const OusterArgs& ouster,
+                                                             const std::string& metadata);
+
+// The Velodyne reader's helpers above, for an Ouster reader: bytes read; a warning when some
+// lidar packets contradict the metadata; MetadataMismatch (exit 2) when none fitted it, else as
+// require_rotations when no whole frame was used.
+uint64_t capture_bytes_read(const driver::ouster::CaptureReader& reader);
+void warn_model_mismatch(const driver::ouster::CaptureReader& reader, const CaptureArgs& args);
+void require_rotations(const driver::ouster::CaptureReader& reader, const CaptureArgs& args,
+                       size_t used, size_t skipped, const char* partial_effect);
 
 }  // namespace lidartag::cli

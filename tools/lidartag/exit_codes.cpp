@@ -5,6 +5,7 @@
 #include "lidartag/calib/intrinsics_file.hpp"
 #include "lidartag/detector/detector.hpp"
 #include "lidartag/detector/tag_family.hpp"
+#include "lidartag/driver/ouster/metadata.hpp"
 #include "lidartag/driver/velodyne/io/calibration_file.hpp"
 #include "lidartag/sim/scene.hpp"
 #ifdef LIDARTAG_HAVE_CONFIG
@@ -18,6 +19,7 @@ int exit_code_of(const std::exception& e) {
       dynamic_cast<const detector::OptionsError*>(&e) != nullptr ||
       dynamic_cast<const tags::FamilyError*>(&e) != nullptr ||
       dynamic_cast<const velodyne::CalibrationError*>(&e) != nullptr ||
+      dynamic_cast<const driver::ouster::MetadataError*>(&e) != nullptr ||
       dynamic_cast<const sim::SceneError*>(&e) != nullptr ||
       dynamic_cast<const calib::IntrinsicsFileError*>(&e) != nullptr ||
       dynamic_cast<const calib::CameraModelError*>(&e) != nullptr ||

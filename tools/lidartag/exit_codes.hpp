@@ -2,7 +2,8 @@
 //   0  success;
 //   1  runtime failure: an input cannot be opened or read, an output cannot be written;
 //   2  usage or configuration: a bad option or value, a configuration, scene, family or
-//      calibration file that is wrong (the user has to change the command or a file).
+//      calibration file that is wrong, an Ouster metadata file that is malformed or not the
+//      capture's sensor's (the user has to change the command or a file).
 #pragma once
 
 #include <exception>
