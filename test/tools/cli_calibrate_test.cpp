@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <Eigen/Geometry>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -102,6 +103,11 @@ TEST_F(CliCalibrate, FindsTheHiddenExtrinsicFromImagesAndCaptures) {
   }
   const nlohmann::json j = nlohmann::json::parse(run_command("cat " + path("result.json")).out);
   const auto [rot_deg, trans_m] = errors(j);
+  std::printf(
+      "calibrate, 6 poses: rotation error %.3f deg (1-sigma %.3f), translation error %.1f mm, "
+      "held-out median %.2f px\n",
+      rot_deg, j["lidar_to_camera"]["sigma"]["rotation_total_deg"].get<double>(), 1000 * trans_m,
+      j["errors"]["held_out_median_px"].get<double>());
   EXPECT_LT(rot_deg, 0.1);
   EXPECT_LT(trans_m, 0.005);
   // The 1-sigma it reports covers the true error within 3 sigma, and is not absurdly loose.
