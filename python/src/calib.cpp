@@ -204,6 +204,14 @@ py::list detect_image_tags(const std::string& path,
   return out;
 }
 
+// A PNG or JPEG as a (H, W) uint8 grey array (row 0 the top).
+py::array_t<uint8_t> read_gray_image(const std::string& path) {
+  const calib::GrayImage image = calib::read_gray(path);
+  py::array_t<uint8_t> out(std::vector<py::ssize_t>{image.height, image.width});
+  std::copy(image.pixels.begin(), image.pixels.end(), out.mutable_data());
+  return out;
+}
+
 }  // namespace
 
 void bind_calib(py::module_& m) {
@@ -256,6 +264,9 @@ void bind_calib(py::module_& m) {
   m.def("_load_intrinsics", &calib::load_intrinsics, py::arg("path"));
   m.def("_calibrate", &calibrate);
   m.def("_detect_image_tags", &detect_image_tags);
+  m.def("_read_image", &read_gray_image, py::arg("path"),
+        "A PNG or JPEG file as a (H, W) uint8 grey array, row 0 the top (colour converted by "
+        "libpng / libjpeg). Raises ImageError for an unreadable, unknown or corrupt file.");
 }
 
 }  // namespace lidartag::python
