@@ -51,8 +51,8 @@ __all__ = [
     "Detection", "DetectionResult", "Rotation", "Reader", "LcmLog", "LogEvent", "lcmtypes",
     "Error", "IoError", "CalibrationError", "ConfigError", "OptionsError", "CloudError",
     "FamilyError", "SceneError", "OutputError", "CameraModel", "load_intrinsics", "calibrate",
-    "CalibrationResult", "detect_image_tags", "read_image", "ExtrinsicError", "IntrinsicsError", "ImageError",
-    "ImageTagError",
+    "CalibrationResult", "detect_image_tags", "read_image", "ExtrinsicError", "IntrinsicsError",
+    "ImageError", "ImageTagError",
 ]
 
 
@@ -349,7 +349,7 @@ def detect_image_tags(image, families=("tag36h11",), camera=None, decimate=1.0,
                                             float(decimate), float(min_decision_margin))
     pixels = np.asarray(image)
     if pixels.dtype != np.uint8 or pixels.ndim != 2:
-        raise ValueError("detect_image_tags: image must be a path or a (H, W) uint8 array, got %s %s"
-                         % (pixels.dtype, pixels.shape))
+        raise ValueError("detect_image_tags: image must be a path or a (H, W) uint8 array, got "
+                         "%s %s" % (pixels.dtype, pixels.shape))
     return _lidartag._detect_image_tags("", np.ascontiguousarray(pixels), families, camera,
                                         float(decimate), float(min_decision_margin))
