@@ -258,7 +258,9 @@ void bind_calib(py::module_& m) {
   // Not a ValueError: the file is wrong, not the call.
   py::register_exception<calib::IntrinsicsFileError>(m, "IntrinsicsError", m.attr("Error").ptr());
   py::register_exception<calib::ImageError>(m, "ImageError", m.attr("Error").ptr());
-  py::register_exception<calib::ImageTagError>(m, "ImageTagError", m.attr("Error").ptr());
+  // Options out of range, an unknown family: also a ValueError.
+  py::register_exception<calib::ImageTagError>(
+      m, "ImageTagError", py::make_tuple(m.attr("Error"), py::handle(PyExc_ValueError)));
   // lidartag.CalibrationError is the Velodyne calibration file's (errors.cpp).
   py::register_exception<calib::CalibrationError>(m, "ExtrinsicError", m.attr("Error").ptr());
   m.def("_load_intrinsics", &calib::load_intrinsics, py::arg("path"));

@@ -309,5 +309,10 @@ def test_detect_image_tags_refuses_what_is_not_a_grey_image():
     with pytest.raises(ValueError, match="uint8"):
         lidartag.detect_image_tags(np.zeros((10, 10, 3), dtype=np.uint8))
     assert lidartag.detect_image_tags(np.full((64, 64), 128, dtype=np.uint8)) == []
+    # Images too small for a tag give none (AprilTag 3 itself hangs or crashes on 1 or 2 rows).
+    for shape in [(0, 5), (1, 1), (2, 2), (1, 50), (2, 50), (50, 1), (7, 7), (8, 8)]:
+        assert lidartag.detect_image_tags(np.zeros(shape, dtype=np.uint8)) == [], shape
     with pytest.raises(lidartag.ImageTagError):
         lidartag.detect_image_tags(np.zeros((8, 8), dtype=np.uint8), families=["tag99h1"])
+    with pytest.raises(ValueError, match="decimat"):
+        lidartag.detect_image_tags(np.zeros((8, 8), dtype=np.uint8), decimate=0.5)
