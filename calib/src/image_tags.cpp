@@ -260,7 +260,9 @@ std::vector<ImageTag> ImageTagDetector::detect(const GrayImage& image, const Cam
 
 std::vector<ImageTag> ImageTagDetector::detect(const GrayImage& image, const CameraModel* lens) {
   std::vector<ImageTag> tags;
-  if (image.width <= 0 || image.height <= 0 ||
+  // AprilTag 3 hangs on images 1 pixel high and corrupts its heap on 2 (its 4-pixel threshold
+  // tiles); no tag fits in fewer than kMinImageSide pixels anyway.
+  if (image.width < kMinImageSide || image.height < kMinImageSide ||
       image.pixels.size() != static_cast<size_t>(image.width) * static_cast<size_t>(image.height))
     return tags;
   // AprilTag reads the caller's buffer through a non-const pointer but never writes it (it

@@ -9,7 +9,11 @@ lidartagd's LCM logs, from Python.
         for tag in result:
             print(tag.family, tag.id, tag.position, tag.orientation)
 
-Every long call (reading, decoding, detecting, simulating) runs without the GIL.
+    camera = lidartag.load_intrinsics("camera.yaml")           # ROS camera_info or OpenCV YAML
+    result = lidartag.calibrate(camera, image_corners, lidar_corners)   # (P,4,2) px, (P,4,3) m
+    print(result.camera_from_lidar, result.sigma, result.warnings)
+
+Every long call (reading, decoding, detecting, simulating, calibrating) runs without the GIL.
 """
 
 import json as _json
@@ -18,13 +22,18 @@ import os as _os
 from ._lidartag import (  # noqa: F401  (re-exported)
     __version__,
     CalibrationError,
+    CameraModel,
     CloudError,
     ConfigError,
     DetectionResult,
     Detection,
     Detector,
     Error,
+    ExtrinsicError,
     FamilyError,
+    ImageError,
+    ImageTagError,
+    IntrinsicsError,
     IoError,
     LcmLog,
     LogEvent,
@@ -41,7 +50,9 @@ __all__ = [
     "read", "detect", "simulate", "read_lcm_log", "read_pcd", "write_pcd", "Detector",
     "Detection", "DetectionResult", "Rotation", "Reader", "LcmLog", "LogEvent", "lcmtypes",
     "Error", "IoError", "CalibrationError", "ConfigError", "OptionsError", "CloudError",
-    "FamilyError", "SceneError", "OutputError",
+    "FamilyError", "SceneError", "OutputError", "CameraModel", "load_intrinsics", "calibrate",
+    "CalibrationResult", "detect_image_tags", "read_image", "ExtrinsicError", "IntrinsicsError",
+    "ImageError", "ImageTagError",
 ]
 
 
@@ -188,3 +199,157 @@ def message_dict(message):
             return [value(x) for x in v]
         return v
     return {name: value(getattr(message, name)) for name in type(message).fields}
+
+
+def load_intrinsics(path):
+    """A CameraModel from a ROS camera_info YAML or an OpenCV FileStorage YAML (docs/camera.md).
+    Raises IntrinsicsError naming the file and the key when it cannot be used."""
+    return _lidartag._load_intrinsics(_os.fspath(path))
+
+
+class CalibrationResult:
+    """The camera-from-LiDAR extrinsic solved by calibrate().
+
+    camera_from_lidar: 4x4 numpy, maps LiDAR points (m) into the camera's optical frame (x right,
+      y down, z forward); lidar_from_camera its inverse; rotation_wxyz, translation_m (numpy).
+    sigma: 1-sigma dict (rotation_deg [x y z], rotation_total_deg, translation_mm [x y z],
+      covariance 6x6: rotation vector rad on the camera side, translation m).
+    rms_px, held_out_median_px, held_out_max_px (-1 with fewer than 2 poses); poses (one dict per
+      input pose: label, used, reason, corner_px, rms_px, held_out_px, range_m, chi2);
+      rejected [{label, reason}]; warnings; weak (weak directions: name, sigma_deg, direction);
+      suggestion (the pose to add next, '' when nothing is weak); forms (urdf, ros1, ros2,
+      opencv_yaml text).
+    json: the dict of `lidartag calibrate --json` (calibration_json); to_json() its text.
+    """
+
+    def __init__(self, json_dict):
+        import numpy as np
+        self.json = json_dict
+        l2c = json_dict["lidar_to_camera"]
+        self.camera_from_lidar = np.array(l2c["matrix"], dtype=float)
+        self.lidar_from_camera = np.array(l2c["inverse"], dtype=float)
+        self.rotation_wxyz = np.array(l2c["rotation_wxyz"], dtype=float)
+        self.translation_m = np.array(l2c["translation_m"], dtype=float)
+        self.sigma = dict(l2c["sigma"])
+        self.sigma["covariance"] = np.array(self.sigma["covariance"], dtype=float)
+        errors = json_dict["errors"]
+        self.rms_px = errors["rms_px"]
+        self.held_out_median_px = errors["held_out_median_px"]
+        self.held_out_max_px = errors["held_out_max_px"]
+        self.poses = json_dict["poses"]
+        self.poses_used = json_dict["poses_used"]
+        self.rejected = json_dict["poses_rejected"]
+        self.warnings = json_dict["warnings"]
+        self.weak = json_dict["degeneracy"]["weak"]
+        self.suggestion = json_dict["degeneracy"]["suggestion"]
+        self.forms = json_dict["forms"]
+
+    def to_json(self, indent=2):
+        """The result as `lidartag calibrate --json` writes it (text)."""
+        return _json.dumps(self.json, indent=indent)
+
+    def __repr__(self):
+        return "<lidartag.CalibrationResult %d/%d poses, rms %.3f px, sigma %.3f deg %s mm>" % (
+            self.poses_used, len(self.poses), self.rms_px, self.sigma["rotation_total_deg"],
+            self.sigma["translation_mm"])
+
+
+def _per_pose(value, count, name):
+    """A scalar or one value per pose, as a float64 array of `count` finite positive values."""
+    import numpy as np
+    a = np.asarray(value, dtype=float)
+    if a.ndim == 0:
+        a = np.full(count, float(a))
+    if a.shape != (count,):
+        raise ValueError("calibrate: %s: a number or one per pose (%d), got shape %s"
+                         % (name, count, a.shape))
+    if not np.all(np.isfinite(a)) or np.any(a <= 0):
+        raise ValueError("calibrate: %s must be finite and positive" % name)
+    return a
+
+
+def calibrate(camera, image_corners, lidar_corners, sigma_px=0.3, lidar_sigma_m=0.004,
+              labels=None, lidar_covariance=None, held_out=True, lidar_frame="lidar",
+              camera_frame="camera_optical_frame"):
+    """The camera-from-LiDAR extrinsic from tag poses seen by both sensors (docs/calibration.md).
+
+    camera: a CameraModel (load_intrinsics, or built from numbers).
+    image_corners: (P, 4, 2) pixels, corner k of pose p in lidartag's convention ((0, 0) the centre
+      of the top-left pixel; corner k as docs/calibration.md "The corner order" says: AprilTag 3's
+      p[k], as detect_image_tags gives them).
+    lidar_corners: (P, 4, 3) metres in the LiDAR frame, the same corners (Detection.corners).
+    sigma_px: the image corners' 1-sigma, pixels: a number or one per pose.
+    lidar_sigma_m: each LiDAR corner coordinate's 1-sigma, metres (independent, isotropic): a number
+      or one per pose. Default 4 mm: one rotation's detection at 5 m (docs/calibration.md).
+    lidar_covariance: instead, each pose's joint corner covariance (P, 12, 12), m^2, corner-major.
+    labels: names of the poses in the result (default "pose 0", "pose 1", ...).
+    held_out: compute each pose's leave-one-out error (one more solve per pose).
+    Returns a CalibrationResult. Raises ValueError for arrays of the wrong shape, non-finite values
+    or no pose; ExtrinsicError when no pose gives a solution.
+    """
+    import numpy as np
+    if not isinstance(camera, CameraModel):
+        raise TypeError("calibrate: camera must be a lidartag.CameraModel (load_intrinsics)")
+    image = np.asarray(image_corners, dtype=float)
+    lidar = np.asarray(lidar_corners, dtype=float)
+    if image.ndim != 3 or image.shape[1:] != (4, 2):
+        raise ValueError("calibrate: image_corners must be shaped (P, 4, 2), got %s"
+                         % (image.shape,))
+    if lidar.ndim != 3 or lidar.shape[1:] != (4, 3):
+        raise ValueError("calibrate: lidar_corners must be shaped (P, 4, 3), got %s"
+                         % (lidar.shape,))
+    count = image.shape[0]
+    if count < 1:
+        raise ValueError("calibrate: no pose (image_corners has 0)")
+    if lidar.shape[0] != count:
+        raise ValueError("calibrate: %d poses of image corners but %d of LiDAR corners"
+                         % (count, lidar.shape[0]))
+    for name, a in (("image_corners", image), ("lidar_corners", lidar)):
+        bad = np.flatnonzero(~np.all(np.isfinite(a.reshape(count, -1)), axis=1))
+        if bad.size:
+            raise ValueError("calibrate: %s of pose %d is not finite" % (name, bad[0]))
+    sigma = _per_pose(sigma_px, count, "sigma_px")
+    if lidar_covariance is None:
+        lidar_sigma = _per_pose(lidar_sigma_m, count, "lidar_sigma_m")
+        cov = (lidar_sigma ** 2)[:, None, None] * np.eye(12)[None, :, :]
+    else:
+        cov = np.asarray(lidar_covariance, dtype=float)
+        if cov.shape != (count, 12, 12):
+            raise ValueError("calibrate: lidar_covariance must be shaped (%d, 12, 12), got %s"
+                             % (count, cov.shape))
+        if not np.all(np.isfinite(cov)):
+            raise ValueError("calibrate: lidar_covariance is not finite")
+    if labels is None:
+        labels = ["pose %d" % i for i in range(count)]
+    labels = [str(label) for label in labels]
+    if len(labels) != count:
+        raise ValueError("calibrate: %d labels for %d poses" % (len(labels), count))
+    text = _lidartag._calibrate(camera, image, lidar, sigma, cov, labels, bool(held_out),
+                                str(lidar_frame), str(camera_frame))
+    return CalibrationResult(_json.loads(text))
+
+
+def read_image(path):
+    """A PNG or JPEG file as a (H, W) uint8 grey array, row 0 the top (colour converted by libpng /
+    libjpeg). Raises ImageError for an unreadable, unknown or corrupt file."""
+    return _lidartag._read_image(_os.fspath(path))
+
+
+def detect_image_tags(image, families=("tag36h11",), camera=None, decimate=1.0,
+                      min_decision_margin=0.0):
+    """AprilTag 3 tags (with lidartag's corner refinement) in a grey image: a PNG/JPEG path or a
+    (H, W) uint8 array. camera: a CameraModel whose lens the corner refinement undoes (its size
+    must be the image's). Returns a list of dicts sorted by family and id: family, id, hamming,
+    decision_margin, corners ((4, 2) pixels, lidartag's convention, corner k as calibrate wants
+    it), center."""
+    import numpy as np
+    families = [families] if isinstance(families, str) else [str(f) for f in families]
+    if isinstance(image, (str, _os.PathLike)):
+        return _lidartag._detect_image_tags(_os.fspath(image), None, families, camera,
+                                            float(decimate), float(min_decision_margin))
+    pixels = np.asarray(image)
+    if pixels.dtype != np.uint8 or pixels.ndim != 2:
+        raise ValueError("detect_image_tags: image must be a path or a (H, W) uint8 array, got "
+                         "%s %s" % (pixels.dtype, pixels.shape))
+    return _lidartag._detect_image_tags("", np.ascontiguousarray(pixels), families, camera,
+                                        float(decimate), float(min_decision_margin))

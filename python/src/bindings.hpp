@@ -37,5 +37,7 @@ void bind_rotation(py::module_& m);  // Rotation, Reader (pcap/pcapng/PCD), PCD 
 void bind_detector(py::module_& m);  // Detector, Detection, DetectionResult
 void bind_sim(py::module_& m);       // simulate
 void bind_lcm_log(py::module_& m);   // LcmLog, LogEvent (lidartag.lcmtypes: lcm_types.hpp)
+// CameraModel, load_intrinsics, calibrate, detect_image_tags (their wrappers: __init__.py)
+void bind_calib(py::module_& m);
 
 }  // namespace lidartag::python

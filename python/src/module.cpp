@@ -12,12 +12,13 @@ PYBIND11_MODULE(_lidartag, m) {
   namespace lp = lidartag::python;
   m.doc() =
       "lidartag: Velodyne captures into numpy, the LiDARTag detector, the simulator, "
-      "lidartagd's LCM logs";
+      "lidartagd's LCM logs, camera-LiDAR calibration";
   m.attr("__version__") = LIDARTAG_VERSION;
   lp::bind_errors(m);
   lp::bind_rotation(m);
   lp::bind_detector(m);
   lp::bind_sim(m);
+  lp::bind_calib(m);
   py::module_ types = m.def_submodule("lcmtypes", "lidartagd's LCM message types (lcmtypes/*.lcm)");
   lp::bind_lcm_types(types);
   lp::bind_lcm_log(m);

@@ -30,6 +30,10 @@ namespace lidartag::calib {
 // Added to AprilTag 3's coordinates to get lidartag's (both axes).
 inline constexpr double kAprilTagToLidartag = -0.5;
 
+// The smallest image side searched, pixels: the whole marker of the smallest family (tag16h5, 8
+// modules) at one pixel per module.
+inline constexpr int kMinImageSide = 8;
+
 // A family AprilTag 3 does not have, or options out of range.
 class ImageTagError : public std::runtime_error {
  public:
@@ -92,7 +96,8 @@ class ImageTagDetector {
   ImageTagDetector(const ImageTagDetector&) = delete;
   ImageTagDetector& operator=(const ImageTagDetector&) = delete;
 
-  // Tags in a grey image, sorted by family and id. An empty image gives none.
+  // Tags in a grey image, sorted by family and id. An image narrower or lower than kMinImageSide
+  // gives none.
   std::vector<ImageTag> detect(const GrayImage& image);
   // The same with the camera's lens model: the corner refinement fits each edge as a straight
   // line on the undistorted (pinhole) plane, where it is straight, instead of in the image, where
