@@ -200,6 +200,11 @@ TEST(ImageTags, PlainImagesGiveNothing) {
   GrayImage broken(10, 10);
   broken.pixels.resize(5);
   EXPECT_TRUE(detector.detect(broken).empty());
+  // Rows or columns of one or two pixels: AprilTag 3 itself hangs or aborts on them; refused
+  // before it (no tag fits in fewer than kMinImageSide pixels).
+  for (const auto& [w, h] : {std::pair{1, 1}, std::pair{200, 1}, std::pair{200, 2},
+                             std::pair{2, 200}, std::pair{kMinImageSide - 1, 300}})
+    EXPECT_TRUE(detector.detect(GrayImage(w, h, 200)).empty()) << w << " x " << h;
 }
 
 TEST(ImageTags, WrongFamilyFindsNothing) {
