@@ -163,13 +163,9 @@ std::vector<calib::ImageTagCorners> image_tags_of(const std::string& path,
   return out;
 }
 
-std::string tag_list(const std::vector<calib::ImageTagCorners>& tags) {
-  std::string s;
-  for (const auto& t : tags) s += fmt::format("{}{}:{}", s.empty() ? "" : ", ", t.family, t.id);
-  return s.empty() ? "none" : s;
-}
-
-std::string tag_list(const std::vector<calib::LidarTag>& tags) {
+// "family:id, ..." of a pair's tags (image or LiDAR side), "none" when there are none.
+template <typename Tag>
+std::string tag_list(const std::vector<Tag>& tags) {
   std::string s;
   for (const auto& t : tags) s += fmt::format("{}{}:{}", s.empty() ? "" : ", ", t.family, t.id);
   return s.empty() ? "none" : s;
