@@ -3,79 +3,91 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <filesystem>
 #include <optional>
 
-#include "lidartag/detector/cloud_scan.hpp"
-#include "lidartag/driver/bag/message_reader.hpp"
-#include "lidartag/driver/bag/messages.hpp"
+#include "lidartag/bag_cloud_reader.hpp"
+#include "lidartag/driver/velodyne/io/pcd.hpp"
 #include "lidartag/driver/velodyne/sensor_model.hpp"
+#include "lidartag/exit_codes.hpp"
 
 namespace lidartag::cli {
 
-namespace bag = driver::bag;
-
 bool is_point_cloud_bag(const CaptureArgs& args) {
-  if (bag::detect_bag_format(args.capture) == bag::BagFormat::kNone) return false;
-  const auto reader = bag::open_bag(args.capture);
-  const std::string topic =
-      bag::choose_lidar_topic(reader->connections(), args.topic, args.capture);
-  for (const bag::Connection& c : reader->connections())
-    if (c.topic == topic) return bag::message_kind(c.type) == bag::MessageKind::kPointCloud2;
-  return false;
+  return clouds::holds_point_clouds(args.capture, args.topic);
 }
 
 size_t for_each_bag_cloud(const CaptureArgs& args, int rings, double resolution_deg,
-                          const std::function<void(const Scan&)>& each) {
-  bag::ReaderOptions options;
-  {
-    const auto all = bag::open_bag(args.capture);
-    options.topics = {bag::choose_lidar_topic(all->connections(), args.topic, args.capture)};
-  }
-  const auto reader = bag::open_bag(args.capture, options);
+                          const std::function<bool(const Scan&)>& each) {
+  clouds::BagCloudOptions options;
+  options.topic = args.topic;
+  options.start_s = args.start_s;
+  options.duration_s = args.duration_s;
   const auto model = args.model.empty() ? std::nullopt : velodyne::model_from_name(args.model);
-  bag::BagMessage m;
-  bag::PointCloudView cloud;
-  bag::CloudColumns columns;
+  options.elevations_deg = velodyne::beam_elevations_deg(model);
+  options.rings = rings;
+  options.resolution_deg = resolution_deg;
+  clouds::BagCloudReader reader(args.capture, options);
   Scan scan;
-  size_t n = 0, skipped = 0;
-  while (reader->next(m)) {
-    const std::string name =
-        fmt::format("{}: cloud {} on {}", args.capture, n + skipped, options.topics.front());
-    const bag::DecodeResult decoded =
-        bag::decode_point_cloud(m.data, reader->connections()[m.connection].encoding, cloud);
-    if (decoded != bag::DecodeResult::kOk) {
-      spdlog::warn("{}: {}, skipped", name, bag::decode_result_name(decoded));
-      ++skipped;
+  size_t n = 0;
+  for (;;) {
+    const auto step = reader.next(scan);
+    if (step == clouds::BagCloudReader::Step::kEnd) break;
+    const std::string name = fmt::format("{}: cloud {} on {}", args.capture,
+                                         reader.scans() + reader.skipped() - 1, reader.topic());
+    if (step == clouds::BagCloudReader::Step::kSkipped) {
+      const bool hint = reader.problem().find("ring") != std::string::npos && !model && rings == 0;
+      spdlog::warn("{}: {}{}, skipped", name, reader.problem(),
+                   hint ? " (--model or --rings N)" : "");
       continue;
     }
-    bag::cloud_columns(cloud, columns);
-    const detector::CloudFields fields = detector::cloud_fields_by_name(
-        columns.names, columns.columns, columns.width, columns.height);
-    const detector::CloudScanOptions scan_options = detector::cloud_scan_options(
-        fields, velodyne::beam_elevations_deg(model), rings, resolution_deg);
-    detector::CloudScanReport report;
-    try {
-      report = detector::cloud_to_scan(fields, scan_options, scan);
-    } catch (const detector::CloudError& e) {
-      const bool hint = fields.ring.empty() && !model && rings == 0;
-      spdlog::warn("{}: {}{}, skipped", name, e.what(), hint ? " (--model or --rings N)" : "");
-      ++skipped;
-      continue;
-    }
-    if (report.merged > 0)
+    if (reader.report().merged > 0)
       spdlog::warn(
           "{}: {} of {} points fell into a cell of their ring a nearer point took "
           "(--resolution sets the column width)",
-          name, report.merged, cloud.points());
-    scan.stamp_ns = cloud.stamp_ns != 0 ? cloud.stamp_ns : m.time_ns;
-    scan.sequence = n;
-    scan.complete = true;
-    each(scan);
+          name, reader.report().merged, reader.cloud_points());
     ++n;
+    if (!each(scan)) break;
   }
-  if (!reader->error().empty()) spdlog::warn("{}: {}", args.capture, reader->error());
-  if (skipped > 0) spdlog::warn("{}: {} clouds skipped", args.capture, skipped);
+  const auto& r = reader.reader();
+  if (!r.error().empty()) spdlog::warn("{}: {}", args.capture, r.error());
+  if (reader.skipped() > 0) spdlog::warn("{}: {} clouds skipped", args.capture, reader.skipped());
+  if (args.windowed())
+    spdlog::info("{}: {} messages of {} outside --start/--duration", args.capture,
+                 r.stats().outside_window, reader.topic());
   return n;
+}
+
+size_t dump_bag_clouds(const CaptureArgs& args, int rings, double resolution_deg,
+                       const std::string& out, bool organized) {
+  size_t written = 0, points = 0;
+  for_each_bag_cloud(args, rings, resolution_deg, [&](const Scan& scan) {
+    const std::string path =
+        (std::filesystem::path(out) / fmt::format("rotation_{:06d}.pcd", scan.sequence)).string();
+    points += velodyne::write_pcd(path, scan, {velodyne::PcdFormat::kBinary, organized});
+    ++written;
+    return true;
+  });
+  if (written == 0)
+    throw UsageError(fmt::format("{}: no point cloud could be read{}", args.capture,
+                                 args.windowed() ? " in --start/--duration" : ""));
+  fmt::print("wrote {} PCD files ({} points) to {}\n", written, points, out);
+  return written;
+}
+
+void bag_cloud_scan(const CaptureArgs& args, int rings, double resolution_deg, int64_t number,
+                    Scan& scan) {
+  bool found = false;
+  size_t n = for_each_bag_cloud(args, rings, resolution_deg, [&](const Scan& s) {
+    if (number >= 0 && s.sequence != static_cast<uint64_t>(number)) return true;
+    scan = s;
+    found = true;
+    return false;
+  });
+  if (!found)
+    throw UsageError(
+        n == 0 ? fmt::format("{}: no point cloud could be read", args.capture)
+               : fmt::format("--rotation {}: {} has clouds 0-{}", number, args.capture, n - 1));
 }
 
 }  // namespace lidartag::cli

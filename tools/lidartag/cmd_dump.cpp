@@ -1,6 +1,6 @@
 // `lidartag dump CAPTURE --out DIR [--organized] [--force]`: one binary PCD per rotation, its
 // stamp in the header (pcd.hpp). Ouster captures (--metadata, or NAME.json beside NAME.pcap): one
-// per frame, destaggered.
+// per frame, destaggered. A bag's PointCloud2 topic: one per cloud.
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
@@ -10,6 +10,7 @@
 #include <string>
 #include <system_error>
 
+#include "lidartag/bag_clouds.hpp"
 #include "lidartag/commands.hpp"
 #include "lidartag/common.hpp"
 #include "lidartag/driver/io/errors.hpp"
@@ -30,6 +31,8 @@ struct DumpArgs {
   bool partial = false;
   bool organized = false;
   bool force = false;
+  int rings = 0;                // PointCloud2 without a ring field and no --model: beams
+  double resolution_deg = 0.2;  // PointCloud2: width of a column
 };
 
 // The files dump writes: rotation_NNNNNN.pcd, NNNNNN the rotation's sequence number (six digits or
@@ -101,6 +104,11 @@ int dump_rotations(const DumpArgs& args, Reader& reader) {
 }
 
 int run_dump(const DumpArgs& args) {
+  if (is_point_cloud_bag(args.capture)) {  // a bag's PointCloud2 topic: one file per cloud
+    prepare_output(args);
+    dump_bag_clouds(args.capture, args.rings, args.resolution_deg, args.out, args.organized);
+    return 0;
+  }
   if (const auto metadata = ouster_metadata(args.capture.capture, args.ouster.metadata)) {
     const auto reader = ouster_reader(args.capture, args.ouster, *metadata);
     return dump_rotations(args, *reader);
@@ -130,6 +138,11 @@ const Registrar kDump(
                    "(rotation_*.pcd, "
                    "scan_*.pcd) are deleted first, "
                    "other files are kept");
+      app.add_option("--rings", args->rings,
+                     "PointCloud2 without a ring field: beams to estimate (or --model)");
+      app.add_option("--resolution", args->resolution_deg,
+                     "PointCloud2: horizontal resolution (column width), degrees")
+          ->capture_default_str();
       return [args] { return run_dump(*args); };
     });
 

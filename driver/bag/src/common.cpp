@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <filesystem>
 #include <limits>
 
@@ -133,6 +134,25 @@ void MessageReader::note(const std::string& problem) {
 bool MessageReader::wanted(std::string_view topic) const {
   return options_.topics.empty() ||
          std::find(options_.topics.begin(), options_.topics.end(), topic) != options_.topics.end();
+}
+
+bool MessageReader::in_window(int64_t time_ns) {
+  if (!start_ns_) start_ns_ = time_ns;
+  const double start = options_.start_s > 0 ? options_.start_s : 0.0;
+  const double duration = options_.duration_s;
+  if (start == 0 && !(duration < std::numeric_limits<double>::infinity())) return true;
+  // In ns as double: exact to well below a microsecond over decades.
+  const double t = static_cast<double>(time_ns - *start_ns_) * 1e-9;
+  if (t < start) return false;
+  return !(duration > 0) || std::isnan(duration) || t - start < duration;
+}
+
+std::string window_problem(double start_s, double duration_s) {
+  if (std::isnan(start_s) || start_s < 0)
+    return "--start " + std::to_string(start_s) + ": seconds from the first message, 0 or more";
+  if (std::isnan(duration_s) || duration_s <= 0)
+    return "--duration " + std::to_string(duration_s) + ": seconds, more than 0";
+  return {};
 }
 
 std::string_view format_name(BagFormat format) {
