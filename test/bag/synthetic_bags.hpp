@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cstdint>
 #include <cstring>
+#include <functional>
 #include <map>
 #include <string>
 #include <string_view>
@@ -26,6 +27,12 @@ using Chunks = std::vector<std::vector<Message>>;
 
 struct Topic {
   std::string name, type;
+};
+
+// How chunks are compressed: the name the container records and the compressor (none: stored).
+struct Compression {
+  std::string name = "none";
+  std::function<Bytes(const Bytes&)> compress;
 };
 
 inline void put(Bytes& b, const void* p, size_t n) {
@@ -83,7 +90,8 @@ inline Bytes ros1_connection(uint32_t conn, const Topic& t) {
 
 // A ROS 1 bag of `chunks` (uncompressed) with the topics' connections in the first chunk that
 // uses them; `indexed`: connection and chunk info records at index_pos, else index_pos 0.
-inline Bytes ros1_bag(const std::vector<Topic>& topics, const Chunks& chunks, bool indexed = true) {
+inline Bytes ros1_bag(const std::vector<Topic>& topics, const Chunks& chunks, bool indexed = true,
+                      const Compression& compression = {}) {
   std::map<std::string, uint32_t> ids;
   for (const Topic& t : topics) ids.emplace(t.name, static_cast<uint32_t>(ids.size()));
   Bytes body;  // after the bag header record
@@ -127,9 +135,9 @@ inline Bytes ros1_bag(const std::vector<Topic>& topics, const Chunks& chunks, bo
     }
     Bytes h;
     ros1_field(h, "op", {0x05});
-    ros1_field(h, "compression", text("none"));
+    ros1_field(h, "compression", text(compression.name));
     ros1_field(h, "size", le(static_cast<uint32_t>(inner.size())));
-    ros1_record(body, h, inner);
+    ros1_record(body, h, compression.compress ? compression.compress(inner) : inner);
     infos.push_back(info);
   }
   const uint64_t index_pos = start + body.size();
@@ -183,7 +191,7 @@ inline uint32_t mcap_crc(const Bytes& b) {
 // chunk that uses it ("ros1" encoding when `ros1`, else "cdr"); `summary`: schemas, channels and
 // a Statistics record in a summary section the footer points at.
 inline Bytes mcap_file(const std::vector<Topic>& topics, const Chunks& chunks, bool summary = true,
-                       bool ros1 = false) {
+                       bool ros1 = false, const Compression& compression = {}) {
   std::map<std::string, uint16_t> ids;
   for (const Topic& t : topics) ids.emplace(t.name, static_cast<uint16_t>(ids.size() + 1));
   auto schema = [&](uint16_t id) {
@@ -244,9 +252,10 @@ inline Bytes mcap_file(const std::vector<Topic>& topics, const Chunks& chunks, b
     put(c, static_cast<uint64_t>(end));
     put(c, static_cast<uint64_t>(records.size()));
     put(c, mcap_crc(records));
-    mcap_string(c, "");
-    put(c, static_cast<uint64_t>(records.size()));
-    put(c, records.data(), records.size());
+    const Bytes stored = compression.compress ? compression.compress(records) : records;
+    mcap_string(c, compression.compress ? compression.name : "");
+    put(c, static_cast<uint64_t>(stored.size()));
+    put(c, stored.data(), stored.size());
     mcap_record(out, 0x06, c);
   }
   mcap_record(out, 0x0F, le(uint32_t{0}));  // DataEnd
@@ -280,6 +289,60 @@ inline Bytes mcap_file(const std::vector<Topic>& topics, const Chunks& chunks, b
   mcap_record(out, 0x02, footer);
   put(out, magic);
   return out;
+}
+
+// ---- Messages, ROS 1 serialization (little endian, no alignment)
+inline void ros1_header(Bytes& b, int64_t stamp_ns, std::string_view frame) {
+  put(b, uint32_t{0});  // seq
+  const Bytes t = ros_time(stamp_ns);
+  put(b, t.data(), t.size());
+  put(b, static_cast<uint32_t>(frame.size()));
+  put(b, frame);
+}
+
+// velodyne_msgs/VelodyneScan: `packets` packets of 1206 bytes filled with `fill`, 1 ms apart.
+inline Bytes velodyne_scan_ros1(int64_t stamp_ns, uint32_t packets, uint8_t fill) {
+  Bytes b;
+  ros1_header(b, stamp_ns, "velodyne");
+  put(b, packets);
+  for (uint32_t i = 0; i < packets; ++i) {
+    const Bytes t = ros_time(stamp_ns + int64_t{i} * 1'000'000);
+    put(b, t.data(), t.size());
+    b.insert(b.end(), 1206, fill);
+  }
+  return b;
+}
+
+// sensor_msgs/PointCloud2 of `n` points: float32 x y z intensity, uint16 ring (point_step 18).
+inline Bytes point_cloud_ros1(int64_t stamp_ns, uint32_t n) {
+  Bytes b;
+  ros1_header(b, stamp_ns, "lidar");
+  put(b, uint32_t{1});  // height
+  put(b, n);            // width
+  const std::pair<std::string_view, uint8_t> fields[] = {
+      {"x", 7}, {"y", 7}, {"z", 7}, {"intensity", 7}, {"ring", 4}};
+  put(b, static_cast<uint32_t>(std::size(fields)));
+  uint32_t offset = 0;
+  for (const auto& [name, type] : fields) {
+    put(b, static_cast<uint32_t>(name.size()));
+    put(b, name);
+    put(b, offset);
+    put(b, type);
+    put(b, uint32_t{1});
+    offset += type == 7 ? 4 : 2;
+  }
+  put(b, uint8_t{0});  // is_bigendian
+  put(b, offset);      // point_step
+  put(b, offset * n);  // row_step
+  put(b, offset * n);  // data length
+  for (uint32_t i = 0; i < n; ++i) {
+    const float v[4] = {5.0f, static_cast<float>(i % 8) * 0.1f, static_cast<float>(i / 8) * 0.1f,
+                        static_cast<float>(i * 37 % 256)};
+    for (const float f : v) put(b, f);
+    put(b, static_cast<uint16_t>(i / 8));
+  }
+  put(b, uint8_t{1});  // is_dense
+  return b;
 }
 
 }  // namespace lidartag::driver::bag::synthetic
