@@ -52,10 +52,27 @@ TEST(BagCli, TopicOptionAndRefusals) {
   r = run_tool("info " + bag("mcap/talker.mcap"));
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.out.find("no LiDAR topic"), std::string::npos) << r.out;
-  // info reads packets only: a PointCloud2 topic is refused by name.
-  r = run_tool("info " + bag("ros1/luminar_pointcloud2_lz4.bag"));
+  // A topic that holds neither packets nor clouds is refused by name.
+  r = run_tool("info --topic /base_scan " + bag("ros1/luminar_pointcloud2_lz4.bag"));
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.out.find("not velodyne_msgs/VelodyneScan"), std::string::npos) << r.out;
+}
+
+TEST(BagCli, InfoOfAPointCloud2TopicCountsItsCloudsAndPoints) {
+  LIDARTAG_REQUIRE_BAGS();
+  const std::string luminar = bag("ros1/luminar_pointcloud2_lz4.bag");
+  nlohmann::json j = info(luminar);
+  EXPECT_EQ(j["topic"], "/luminar_pointcloud");
+  EXPECT_EQ(j["clouds"].get<int>(), 5);
+  EXPECT_EQ(j["points"].get<int>(), 35707 + 36055 + 36267 + 36457 + 36336);
+  EXPECT_EQ(j["points_min"].get<int>(), 35707);
+  EXPECT_EQ(j["fields"], "x y z intensity time_sec time_nsec laser_id");
+  const auto r = run_tool("info --json --start 0.15 --duration 0.2 " + luminar, false);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["clouds"].get<int>(), 2);
+  EXPECT_EQ(j["outside_window"].get<int>(), 3);
+  EXPECT_EQ(j["first_stamp_ns"].get<int64_t>(), 1583971570215200989);
 }
 
 size_t pcd_files(const std::string& folder) {

@@ -57,6 +57,8 @@ class BagCloudReader {
   size_t scans() const { return scans_; }
   size_t skipped() const { return skipped_; }
   const driver::bag::MessageReader& reader() const { return *reader_; }
+  // The topic's messages undecoded (for a summary that converts none; do not mix with next()).
+  driver::bag::MessageReader& messages() { return *reader_; }
 
  private:
   BagCloudOptions options_;

@@ -3,7 +3,9 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <filesystem>
+#include <nlohmann/json.hpp>
 #include <optional>
 
 #include "lidartag/bag_cloud_reader.hpp"
@@ -88,6 +90,79 @@ void bag_cloud_scan(const CaptureArgs& args, int rings, double resolution_deg, i
     throw UsageError(
         n == 0 ? fmt::format("{}: no point cloud could be read", args.capture)
                : fmt::format("--rotation {}: {} has clouds 0-{}", number, args.capture, n - 1));
+}
+
+int info_bag_clouds(const CaptureArgs& args, bool json) {
+  clouds::BagCloudOptions options;
+  options.topic = args.topic;
+  options.start_s = args.start_s;
+  options.duration_s = args.duration_s;
+  options.rings = 1;  // info converts no cloud: only their shape and stamps are read
+  clouds::BagCloudReader reader(args.capture, options);
+  driver::bag::MessageReader& messages = reader.messages();
+  driver::bag::BagMessage m;
+  driver::bag::PointCloudView cloud;
+  uint64_t clouds = 0, bad = 0, points = 0, min_points = 0, max_points = 0;
+  int64_t first = 0, last = 0;
+  std::string fields;
+  while (messages.next(m)) {
+    if (driver::bag::decode_point_cloud(m.data, messages.connections()[m.connection].encoding,
+                                        cloud) != driver::bag::DecodeResult::kOk) {
+      ++bad;
+      continue;
+    }
+    const int64_t stamp = cloud.stamp_ns != 0 ? cloud.stamp_ns : m.time_ns;
+    const uint64_t n = cloud.points();
+    if (clouds == 0) {
+      first = stamp;
+      min_points = n;
+      for (const auto& f : cloud.fields) {
+        if (!fields.empty()) fields += ' ';
+        fields += f.name;
+      }
+    }
+    last = stamp;
+    min_points = std::min(min_points, n);
+    max_points = std::max(max_points, n);
+    points += n;
+    ++clouds;
+  }
+  const auto& s = messages.stats();
+  const double duration = static_cast<double>(last - first) * 1e-9;
+  if (json) {
+    nlohmann::json j = {{"capture", args.capture},
+                        {"container", driver::bag::format_name(messages.format())},
+                        {"topic", reader.topic()},
+                        {"type", "sensor_msgs/PointCloud2"},
+                        {"clouds", clouds},
+                        {"bad_clouds", bad},
+                        {"points", points},
+                        {"points_min", min_points},
+                        {"points_max", max_points},
+                        {"fields", fields},
+                        {"first_stamp_ns", first},
+                        {"duration_s", duration},
+                        {"outside_window", s.outside_window},
+                        {"skipped_chunks", s.skipped_chunks},
+                        {"skipped_records", s.skipped_records},
+                        {"truncated", s.truncated},
+                        {"error", messages.error()}};
+    fmt::print("{}\n", j.dump(2));
+  } else {
+    fmt::print("capture:        {}\n", args.capture);
+    fmt::print("container:      {}, topic {} (sensor_msgs/PointCloud2)\n",
+               driver::bag::format_name(messages.format()), reader.topic());
+    fmt::print("clouds:         {} ({} did not decode), {:.3f} s\n", clouds, bad, duration);
+    fmt::print("points:         {} ({} to {} a cloud)\n", points, min_points, max_points);
+    fmt::print("fields:         {}\n", fields);
+    if (args.windowed())
+      fmt::print("window:         {} messages outside --start/--duration\n", s.outside_window);
+    if (!messages.error().empty()) fmt::print("problems:       {}\n", messages.error());
+  }
+  if (clouds == 0)
+    throw UsageError(fmt::format("{}: no point cloud could be read{}", args.capture,
+                                 args.windowed() ? " in --start/--duration" : ""));
+  return 0;
 }
 
 }  // namespace lidartag::cli

@@ -38,4 +38,8 @@ size_t dump_bag_clouds(const CaptureArgs& args, int rings, double resolution_deg
 void bag_cloud_scan(const CaptureArgs& args, int rings, double resolution_deg, int64_t number,
                     Scan& scan);
 
+// `lidartag info` of a PointCloud2 topic: clouds, points, stamps, the fields of the first cloud and
+// what could not be read (text, or one JSON object with `json`). Returns the exit code.
+int info_bag_clouds(const CaptureArgs& args, bool json);
+
 }  // namespace lidartag::cli
