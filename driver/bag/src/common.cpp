@@ -140,11 +140,15 @@ bool MessageReader::in_window(int64_t time_ns) {
   if (!start_ns_) start_ns_ = time_ns;
   const double start = options_.start_s > 0 ? options_.start_s : 0.0;
   const double duration = options_.duration_s;
-  if (start == 0 && !(duration < std::numeric_limits<double>::infinity())) return true;
-  // In ns as double: exact to well below a microsecond over decades.
-  const double t = static_cast<double>(time_ns - *start_ns_) * 1e-9;
+  const bool bounded = duration > 0 && duration < std::numeric_limits<double>::infinity();
+  if (start == 0 && !bounded) return true;  // the whole bag
+  int64_t since = 0;
+  // Times of corrupt records may be anything: 292 years or more from the start is outside any
+  // window but an open-ended one.
+  if (__builtin_sub_overflow(time_ns, *start_ns_, &since)) return time_ns > *start_ns_ && !bounded;
+  const double t = static_cast<double>(since) * 1e-9;  // exact to a ns for 104 days
   if (t < start) return false;
-  return !(duration > 0) || std::isnan(duration) || t - start < duration;
+  return !bounded || t - start < duration;
 }
 
 std::string window_problem(double start_s, double duration_s) {
