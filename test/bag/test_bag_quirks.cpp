@@ -209,6 +209,19 @@ TEST(BagQuirks, Rosbag2EmptySerializationFormatAndMetadataTimesThatDisagree) {
   EXPECT_EQ(r.stats.outside_window, 2u);
 }
 
+TEST(BagQuirks, ProblemsQuotedFromTheFileStayOneLine) {
+  // A chunk compression named with a newline (found by fuzz_mcap): skipped, described in one line.
+  TempDir dir;
+  const syn::Compression odd{"lz\n4", [](const syn::Bytes& b) { return b; }};
+  const std::string path = dir.file("odd.mcap");
+  write_bytes(path, syn::mcap_file(kTopics, out_of_order(), true, false, odd));
+  const Read r = read_all(path);
+  EXPECT_TRUE(r.numbers.empty());
+  EXPECT_EQ(r.stats.skipped_chunks, 2u);
+  EXPECT_EQ(r.error.find('\n'), std::string::npos) << r.error;
+  EXPECT_NE(r.error.find("unknown compression 'lz\\x0a4'"), std::string::npos) << r.error;
+}
+
 TEST(BagQuirks, WindowProblemsAreNamed) {
   EXPECT_EQ(window_problem(0, 1), "");
   EXPECT_NE(window_problem(-1, 1).find("--start"), std::string::npos);

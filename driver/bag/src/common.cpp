@@ -125,7 +125,18 @@ void MessageReader::note(const std::string& problem) {
   ++notes_;
   if (notes_ <= kShown) {
     if (!error_.empty()) error_ += "; ";
-    error_ += problem;
+    // One line whatever the file holds: a corrupt compression name is quoted from the file.
+    static constexpr char kHex[] = "0123456789abcdef";
+    for (const char ch : problem) {
+      const auto c = static_cast<unsigned char>(ch);
+      if (c >= 0x20 && c != 0x7F) {
+        error_ += ch;
+      } else {
+        error_ += "\\x";
+        error_ += kHex[c >> 4];
+        error_ += kHex[c & 15];
+      }
+    }
   } else if (notes_ == kShown + 1) {
     error_ += "; more problems follow (see the counters)";
   }
