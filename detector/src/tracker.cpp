@@ -52,6 +52,13 @@ Eigen::Matrix3d quarter_turn(int q) {
   return Eigen::AngleAxisd(q * std::numbers::pi / 2, Eigen::Vector3d::UnitX()).toRotationMatrix();
 }
 
+// A square-mounted tag's track searches where the tag sits along its unseen axis over the votes of
+// every rotation: kShifts grids of cell votes, grid g shifted by (g - kCentre) quarter cells along
+// that axis from the track's pose (a cell either way, as decoding searches one rotation). Grid
+// kCentre is the track's pose itself, the only one of a track whose tags were seen on every side.
+constexpr int kShifts = 9;
+constexpr int kCentre = kShifts / 2;
+
 }  // namespace
 
 namespace {
@@ -81,7 +88,13 @@ struct Tracker::Track {
   // scores. Per cell of the marker in the track's frame: summed votes (+1 white, -1 black) of the
   // points well inside it, and their number.
   std::vector<double> score_sum;
-  std::vector<float> votes, counts;
+  std::vector<float> votes, counts;  // kShifts grids of W x W cells (kCentre unshifted)
+  // The axis of the track's frame along which its tag's place is searched (1: y, 2: z; 0: none,
+  // every side seen), from its first candidate whose shift decoding searched; the extent of the
+  // voted points along it (track frame, metres), and the grid that leads.
+  int axis = 0;
+  double lo = 0.0, hi = 0.0;
+  int shift = kCentre;
   // Over the rotations in which the families not configured were decoded: their best score and
   // the configured family's best score, summed, and the number of those rotations.
   double other_sum = 0.0, own_sum = 0.0;
@@ -129,12 +142,14 @@ Tracker::Tracker(TrackerOptions options, const DetectorOptions& detector)
   }
   tracks_.resize(static_cast<size_t>(opt_.max_tracks));
   scores_.reserve(static_cast<size_t>(most));
+  best_.reserve(static_cast<size_t>(most));
+  best_grid_.reserve(static_cast<size_t>(most));
   values_.reserve(static_cast<size_t>(cells));
   tables_.reserve(static_cast<size_t>(cells / 8 + 1) * 256);
   for (Track& t : tracks_) {
     t.score_sum.assign(static_cast<size_t>(most), 0.0);
-    t.votes.assign(static_cast<size_t>(cells), 0.0f);
-    t.counts.assign(static_cast<size_t>(cells), 0.0f);
+    t.votes.assign(static_cast<size_t>(kShifts * cells), 0.0f);
+    t.counts.assign(static_cast<size_t>(kShifts * cells), 0.0f);
     t.window.resize(static_cast<size_t>(opt_.window));
   }
   ordered_.reserve(static_cast<size_t>(opt_.window));
@@ -319,6 +334,9 @@ void Tracker::start(Track& t, const Candidate& c) {
   std::fill(t.score_sum.begin(), t.score_sum.begin() + static_cast<std::ptrdiff_t>(n), 0.0);
   std::fill(t.votes.begin(), t.votes.end(), 0.0f);
   std::fill(t.counts.begin(), t.counts.end(), 0.0f);
+  t.axis = 0;
+  t.lo = t.hi = 0.0;
+  t.shift = kCentre;
   t.other_sum = t.own_sum = 0.0;
   t.other_count = 0;
   t.window_count = t.window_next = 0;
@@ -385,41 +403,82 @@ void Tracker::add_evidence(Track& t, const Candidate& c, const ScanResult& resul
   // Cell votes: the points decoding read, voted again in the track's mean frame (a rotation's own
   // pose scatters by 4-12 mm and 0.4-1.4 degrees at 10 m on a VLP-16, the mean of the window by a
   // few millimetres and tenths of a degree, and the cells crossed near their borders are the ones
-  // that tell codes apart there). None from a cluster whose position along an unseen axis was
-  // searched by decoding: its votes would agree with the decoder by construction.
+  // that tell codes apart there). A cluster whose place along an unseen axis decoding searched (a
+  // square mount: the rings run along its top and bottom edges) was placed where its best code
+  // fits: its votes at that place agree with the decoder by construction. Its track searches
+  // again, as decoding does for one rotation, over the votes of every rotation: every grid of
+  // kShifts along that axis, where the points stay inside the tag, and the margin is taken
+  // against the best other function at any of them.
   const int W = fam.dict.width();
-  if (!c.shift_searched) {
+  const auto cells = static_cast<size_t>(W * W);
+  const double step = t.size_m / W / 4.0;
+  if (c.shift_searched && t.axis == 0 && c.unseen_axis.allFinite() &&
+      c.unseen_axis.squaredNorm() > 0.25) {
+    const Eigen::Vector3d a = t.ref_frame.toRotationMatrix().transpose() * c.unseen_axis;
+    t.axis = std::abs(a.y()) >= std::abs(a.z()) ? 1 : 2;
+    t.lo = std::numeric_limits<double>::infinity();
+    t.hi = -t.lo;
+  }
+  const int first_grid = t.axis == 0 ? kCentre : 0, last_grid = t.axis == 0 ? kCentre : kShifts - 1;
+  {
     const Eigen::Matrix3d u = c.undecoded_orientation.normalized().toRotationMatrix();
     const Eigen::Matrix3d to_track = t.ref_frame.toRotationMatrix().transpose();
     const Eigen::Vector3d offset = to_track * (c.position - t.ref_position);
     const Eigen::Matrix3d m = to_track * u;
     for (const VotePoint& p : result.vote_points_of(c)) {
       const Eigen::Vector3d q = m * Eigen::Vector3d(p.x, p.y, p.z) + offset;
-      const int i = vote_cell(q.y() / t.size_m, q.z() / t.size_m, W, vote_inset_);
-      if (i < 0) continue;
-      t.votes[static_cast<size_t>(i)] += point_vote(p.label);
-      t.counts[static_cast<size_t>(i)] += 1.0f;
+      if (t.axis != 0) {
+        t.lo = std::min(t.lo, q[t.axis]);
+        t.hi = std::max(t.hi, q[t.axis]);
+      }
+      const float vote = point_vote(p.label);
+      for (int g = first_grid; g <= last_grid; ++g) {
+        const double sh = (g - kCentre) * step;
+        const double y = q.y() - (t.axis == 1 ? sh : 0.0), z = q.z() - (t.axis == 2 ? sh : 0.0);
+        const int i = vote_cell(y / t.size_m, z / t.size_m, W, vote_inset_);
+        if (i < 0) continue;
+        const size_t k = static_cast<size_t>(g) * cells + static_cast<size_t>(i);
+        t.votes[k] += vote;
+        t.counts[k] += 1.0f;
+      }
     }
   }
   // The decision: every function scored on the cells that tell functions apart, each cell's votes
-  // averaged (a cell with fewer than full_cell_votes votes counts proportionally less); the
-  // margin is in cells: the leading function beats the best other one on that many cells.
+  // averaged (a cell with fewer than full_cell_votes votes counts proportionally less), in each
+  // grid whose shift keeps the points inside the tag (and the track's pose); each function's best
+  // grid. The margin is in cells: the leading function beats the best other one on that many.
   const auto& vary = fam.dict.varying_cells();
   values_.resize(vary.size());
   const auto full = static_cast<float>(opt_.full_cell_votes);
-  for (size_t k = 0; k < vary.size(); ++k) {
-    const auto i = static_cast<size_t>(vary[k]);
-    values_[k] = t.votes[i] / std::max(t.counts[i], full);
+  best_.assign(static_cast<size_t>(n), -1e30f);
+  best_grid_.assign(static_cast<size_t>(n), kCentre);
+  for (int g = first_grid; g <= last_grid; ++g) {
+    const double sh = (g - kCentre) * step, slack = step / 2;
+    if (g != kCentre && (sh < t.hi - t.size_m / 2 - slack || sh > t.lo + t.size_m / 2 + slack))
+      continue;
+    const size_t base = static_cast<size_t>(g) * cells;
+    for (size_t k = 0; k < vary.size(); ++k) {
+      const auto i = base + static_cast<size_t>(vary[k]);
+      values_[k] = t.votes[i] / std::max(t.counts[i], full);
+    }
+    score_functions(fam.dict, values_, tables_, scores_);
+    for (int f = 0; f < n; ++f) {
+      const auto k = static_cast<size_t>(f);
+      if (scores_[k] > best_[k]) {
+        best_[k] = scores_[k];
+        best_grid_[k] = g;
+      }
+    }
   }
-  score_functions(fam.dict, values_, tables_, scores_);
   int lead = 0;
   for (int f = 1; f < n; ++f)
-    if (scores_[static_cast<size_t>(f)] > scores_[static_cast<size_t>(lead)]) lead = f;
+    if (best_[static_cast<size_t>(f)] > best_[static_cast<size_t>(lead)]) lead = f;
   float rival = -1e30f;
   for (int f = 0; f < n; ++f)
-    if (f != lead) rival = std::max(rival, scores_[static_cast<size_t>(f)]);
+    if (f != lead) rival = std::max(rival, best_[static_cast<size_t>(f)]);
   t.leader = lead;
-  t.margin = n > 1 ? (scores_[static_cast<size_t>(lead)] - rival) / 2.0 : 1e9;
+  t.shift = best_grid_[static_cast<size_t>(lead)];
+  t.margin = n > 1 ? (best_[static_cast<size_t>(lead)] - rival) / 2.0 : 1e9;
   t.mean_score = t.score_sum[static_cast<size_t>(lead)] / t.rotations;
   // Another family fitting better on average makes it that family's tag (as the detector's
   // decode/other_family for one rotation), best against best as there: the leading function's own
@@ -439,7 +498,12 @@ void Tracker::fill_info(const Track& t, TrackInfo& info) const {
   info.id = t.leader / 4;
   info.margin_cells = t.margin;
   info.mean_score = t.mean_score;
-  info.position = t.ref_position;
+  // The track's pose, moved along the searched axis to the leading grid.
+  Eigen::Vector3d shift = Eigen::Vector3d::Zero();
+  if (t.axis != 0)
+    shift[t.axis] = (t.shift - kCentre) * t.size_m /
+                    families_[static_cast<size_t>(t.family)].dict.width() / 4.0;
+  info.position = t.ref_position + t.ref_frame * shift;
   Eigen::Quaterniond o(t.ref_frame.toRotationMatrix() * quarter_turn(-(t.leader & 3)));
   if (o.w() < 0) o.coeffs() *= -1.0;
   info.orientation = o;

@@ -23,12 +23,13 @@ const std::string kPcaps = LIDARTAG_SOURCE_DIR "/pcaps/";
 
 // What the tracker reported about the truth tag in one rotation.
 struct Seen {
-  bool right = false;    // an entry at the tag with the tag's ID
-  bool wrong = false;    // an entry at the tag with another ID
-  bool decoded = false;  // the right ID decoded by this rotation alone
-  bool tracked = false;  // the right ID reported by its track only
-  int track = -1;        // the right entry's track
-  Eigen::Vector3d tag;   // the tag's centre in the sensor's frame (truth)
+  bool right = false;      // an entry at the tag with the tag's ID
+  bool wrong = false;      // an entry at the tag with another ID
+  bool decoded = false;    // the right ID decoded by this rotation alone
+  bool tracked = false;    // the right ID reported by its track only
+  bool confirmed = false;  // the right ID's track confirms it
+  int track = -1;          // the right entry's track
+  Eigen::Vector3d tag;     // the tag's centre in the sensor's frame (truth)
   Eigen::Vector3d track_position = Eigen::Vector3d::Zero();  // its track's pose
   // The tag's centre in the sensor's frame when the beams crossed it (the detection's time: the
   // truth is at the rotation's first firing, and a turning sensor moves the tag meanwhile).
@@ -77,6 +78,7 @@ std::vector<Seen> run(const sim::Scene& scene, int rotations, uint64_t seed,
       s.right = true;
       s.decoded = s.decoded || t.decoded;
       s.tracked = s.tracked || !t.decoded;
+      s.confirmed = s.confirmed || t.track.confirmed;
       s.track = t.track.track_id;
       s.track_position = t.track.position;
       const double t_s = static_cast<double>(
@@ -163,6 +165,42 @@ TEST(TrackerEndToEnd, MovingSensorKeepsOneTrackPerTagAndNeverGivesAWrongId) {
     }
     EXPECT_GE(right, m.min_right);
     EXPECT_EQ(tracks.size(), 1u);  // one track for the tag over the run
+  }
+}
+
+// A square-mounted tag (an upright image: its top edge horizontal, along the rings): the outline
+// places it across the rings only, and decoding searches where it sits along them
+// (Candidate::shift_searched). Its track searches again over the votes it summed, so it confirms
+// the ID from the 4th rotation as a diamond-mounted tag's does, with no wrong ID, and the track's
+// pose is on the tag.
+TEST(TrackerEndToEnd, SquareMountedTagIsConfirmedFromTheFourthRotation) {
+  struct Cell {
+    velodyne::Model model;
+    double distance;
+    int angle;
+    int code;
+  };
+  const Cell cells[] = {{velodyne::Model::kVLP16, 5.0, 0, 7},
+                        {velodyne::Model::kVLP16, 6.0, 0, 12},
+                        {velodyne::Model::kVLP16, 5.0, 30, 25},
+                        {velodyne::Model::kVLP32C, 12.0, 0, 4}};
+  for (const Cell& c : cells) {
+    SCOPED_TRACE(std::string(velodyne::model_spec(c.model).name) + " " +
+                 std::to_string(c.distance) + " m, " + std::to_string(c.angle) + " deg");
+    sim::Scene scene = eval::accuracy_scene(c.model, c.distance, c.angle, c.code);
+    scene.tags.front().rotation_deg = 0.0;  // square mount
+    const auto seen = run(scene, 12, 11);
+    ASSERT_EQ(seen.size(), 12u);
+    int confirmed = 0;
+    for (size_t k = 0; k < seen.size(); ++k) {
+      EXPECT_FALSE(seen[k].wrong) << "rotation " << k;
+      if (k < 3) continue;
+      confirmed += seen[k].right && seen[k].confirmed ? 1 : 0;
+      if (seen[k].right) {
+        EXPECT_LT((seen[k].track_position - seen[k].tag).norm(), 0.05) << "rotation " << k;
+      }
+    }
+    EXPECT_GE(confirmed, 9);  // every rotation from the 4th on
   }
 }
 

@@ -214,6 +214,8 @@ class Tracker {
   std::vector<Pair> pairs_;
   std::vector<int> assigned_;  // per candidate of the rotation: the track it joined, or -1
   std::vector<float> values_, tables_, scores_;  // scoring scratch
+  std::vector<float> best_;                      // per function: its best score over the grids
+  std::vector<int> best_grid_;                   // ... and that grid
   std::vector<TimedPose> ordered_;               // a window, oldest first
   Motion fleet_;          // the motion of the tags that show it best (the sensor's, reversed)
   int64_t epoch_ns_ = 0;  // the tracker's clock starts at the first stamp
