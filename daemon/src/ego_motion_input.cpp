@@ -73,7 +73,13 @@ EgoMessage apply_ego_message(const lidartag::ego_motion_t& msg, const SensorMoun
 
 EgoMotionInput::EgoMotionInput(const EgoMotionConfig& config, const std::string& default_url)
     : config_(config), mount_(sensor_mount(config)), ego_(config.buffer) {
-  const std::string url = config.url.empty() ? default_url : config.url;
+  const LcmUrl parsed = parse_lcm_url(config.url.empty() ? default_url : config.url);
+  const std::string& url = parsed.text;
+  // A file:// URL is the daemon's output log (lcm.url), not where a robot's odometry arrives.
+  if (parsed.provider == "file")
+    throw LcmError("ego_motion: cannot receive '" + config.channel + "' from '" + url +
+                   "' (a log file): set ego_motion.url to the LCM URL the robot publishes on");
+  check_multicast_route(parsed);
   lcm_ = std::make_unique<lcm::LCM>(url);
   if (!lcm_->good())
     throw LcmError("ego_motion: cannot open LCM with URL '" + url + "' to receive '" +

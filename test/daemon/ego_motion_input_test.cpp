@@ -10,6 +10,8 @@
 #include <numbers>
 #include <thread>
 
+#include "lidartag/daemon/lcm_url.hpp"
+
 namespace lidartag::daemon {
 namespace {
 
@@ -129,6 +131,17 @@ TEST(EgoMotionInput, ReceivesCountsAndSaysWhenStale) {
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   EXPECT_EQ(input.counts().accepted, 6u);
   input.stop();
+}
+
+TEST(EgoMotionInput, ALogFileIsNoPlaceToReceiveFrom) {
+  EgoMotionConfig config;
+  config.channel = "ROBOT_ODOM";
+  try {
+    EgoMotionInput input(config, "file:///tmp/lidartag-out.lcmlog?mode=w");
+    FAIL() << "accepted";
+  } catch (const LcmError& e) {
+    EXPECT_NE(std::string(e.what()).find("set ego_motion.url"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

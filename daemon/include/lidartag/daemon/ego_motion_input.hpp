@@ -43,7 +43,8 @@ struct EgoMotionCounts {
 class EgoMotionInput {
  public:
   // Opens LCM on config.url (empty: `default_url`) and subscribes to config.channel; starts
-  // nothing. Throws LcmError (no LCM) or detector::OptionsError (bad buffer options).
+  // nothing. Throws LcmError (no LCM, a file:// URL, no multicast route) or
+  // detector::OptionsError (bad buffer options).
   EgoMotionInput(const EgoMotionConfig& config, const std::string& default_url);
   ~EgoMotionInput();
 
