@@ -243,7 +243,9 @@ void Tracker::track(const ScanResult& result, int64_t stamp_ns, TrackerResult& o
   for (size_t c = 0; c < cands.size() && ego != nullptr; ++c) {
     const Candidate& cand = cands[c];
     if (evidence(cand, result) == nullptr) continue;
-    const double dt = std::isfinite(cand.time_center_s) ? cand.time_center_s : 0.0;
+    // Its firing time after the scan's stamp (a rotation lasts well under a second; anything
+    // else is no time and takes the stamp's).
+    const double dt = std::abs(cand.time_center_s) < 10.0 ? cand.time_center_s : 0.0;
     Placed& p = placed_[c];
     const EgoLookup found = ego->at(stamp_ns + static_cast<int64_t>(std::llround(dt * 1e9)), p.ego);
     if (found != EgoLookup::kOk) {
