@@ -655,6 +655,66 @@ TEST_F(TrackerTest, SteadyStateDoesNotAllocate) {
   EXPECT_EQ(out.tags.size(), 2u);
 }
 
+TEST_F(TrackerTest, WithEgoMotionATagIsAveragedInTheOdometryFrameWithoutAllocating) {
+  // The sensor yaws at 30 deg/s; the tag stands at (6, 0, 0) in the odometry frame, so each
+  // rotation's candidate is there seen from the sensor's pose at the candidate's time.
+  const double w = 30.0 * kPi / 180.0;
+  EgoMotionOptions keep;
+  keep.capacity = 1000;  // the whole test's 7 s at 100 Hz
+  EgoMotion ego(keep);
+  const int64_t start = stamp;
+  auto yaw = [&](int64_t t) {
+    return Eigen::AngleAxisd(w * static_cast<double>(t - start) * 1e-9, Eigen::Vector3d::UnitZ())
+        .toRotationMatrix();
+  };
+  for (int64_t t = start - 50'000'000; t < start + 70 * kPeriod; t += 10'000'000)
+    ASSERT_EQ(ego.add_pose(t, Eigen::Vector3d(0.5, 0.0, 0.0), Eigen::Quaterniond(yaw(t))),
+              EgoSample::kAccepted);
+  const Eigen::Vector3d world(6.0, 0.0, 0.0);
+  Tracker tracker({}, det_opt);
+  auto rotation = [&](int64_t t) {
+    ScanResult r;
+    Cand c;
+    c.frame = yaw(t).transpose() * facing();
+    c.position = yaw(t).transpose() * (world - Eigen::Vector3d(0.5, 0.0, 0.0));
+    add(r, dict, c);
+    return r;
+  };
+  for (int k = 0; k < 5; ++k) {
+    const ScanResult r = rotation(stamp);
+    tracker.update(r, stamp, out, &ego);
+    ASSERT_EQ(out.seen.size(), 1u);
+    EXPECT_EQ(out.seen[0].track_id, 0);
+    EXPECT_EQ(out.ego_placed, 1);
+    EXPECT_TRUE(out.seen[0].odometry);
+    EXPECT_LT((out.seen[0].odometry_position - world).norm(), 1e-9);
+    // Seen from the sensor now: where the candidate is.
+    EXPECT_LT((out.seen[0].position - r.candidates[0].position).norm(), 1e-9);
+    stamp += kPeriod;
+  }
+  EXPECT_TRUE(out.seen[0].confirmed);
+  // Steady state: the same rotations again (their candidates at the same place in the world).
+  std::vector<ScanResult> later;
+  std::vector<int64_t> stamps;
+  for (int k = 0; k < 50; ++k) {
+    later.push_back(rotation(stamp));
+    stamps.push_back(stamp);
+    stamp += kPeriod;
+  }
+  const long before = testing::heap_allocations();
+  for (size_t k = 0; k < later.size(); ++k) tracker.update(later[k], stamps[k], out, &ego);
+  EXPECT_EQ(testing::heap_allocations() - before, 0);
+  ASSERT_EQ(out.seen.size(), 1u);
+  EXPECT_EQ(out.seen[0].track_id, 0);
+  // Two seconds on, past the poses (stale): tracked in the sensor's frame, counted.
+  const ScanResult stale = rotation(stamp + 20 * kPeriod);
+  tracker.update(stale, stamp + 20 * kPeriod, out, &ego);
+  EXPECT_EQ(out.ego_missing, 1);
+  EXPECT_EQ(out.ego_last_miss, EgoLookup::kStale);
+  ASSERT_EQ(out.seen.size(), 1u);
+  EXPECT_FALSE(out.seen[0].odometry);
+}
+
 TEST(TrackerOptionsTest, EveryRuleOfTheTableIsChecked) {
   const DetectorOptions det;
   EXPECT_NO_THROW(Tracker({}, det));
