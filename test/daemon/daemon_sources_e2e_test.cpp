@@ -48,11 +48,11 @@ std::string temp(const std::string& name) {
 // A simulated Ouster capture: NAME.pcap, NAME.json (its metadata) and NAME.truth.json; a 1.2 m
 // tag16h5 (id 3) 5 m ahead, as test/sim/ouster_scene.yaml. Returns NAME.pcap.
 std::string simulate(const std::string& name, const std::string& model, const std::string& profile,
-                     int rotations) {
+                     int rotations, const std::string& mode = "1024x10") {
   const std::string stem = temp(name);
   if (std::filesystem::exists(stem + ".pcap")) return stem + ".pcap";
-  std::ofstream(stem + ".yaml") << "sensor: {model: " << model
-                                << ", lidar_mode: 1024x10, profile: " << profile
+  std::ofstream(stem + ".yaml") << "sensor: {model: " << model << ", lidar_mode: " << mode
+                                << ", profile: " << profile
                                 << ", height: 1.0}\n"
                                    "tags:\n"
                                    "  - {family: tag16h5, id: 3, size: 1.2, center: [5.0, 0.0, "
@@ -64,6 +64,28 @@ std::string simulate(const std::string& name, const std::string& model, const st
       stem + ".sim");
   EXPECT_EQ(sim.wait(300s), 0) << sim.err();
   return stem + ".pcap";
+}
+
+// Appends the records of the classic pcap `from` to `out` (the global header too when `header`),
+// leaving out every `skip`-th record (0: none). Returns the records read.
+size_t copy_records(const std::string& from, std::ofstream& out, bool header, size_t skip) {
+  std::ifstream raw(from, std::ios::binary);
+  const std::vector<char> bytes((std::istreambuf_iterator<char>(raw)),
+                                std::istreambuf_iterator<char>());
+  if (bytes.size() < 24) return 0;
+  if (header) out.write(bytes.data(), 24);
+  size_t at = 24, n = 0;
+  while (at + 16 <= bytes.size()) {
+    uint32_t incl = 0;
+    std::memcpy(&incl, bytes.data() + at + 8, 4);
+    const size_t len = 16 + incl;
+    if (at + len > bytes.size()) break;
+    if (skip == 0 || ++n % skip != 0)
+      out.write(bytes.data() + at, static_cast<std::streamsize>(len));
+    if (skip == 0) ++n;
+    at += len;
+  }
+  return n;
 }
 
 // The daemon's configuration for one sensor `extra` (YAML mapping entries of the sensor) detecting
@@ -226,23 +248,8 @@ TEST(OusterHealth, FramesThatLoseColumnsCountTheMissingPackets) {
   const std::string pcap = simulate("os1_64_rng19", "os1-64", "rng19", 4);
   const std::string lossy = temp("lossy.pcap");
   {
-    std::ifstream raw(pcap, std::ios::binary);
-    // Copy the classic pcap record by record, leaving out every 7th lidar record.
-    std::vector<char> bytes((std::istreambuf_iterator<char>(raw)),
-                            std::istreambuf_iterator<char>());
-    ASSERT_GT(bytes.size(), 24u);
     std::ofstream out(lossy, std::ios::binary);
-    out.write(bytes.data(), 24);
-    size_t at = 24, n = 0;
-    while (at + 16 <= bytes.size()) {
-      uint32_t incl = 0;
-      std::memcpy(&incl, bytes.data() + at + 8, 4);
-      const size_t len = 16 + incl;
-      if (at + len > bytes.size()) break;
-      if (++n % 7 != 0) out.write(bytes.data() + at, static_cast<std::streamsize>(len));
-      at += len;
-    }
-    ASSERT_GT(n, 100u);
+    ASSERT_GT(copy_records(pcap, out, true, 7), 100u);
   }
   std::filesystem::copy_file(pcap.substr(0, pcap.size() - 5) + ".json", temp("lossy.json"),
                              std::filesystem::copy_options::overwrite_existing);
@@ -256,6 +263,37 @@ TEST(OusterHealth, FramesThatLoseColumnsCountTheMissingPackets) {
   EXPECT_GT(last.packets_missing, 0);
   EXPECT_NE(last.reason.find("of the data packets missing"), std::string::npos) << last.reason;
   for (const auto& r : d.detections) EXPECT_FALSE(r.complete) << "rotation " << r.sequence;
+}
+
+// A lidar mode change: the sensor switched from 1024x10 to 2048x10 while the metadata says
+// 1024x10. The packets of measurement ids past 1024 are counted as contradicting the metadata and
+// the reason says the lidar mode changed.
+TEST(OusterHealth, ALidarModeChangeIsAModelMismatch) {
+  const std::string pcap = simulate("os1_64_rng19", "os1-64", "rng19", 4);
+  const std::string wide = simulate("os1_64_2048", "os1-64", "rng19", 2, "2048x10");
+  const std::string changed = temp("mode_change.pcap");
+  {
+    std::ofstream out(changed, std::ios::binary);
+    ASSERT_GT(copy_records(pcap, out, true, 0), 100u);
+    ASSERT_GT(copy_records(wide, out, false, 0), 100u);
+  }
+  const std::string log = temp("mode_change.lcmlog");
+  std::string err;
+  (void)replay(log,
+               {"--config", config("mode", ""), "--replay", changed, "--metadata",
+                pcap.substr(0, pcap.size() - 5) + ".json"},
+               &err);
+  const Decoded d = read_log(log);
+  ASSERT_FALSE(d.status.empty()) << err;
+  const auto& last = d.status.back();
+  EXPECT_GT(last.packets_model_mismatch, 0);
+  EXPECT_EQ(last.packets_decoded + last.packets_model_mismatch, last.packets_data);
+  EXPECT_NE(last.reason.find("another lidar mode"), std::string::npos) << last.reason;
+  EXPECT_NE(last.reason.find("did not fit the model decoded"), std::string::npos) << last.reason;
+  // The frames before the change were detected.
+  size_t with_tag = 0;
+  for (const auto& r : d.detections) with_tag += r.ndetections > 0 ? 1u : 0u;
+  EXPECT_GE(with_tag, 3u);
 }
 
 TEST(OusterConfig, ModelAndMetadataErrors) {
@@ -343,6 +381,19 @@ TEST(OusterLiveUdp, LidarAndImuPortsOfTheSensorInANetworkNamespace) {
   EXPECT_EQ(last.packets_malformed, 0);
   EXPECT_EQ(static_cast<size_t>(last.packets_received), lidar + imu);
   expect_tag_in_every_complete_rotation(d, truth_position(pcap), 2);
+
+  // Nobody sending: the status names the sensor's lidar port.
+  FakeNotifySocket quiet_sock(temp("quiet.sock"));
+  Process quiet({kDaemon, "--config",
+                 config("quiet", "    metadata: " + metadata +
+                                     "\n    source: {kind: udp, bind_address: 127.0.0.1}\n"),
+                 "--lcm-url", "memq://"},
+                {quiet_sock.env()}, temp("quiet"));
+  ASSERT_EQ(quiet_sock.receive(30s).rfind("READY=1", 0), 0u) << quiet.err();
+  std::this_thread::sleep_for(1500ms);
+  quiet.signal(SIGTERM);
+  ASSERT_EQ(quiet.wait(30s), 0) << quiet.err();
+  EXPECT_NE(quiet.err().find("no data packet on port 7502"), std::string::npos) << quiet.err();
 }
 
 // ---- ROS bags (../shared/captures/bags) --------------------------------------------------------
