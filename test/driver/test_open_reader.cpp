@@ -179,6 +179,28 @@ TEST(OpenReader, BagsByContentVelodyneAsThePcapOusterWithItsMetadataTopic) {
   EXPECT_THROW((void)open_capture(luminar, missing), bag::BagError);
 }
 
+// A bag replayed at capture timing waits for its packets' stamps, as a pcap does (rate 4: a
+// quarter of the recorded time at least).
+TEST(OpenReader, ABagIsPacedByItsStampsLikeAPcap) {
+  const std::string bag = kCaptures + "/bags/rosbag2/vlp16_dual";
+  REQUIRE_PATH(bag);
+  ScanSourceOptions o;
+  o.replay.pacing = ReplayPacing::kCaptureTime;
+  o.replay.rate = 4.0;
+  OpenedReader opened = open_capture(bag, o);
+  const auto start = std::chrono::steady_clock::now();
+  const std::vector<Scan> paced = read_all(*opened.reader);
+  const double wall_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  ASSERT_GE(paced.size(), 3u);
+  const double recorded_s =
+      static_cast<double>(paced.back().stamp_ns - paced.front().stamp_ns) * 1e-9;
+  EXPECT_GT(recorded_s, 0.2);
+  EXPECT_GE(wall_s, 0.9 * recorded_s / o.replay.rate);
+  // The same rotations as unpaced.
+  expect_same(paced, read_all(*open_capture(bag, {}).reader));
+}
+
 TEST(OusterModels, NamesFromTheMetadataAndTheirChecks) {
   ouster::SensorInfo info;
   info.pixels_per_column = 128;

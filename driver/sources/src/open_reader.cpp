@@ -4,6 +4,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <system_error>
+#include <thread>
 #include <utility>
 
 #include "lidartag/driver/bag/bag_packet_source.hpp"
@@ -17,6 +18,51 @@
 
 namespace lidartag::driver {
 namespace {
+
+// A bag's packets at their recorded pace (ReplaySchedule, as PcapSource paces a pcap): each packet
+// is held until it is due.
+class PacedSource final : public PacketSource {
+ public:
+  PacedSource(std::unique_ptr<PacketSource> inner, double rate)
+      : inner_(std::move(inner)), schedule_(rate) {}
+
+  ReadStatus next(RawPacket& out, std::chrono::milliseconds timeout) override {
+    if (!pending_) {
+      // The inner source (a bag) never waits: its packet's payload stays valid until its next
+      // call, which comes only once this one was handed out.
+      const ReadStatus status = inner_->next(held_, timeout);
+      if (status != ReadStatus::kPacket) return status;
+      pending_ = true;
+    }
+    const auto now = ReplaySchedule::Clock::now();
+    const auto due = schedule_.due(held_.receive_time_ns, now);
+    if (due > now) {
+      if (due - now > timeout) {
+        std::this_thread::sleep_for(timeout);
+        return ReadStatus::kTimeout;
+      }
+      std::this_thread::sleep_until(due);
+    }
+    pending_ = false;
+    out = held_;
+    return ReadStatus::kPacket;
+  }
+  SourceStats stats() const override { return inner_->stats(); }
+  std::string error() const override { return inner_->error(); }
+
+ private:
+  std::unique_ptr<PacketSource> inner_;
+  ReplaySchedule schedule_;
+  RawPacket held_;
+  bool pending_ = false;
+};
+
+// A bag's packet source at the replay's pace (a pcap paces itself).
+std::unique_ptr<PacketSource> paced(std::unique_ptr<PacketSource> source,
+                                    const ScanSourceOptions& o) {
+  if (o.replay.pacing != ReplayPacing::kCaptureTime) return source;
+  return std::make_unique<PacedSource>(std::move(source), o.replay.rate);
+}
 
 std::unique_ptr<PacketSource> wrapped(std::unique_ptr<PacketSource> source,
                                       const SourceWrap& wrap) {
@@ -106,7 +152,7 @@ OpenedReader open_bag_capture(const std::string& path, bag::BagFormat format,
                                   "'s topic " + topic + " holds Velodyne packets");
     auto source = std::make_unique<bag::BagPacketSource>(
         path, bag::BagPacketSourceOptions{topic, data_port_of(Vendor::kVelodyne, o)});
-    return velodyne_reader(wrapped(std::move(source), wrap), o, what);
+    return velodyne_reader(wrapped(paced(std::move(source), o), wrap), o, what);
   }
   if (kind == bag::MessageKind::kOusterPacket) {
     refuse_velodyne_options(o, path);
@@ -125,7 +171,8 @@ OpenedReader open_bag_capture(const std::string& path, bag::BagFormat format,
     so.lidar_port = data_port_of(Vendor::kOuster, o);
     so.imu_port = aux_port_of(Vendor::kOuster, o);
     auto source = std::make_unique<bag::OusterPacketSource>(path, so);
-    return ouster_reader(wrapped(std::move(source), wrap), info, o, what + ", metadata " + origin);
+    return ouster_reader(wrapped(paced(std::move(source), o), wrap), info, o,
+                         what + ", metadata " + origin);
   }
   throw bag::BagError(path + ": topic " + topic +
                       " holds point clouds, not packets: lidartag detect reads them");

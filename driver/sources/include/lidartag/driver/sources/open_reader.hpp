@@ -31,6 +31,8 @@ struct ScanSourceOptions {
   // packets). Unset: the vendor's (Velodyne 2368/8308, Ouster 7502/7503).
   std::optional<uint16_t> data_port, aux_port;
   // Replays: the sender filter, pacing, rate and loop (PcapSourceOptions; its ports are unused).
+  // A bag is paced by its packets' stamps like a pcap; `loop` and `sensor_ipv4` are a pcap's only
+  // (a bag's packets carry no sender, and it is read once).
   PcapSourceOptions replay;
   // ROS bag or MCAP: the LiDAR topic; empty: the bag's one LiDAR topic (bag::BagError listing
   // them when there are several or none).
