@@ -30,7 +30,8 @@ struct SensorMonitor::Snapshot {
   driver::ReaderCounts counts;
   driver::SourceStats source;
   driver::BatcherStats batcher;
-  std::string_view model, mode;  // static storage (driver::SensorDescription)
+  // driver::SensorDescription's views: valid while the reader lives, which outlives the status.
+  std::string_view model, mode;
   float rpm = 0;
   int64_t sensor_ns = 0;          // first firing of the last rotation assembled
   uint64_t data_packets = 0;      // data-port packets received (also while the model is probed)

@@ -48,8 +48,9 @@ struct ReaderCounts {
   int time_source = 0;       // 0: the host's clock (or the sensor's own), 1: GPS
 };
 
-// What the reader decodes as: names for the status and health (static storage; empty until the
-// model is decided).
+// What the reader decodes as: names for the status and health (empty until the model is decided).
+// The views stay valid, unchanged, as long as the reader lives (static tables, or the reader's
+// own description of its metadata).
 struct SensorDescription {
   std::string_view vendor;       // "velodyne", "ouster"
   std::string_view model;        // "vlp32c", "os1-128"
