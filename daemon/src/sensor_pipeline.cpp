@@ -87,7 +87,8 @@ driver::ScanSourceOptions scan_options(const SensorOptions& sensor) {
   return o;
 }
 
-// A live source on the ports of the sensor's vendor.
+// A live source (UDP sockets, an interface's capture) or an LCM log of raw packets, on the
+// configured ports (an Ouster entry's default to 7502/7503: config.cpp).
 std::unique_ptr<driver::PacketSource> open_live_source(const SensorOptions& sensor,
                                                        const DaemonOptions& options) {
   const SourceOptions& s = sensor.source;
