@@ -21,6 +21,7 @@
 #include "lidartag/daemon/daemon.hpp"
 #include "lidartag/daemon/logging.hpp"
 #include "lidartag/daemon/setup_checks.hpp"
+#include "lidartag/driver/ouster/packet.hpp"
 #include "lidartag/version.hpp"
 
 namespace {
@@ -33,7 +34,7 @@ struct Args {
   std::string config;
   std::vector<std::string> set;
   std::optional<std::string> lcm_url;
-  std::string replay, replay_lcm, record;
+  std::string replay, replay_lcm, record, topic, metadata;
   std::optional<double> rate;
   bool max_speed = false, loop = false;
   std::optional<int> workers;
@@ -56,6 +57,16 @@ void apply(const Args& a, DaemonOptions& o) {
     } else if (!a.replay_lcm.empty()) {
       src.kind = SourceKind::kLcm;
       src.file = a.replay_lcm;
+    }
+    if (!a.topic.empty()) src.topic = a.topic;
+    if (!a.metadata.empty()) {
+      // An Ouster sensor: its own ports unless the configuration named others.
+      sensor.metadata = a.metadata;
+      if (src.data_port == lidartag::velodyne::kDefaultDataPort &&
+          src.position_port == lidartag::velodyne::kDefaultPositionPort) {
+        src.data_port = lidartag::driver::ouster::kLidarPort;
+        src.position_port = lidartag::driver::ouster::kImuPort;
+      }
     }
     if (a.max_speed) src.rate = 0.0;
     if (a.rate) src.rate = *a.rate;
@@ -148,7 +159,17 @@ int main(int argc, char** argv) {
                  "e.g. file:///tmp/tags.lcmlog?mode=w writes a log instead of using the network");
   // Whether the file can be read is a setup check (exit 1, naming sensors[N].source.file), as for
   // a replay file named in the configuration.
-  auto* replay = app.add_option("--replay", a.replay, "Replay this pcap for every sensor");
+  auto* replay = app.add_option(
+      "--replay", a.replay,
+      "Replay this capture for every sensor: a pcap or pcapng of Velodyne or Ouster packets "
+      "(Ouster "
+      "metadata from --metadata or NAME.json beside NAME.pcap), or a ROS 1 bag, ROS 2 bag or MCAP "
+      "file of VelodyneScan or Ouster packet messages");
+  app.add_option("--topic", a.topic,
+                 "The LiDAR topic of a replayed bag (default: its one LiDAR topic)");
+  app.add_option("--metadata", a.metadata,
+                 "Ouster sensor metadata JSON for every sensor (the sensor is then an Ouster; "
+                 "ports 7502/7503 unless configured otherwise)");
   auto* replay_lcm =
       app.add_option("--replay-lcm", a.replay_lcm,
                      "Replay the raw packets of this LCM log (lcm-logger of the raw channel)");

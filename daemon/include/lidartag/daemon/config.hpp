@@ -71,7 +71,12 @@ struct SourceOptions {
   int receive_buffer_bytes = 8 * 1024 * 1024;
   std::string interface;     // interface: e.g. "eth0"
   bool promiscuous = false;  // interface: needed only on a shared segment
-  std::string file;          // pcap: the capture; lcm: the LCM log
+  // pcap: the capture (pcap, pcapng, or a ROS 1 bag, ROS 2 bag folder or MCAP file, recognised
+  // by content); lcm: the LCM log
+  std::string file;
+  // pcap (a bag): the LiDAR topic; empty: the bag's one LiDAR topic (an error lists them when
+  // there are several).
+  std::string topic;
   // pcap, lcm: replay speed, 1 = the recorded pace, 2 = twice as fast; 0 = as fast as possible.
   double rate = 1.0;
   bool loop = false;  // pcap, lcm: start again at the end
@@ -86,6 +91,13 @@ struct SensorOptions {
   std::string channel_prefix;         // prepended to every channel of this sensor; unique
   // Model to decode as; empty ("auto"): the product byte, checked against the packets' timing.
   std::optional<velodyne::Model> model;
+  // An Ouster model name of the same `model` key ("os1-128", "os0-32"): the metadata must describe
+  // such a sensor. Empty: none configured (then `model` may name a Velodyne model).
+  std::string ouster_model;
+  // An Ouster sensor's metadata JSON (what the sensor reports; docs/ouster.md). Given, the sensor
+  // is an Ouster and its ports default to 7502 (lidar) and 7503 (IMU). Empty: a Velodyne, or for
+  // a replay whatever the file holds (NAME.json beside NAME.pcap, a bag's metadata topic).
+  std::string metadata;
   // Calibration file (ros-drivers YAML or VeloView XML); empty: the model's built-in table.
   std::string calibration;
   driver::BatcherOptions batcher;    // cut azimuth, flush timeout, jump threshold
