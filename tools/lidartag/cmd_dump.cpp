@@ -83,7 +83,9 @@ int dump_mcap(const DumpArgs& args, Reader& reader) {
   if (fs::exists(args.out, ec) && !args.force) {
     throw UsageError(fmt::format("output file '{}' exists; --force replaces it", args.out));
   }
-  McapOutput out(args.mcap, args.capture.capture);
+  McapArgs mcap = args.mcap;
+  mcap.path = args.out;
+  McapOutput out(mcap, args.capture.capture);
   Progress progress(fs::file_size(args.capture.capture, ec));
   size_t written = 0, skipped = 0;
   while (const Scan* scan = reader.next()) {

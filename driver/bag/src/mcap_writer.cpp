@@ -390,12 +390,12 @@ void McapWriter::write_summary() {
     end_record(s, a);
   }
   // Footer: its CRC covers the summary, the summary offsets and the footer up to this field.
-  const size_t a = begin_record(s, kFooter);
+  put(s, kFooter);
+  put(s, uint64_t{8 + 8 + 4});  // its length, fixed (and covered by the CRC)
   put(s, summary_start);
   put(s, summary_offset_start);
   const uint32_t crc = detail::crc32(bytes_of(s));
   put(s, crc);
-  end_record(s, a);
   s.append(kMagic);
   emit(s);
 }
