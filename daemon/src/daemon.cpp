@@ -92,6 +92,7 @@ Daemon::Daemon(DaemonOptions options, RunOptions run, Logging* logging)
   if (!options_.record_pcap.empty()) {
     recorder_ = std::make_unique<PcapRecorder>(options_.record_pcap);
   }
+  if (!options_.mcap.empty()) mcap_ = std::make_unique<McapRecorder>(options_.mcap);
   if (run.print_detections != nullptr) {
     printer_ = std::make_unique<LinePrinter>(run.print_detections);
   }
@@ -99,6 +100,7 @@ Daemon::Daemon(DaemonOptions options, RunOptions run, Logging* logging)
     pipelines_.push_back(std::make_unique<SensorPipeline>(sensor, options_, *bus_, *arena_,
                                                           workers_, recorder_.get(), printer_.get(),
                                                           run.detect_hook));
+    pipelines_.back()->record_mcap(mcap_.get());
   }
 }
 
@@ -145,6 +147,7 @@ void Daemon::publish_status(bool final) {
     SensorStatus s = p->status(now);
     fill_status(s, wall_utime(), uptime, status_message_);
     bus_->publish(channel_of(p->sensor(), options_.lcm.channels.status), status_message_);
+    if (mcap_) mcap_->status(s);
     last_status_.push_back(std::move(s));
   }
   const std::string text = summary();
@@ -265,6 +268,7 @@ int Daemon::run() {
   for (auto& p : pipelines_) p->stop();
   for (auto& p : pipelines_) p->join();
   publish_status(true);
+  if (mcap_) mcap_->close();
   if (recorder_) {
     recorder_->close();
     if (!recorder_->error().empty()) {

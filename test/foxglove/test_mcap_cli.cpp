@@ -200,5 +200,80 @@ TEST(McapCli, DumpFormatMcapWritesEveryRotationsCloud) {
   fs::remove(path);
 }
 
+#ifdef LIDARTAGD
+// lidartagd --mcap on a replay of the demo capture: every published rotation's cloud (every point:
+// lcm.cloud_decimation 1), tags, frames and detections, and the statuses, at the poses and point
+// counts that `lidartag detect` with the same configuration finds.
+TEST(McapDaemon, ReplayWritesEveryPublishedRotationAndTheStatus) {
+  const auto path = temp_file("daemon.mcap");
+  const std::string config = LIDARTAG_SOURCE_DIR "/config/demo.yaml";
+  const auto daemon = lidartag::testing::run_split(
+      std::string(LIDARTAGD) + " --config " + config + " --replay " + kDemo +
+      " --max-speed --lcm-url memq:// --print-detections --set lcm.cloud_decimation=1 --mcap " +
+      path.string());
+  ASSERT_EQ(daemon.exit_code, 0) << daemon.err;
+  const auto detect = run_tool("detect " + kDemo + " --partial --json --config " + config, false);
+  ASSERT_EQ(detect.exit_code, 0);
+  const auto rotations = json_lines(detect.out);
+  size_t printed = 0;
+  {
+    std::istringstream in(daemon.out);
+    for (std::string line; std::getline(in, line);) printed += line.rfind("demo rotation", 0) == 0;
+  }
+  ASSERT_EQ(printed, rotations.size()) << daemon.out;
+
+  EXPECT_TRUE(lidartag::testing::check_mcap(path.string()).ok);
+  const Read r = read_back(path);
+  const auto& clouds = r.by_topic.at("/lidartag/demo/cloud");
+  const auto& tags = r.by_topic.at("/lidartag/demo/tags");
+  const auto& dets = r.by_topic.at("/lidartag/demo/detections");
+  const auto& status = r.by_topic.at("/lidartag/demo/status");
+  ASSERT_EQ(clouds.size(), rotations.size());
+  ASSERT_EQ(tags.size(), rotations.size());
+  ASSERT_EQ(dets.size(), rotations.size());
+  ASSERT_GE(status.size(), 1u);
+  const json final_status = json::parse(status.back().second);
+  EXPECT_EQ(final_status["rotations_published"].get<size_t>(), rotations.size());
+  EXPECT_EQ(final_status["sensor"], "demo");
+  EXPECT_EQ(status.back().first, clouds.back().first) << "a status at the capture's time";
+
+  size_t with_tags = 0;
+  for (size_t i = 0; i < rotations.size(); ++i) {
+    SCOPED_TRACE("rotation " + std::to_string(i));
+    const json& rot = rotations[i];
+    const json cloud = json::parse(clouds[i].second);
+    EXPECT_EQ(cloud["frame_id"], "velodyne");
+    EXPECT_EQ(base64_decode(cloud["data"].get<std::string>()).size(),
+              rot["points"].get<size_t>() * 18);
+    const json d = json::parse(dets[i].second);
+    EXPECT_EQ(d["sequence"], rot["sequence"]);
+    EXPECT_EQ(dets[i].first, clouds[i].first);
+    ASSERT_EQ(d["detections"].size(), rot["detections"].size());
+    EXPECT_EQ(json::parse(tags[i].second)["entities"].size(), rot["detections"].size());
+    with_tags += rot["detections"].empty() ? 0u : 1u;
+    for (size_t k = 0; k < d["detections"].size(); ++k) {
+      const json& a = d["detections"][k];
+      const json& b = rot["detections"][k];
+      EXPECT_EQ(a["family"], b["family"]);
+      EXPECT_EQ(a["id"], b["id"]);
+      for (size_t c = 0; c < 3; ++c)
+        EXPECT_NEAR(a["position"][c].get<double>(), b["position"][c].get<double>(), 1e-9);
+      for (size_t c = 0; c < 4; ++c)
+        EXPECT_NEAR(a["orientation"][c].get<double>(), b["orientation"][c].get<double>(), 1e-9);
+    }
+  }
+  EXPECT_GT(with_tags, 0u);
+  EXPECT_EQ(r.by_topic.at("/tf").size(), with_tags);
+
+  // The output is checked before anything starts: the replayed capture is refused.
+  EXPECT_NE(
+      lidartag::testing::run_split(std::string(LIDARTAGD) + " --config " + config + " --replay " +
+                                   kDemo + " --max-speed --lcm-url memq:// " + "--mcap " + kDemo)
+          .exit_code,
+      0);
+  fs::remove(path);
+}
+#endif
+
 }  // namespace
 }  // namespace lidartag::driver::bag
