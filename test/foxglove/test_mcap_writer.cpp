@@ -3,7 +3,10 @@
 #include <gtest/gtest.h>
 #include <sys/stat.h>
 
+#include <cstring>
 #include <filesystem>
+#include <map>
+#include <nlohmann/json.hpp>
 #include <random>
 #include <string>
 #include <vector>
@@ -157,3 +160,133 @@ TEST(McapWriter, Base64IsRfc4648) {
 
 }  // namespace
 }  // namespace lidartag::driver::bag
+
+namespace lidartag::foxglove {
+namespace {
+
+TEST(SceneRecorder, EveryMessageIsJsonOfItsSchemaPerSensor) {
+  namespace fs = std::filesystem;
+  for (const char* name : {"foxglove.PointCloud", "foxglove.SceneUpdate",
+                           "foxglove.FrameTransforms", "lidartag.Detections", "lidartag.Status"}) {
+    const auto schema = nlohmann::json::parse(json_schema(name));  // throws when not JSON
+    EXPECT_EQ(schema["title"], name);
+  }
+  const auto path = fs::temp_directory_path() / ("lidartag_scene_" + std::to_string(::getpid()));
+  CloudPoints cloud;
+  cloud.push(1.0f, -2.0f, 0.5f, 200.0f, 7);
+  cloud.push(3.0f, 4.0f, -1.0f, 0.0f, 0);
+  detector::Detection d;
+  d.corners.fill(Eigen::Vector3d::Zero());
+  d.family = "tag16h5";
+  d.id = 3;
+  d.size_m = 0.8;
+  d.position = Eigen::Vector3d(4.0, 0.9, 0.1);
+  d.orientation = Eigen::Quaterniond(0.5, 0.5, -0.5, 0.5);
+  const std::vector<detector::Detection> detections = {d};
+  {
+    SceneRecorder rec(path.string());
+    RotationRecord r;
+    r.sensor = "left";
+    r.frame_id = "lidar \"left\"";  // escaped in every message
+    r.sequence = 5;
+    r.stamp_ns = 1'700'000'000'123'456'789;
+    r.cloud = &cloud;
+    r.detections = detections;
+    ASSERT_TRUE(rec.write_rotation(r));
+    r.sensor = "right";
+    r.cloud = nullptr;  // no cloud message
+    r.detections = {};
+    r.stamp_ns += 100'000'000;
+    ASSERT_TRUE(rec.write_rotation(r));
+    ASSERT_TRUE(rec.write_status("right", r.stamp_ns, R"({"sensor":"right"})"));
+    rec.close();
+    EXPECT_EQ(rec.counts().clouds, 1u);
+    EXPECT_EQ(rec.counts().scenes, 2u);
+    EXPECT_EQ(rec.counts().transforms, 1u);
+    EXPECT_EQ(rec.counts().statuses, 1u);
+  }
+  EXPECT_TRUE(lidartag::testing::check_mcap(path.string()).ok);
+  auto reader = driver::bag::open_bag(path.string());
+  std::map<std::string, std::vector<nlohmann::json>> by_topic;
+  std::map<std::string, int64_t> first_time;
+  driver::bag::BagMessage m;
+  while (reader->next(m)) {
+    const auto& c = reader->connections()[m.connection];
+    by_topic[c.topic].push_back(nlohmann::json::parse(m.data.begin(), m.data.end()));
+    first_time.emplace(c.topic, m.time_ns);
+  }
+  EXPECT_EQ(by_topic["/lidartag/left/cloud"].size(), 1u);
+  EXPECT_EQ(by_topic.count("/lidartag/right/cloud"), 0u);
+  EXPECT_EQ(by_topic["/lidartag/left/tags"].size(), 1u);
+  EXPECT_EQ(by_topic["/lidartag/right/tags"].size(), 1u);
+  EXPECT_EQ(by_topic["/tf"].size(), 1u);
+  EXPECT_EQ(by_topic["/lidartag/right/status"].size(), 1u);
+  EXPECT_EQ(first_time["/lidartag/left/cloud"], 1'700'000'000'123'456'789);
+
+  const auto& pc = by_topic["/lidartag/left/cloud"][0];
+  EXPECT_EQ(pc["frame_id"], "lidar \"left\"");
+  EXPECT_EQ(pc["timestamp"]["sec"], 1'700'000'000);
+  EXPECT_EQ(pc["timestamp"]["nsec"], 123'456'789);
+  // The packed points: decode the base64 and read them back as Foxglove would.
+  const std::string b64 = pc["data"];
+  std::vector<uint8_t> bytes;
+  uint32_t acc = 0;
+  int bits = 0;
+  const std::string digits = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  for (const char c : b64) {
+    if (c == '=') break;
+    acc = (acc << 6) | static_cast<uint32_t>(digits.find(c));
+    bits += 6;
+    if (bits >= 8) {
+      bits -= 8;
+      bytes.push_back(static_cast<uint8_t>(acc >> bits));
+    }
+  }
+  ASSERT_EQ(bytes.size(), 2u * pc["point_stride"].get<size_t>());
+  auto field = [&](size_t point, const std::string& fname) -> double {
+    for (const auto& f : pc["fields"]) {
+      if (f["name"] != fname) continue;
+      const size_t at = point * pc["point_stride"].get<size_t>() + f["offset"].get<size_t>();
+      if (f["type"] == 7) {
+        float v = 0;
+        std::memcpy(&v, bytes.data() + at, 4);
+        return v;
+      }
+      if (f["type"] == 3) {
+        uint16_t v = 0;
+        std::memcpy(&v, bytes.data() + at, 2);
+        return v;
+      }
+    }
+    ADD_FAILURE() << "no field " << fname;
+    return 0;
+  };
+  EXPECT_EQ(field(0, "x"), 1.0);
+  EXPECT_EQ(field(0, "y"), -2.0);
+  EXPECT_EQ(field(0, "z"), 0.5);
+  EXPECT_EQ(field(0, "intensity"), 200.0);
+  EXPECT_EQ(field(0, "ring"), 7.0);
+  EXPECT_EQ(field(1, "y"), 4.0);
+
+  const auto& left = by_topic["/lidartag/left/tags"][0];
+  ASSERT_EQ(left["entities"].size(), 1u);
+  EXPECT_EQ(left["entities"][0]["id"], "tag_tag16h5_3");
+  EXPECT_EQ(left["entities"][0]["frame_id"], "lidar \"left\"");
+  EXPECT_EQ(left["entities"][0]["cubes"][0]["pose"]["orientation"]["w"], 0.5);
+  EXPECT_EQ(left["entities"][0]["texts"][0]["text"], "tag16h5 3");
+  EXPECT_TRUE(by_topic["/lidartag/right/tags"][0]["entities"].empty());
+  EXPECT_EQ(by_topic["/lidartag/right/tags"][0]["deletions"][0]["type"], 1);
+  const auto& tf = by_topic["/tf"][0]["transforms"][0];
+  EXPECT_EQ(tf["child_frame_id"], "tag_tag16h5_3");
+  EXPECT_EQ(tf["translation"]["x"], 4.0);
+  EXPECT_EQ(tf["rotation"]["y"], -0.5);
+  const auto& det = by_topic["/lidartag/left/detections"][0];
+  EXPECT_EQ(det["sensor"], "left");
+  EXPECT_EQ(det["sequence"], 5);
+  EXPECT_EQ(det["detections"][0]["position"], nlohmann::json({4.0, 0.9, 0.1}));
+  EXPECT_EQ(det["detections"][0]["orientation"], nlohmann::json({0.5, 0.5, -0.5, 0.5}));
+  fs::remove(path);
+}
+
+}  // namespace
+}  // namespace lidartag::foxglove
