@@ -1,8 +1,12 @@
 // The MCAP writer: files of every compression and chunk size pass the format's invariants
 // (mcap_check.hpp) and read back, message for message, through the project's MCAP reader.
 #include <gtest/gtest.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
+#include <csignal>
 #include <cstring>
 #include <filesystem>
 #include <map>
@@ -146,6 +150,44 @@ TEST(McapWriter, RefusesSpecialFilesUnknownChannelsAndWritesAfterClose) {
   EXPECT_THROW(w.add_schema("s", "jsonschema", "{}"), McapWriteError);
   EXPECT_EQ(lidartag::testing::check_mcap(path.string()).messages, 1u);
   fs::remove_all(dir);
+}
+
+// A write error (here a file-size limit: EFBIG, as a full disk gives ENOSPC) makes write() return
+// false and close() throw, never crash; in a child process, whose limit the test cannot leak.
+TEST(McapWriter, AWriteErrorIsReportedByWriteAndClose) {
+  const auto path = temp_file("limit.mcap");
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    std::signal(SIGXFSZ, SIG_IGN);
+    const rlimit limit{256 * 1024, 256 * 1024};
+    ::setrlimit(RLIMIT_FSIZE, &limit);
+    int code = 0;
+    try {
+      McapWriterOptions o;
+      o.compression = McapCompression::kNone;
+      o.chunk_bytes = 64 * 1024;
+      McapWriter w(path.string(), o);
+      const auto ch = w.add_channel("/x", 0, "raw");
+      const std::string payload(10000, 'x');
+      bool refused = false;
+      for (uint64_t t = 0; t < 100 && !refused; ++t) refused = !w.write(ch, t, payload);
+      code = refused && !w.error().empty() ? 0 : 2;
+      try {
+        w.close();
+        code = 3;  // close() must not succeed on a file it could not complete
+      } catch (const McapWriteError&) {
+      }
+    } catch (...) {
+      code = 4;
+    }
+    std::_Exit(code);
+  }
+  int status = 0;
+  ASSERT_EQ(::waitpid(child, &status, 0), child);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 0) << "2: no refusal, 3: close succeeded, 4: other exception";
+  fs::remove(path);
 }
 
 TEST(McapWriter, Base64IsRfc4648) {
