@@ -503,6 +503,21 @@ void visit(V& v, DaemonOptions& o) {
   v.field("record_pcap", o.record_pcap);
   v.section("detector", [&](V& s) { detector::visit_options(s, o.detector); });
   v.section("tracker", [&](V& s) { detector::visit_tracker_options(s, o.tracker); });
+  v.section("ego_motion", [&](V& s) {
+    EgoMotionConfig& e = o.ego_motion;
+    s.field("channel", e.channel, printable(true));
+    s.field("url", e.url);
+    detector::visit_ego_motion_options(s, e.buffer);
+    s.field("stale_s", e.stale_s, closed(0.001, 3600.0));
+    s.section("sensor_in_body", [&](V& m) {
+      m.field("x", e.x, closed(-1000.0, 1000.0));
+      m.field("y", e.y, closed(-1000.0, 1000.0));
+      m.field("z", e.z, closed(-1000.0, 1000.0));
+      m.field("roll_deg", e.roll_deg, closed(-360.0, 360.0));
+      m.field("pitch_deg", e.pitch_deg, closed(-360.0, 360.0));
+      m.field("yaw_deg", e.yaw_deg, closed(-360.0, 360.0));
+    });
+  });
 }
 
 // The detector's rules (each field's, also on options built in code, and those between fields),

@@ -89,6 +89,10 @@ Daemon::Daemon(DaemonOptions options, RunOptions run, Logging* logging)
                tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)));
   arena_ = std::make_unique<tbb::task_arena>(workers_, 0);
   bus_ = std::make_unique<LcmBus>(options_.lcm.url);
+  if (!options_.ego_motion.channel.empty()) {
+    ego_ = std::make_unique<EgoMotionInput>(options_.ego_motion, options_.lcm.url);
+    bus_->attach_ego_motion(ego_.get());
+  }
   if (!options_.record_pcap.empty()) {
     recorder_ = std::make_unique<PcapRecorder>(options_.record_pcap);
   }
@@ -136,6 +140,10 @@ std::string Daemon::summary() const {
                         health_state_name(s.health.state), s.health.reason.empty() ? "" : " (",
                         s.health.reason.empty() ? "" : s.health.reason + ")");
   }
+  if (ego_) {
+    const std::string note = ego_->health_note();
+    if (!note.empty()) text += "; " + note;
+  }
   return text;
 }
 
@@ -146,6 +154,13 @@ void Daemon::publish_status(bool final) {
   for (auto& p : pipelines_) {
     SensorStatus s = p->status(now);
     fill_status(s, wall_utime(), uptime, status_message_);
+    if (ego_) {
+      // The ego-motion input's note (nothing yet, stale, dropped messages): the trackers run
+      // without it meanwhile, which is no fault of the sensor (its health stays as it is).
+      const std::string note = ego_->health_note();
+      if (!note.empty())
+        status_message_.reason += (status_message_.reason.empty() ? "" : "; ") + note;
+    }
     bus_->publish(channel_of(p->sensor(), options_.lcm.channels.status), status_message_);
     if (mcap_) mcap_->status(s);
     last_status_.push_back(std::move(s));
@@ -161,6 +176,11 @@ void Daemon::publish_status(bool final) {
 
 int Daemon::run() {
   started_ns_ = steady_ns();
+  if (ego_) {
+    ego_->start();
+    spdlog::info("ego motion: receiving {} (the trackers place tags in its odometry frame)",
+                 ego_->channel());
+  }
   for (auto& p : pipelines_) p->start();
   for (const auto& s : options_.sensors) {
     spdlog::info("sensor {}: {} source{}{}, frame {}, channels {}*", s.name,

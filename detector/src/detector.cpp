@@ -355,6 +355,7 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
       add_candidate(dec, frame.center, frame.undecoded, t, points, fit.cost, diag.coverage, out);
   Candidate& candidate = out.candidates[static_cast<size_t>(diag.candidate)];
   candidate.track_only = track_only;
+  if (dec.shift_searched) candidate.unseen_axis = unseen.normalized();
   const FiringTimes times = firing_times(b.points, scan, frame.center);
   candidate.time_first_s = times.first_s;
   candidate.time_center_s = times.center_s;

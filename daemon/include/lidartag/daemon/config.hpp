@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "lidartag/detector/detector.hpp"
+#include "lidartag/detector/ego_motion.hpp"
 #include "lidartag/detector/tracker.hpp"
 #include "lidartag/driver/scan_batcher.hpp"
 #include "lidartag/driver/velodyne/decoder.hpp"
@@ -182,11 +183,31 @@ inline detector::DetectorOptions daemon_detector_defaults() {
   return options;
 }
 
+// The robot's own motion for the trackers (issue 33; docs/tracking.md, "Ego-motion"): poses or
+// twists of a body frame in an odometry frame, lidartag.ego_motion_t on an LCM channel. Each tag
+// candidate is placed in the odometry frame at its own time; without messages (none yet, gaps,
+// stale) the trackers follow tags with their own motion model.
+struct EgoMotionConfig {
+  // The channel (not prefixed per sensor). Default empty: no ego-motion input.
+  std::string channel;
+  // LCM URL to receive it on. Default empty: lcm.url.
+  std::string url;
+  // The samples kept and interpolated (capacity, max_gap_s, max_extrapolation_s).
+  detector::EgoMotionOptions buffer;
+  // No message for longer than this (host time): the input is stale (a health note, logged).
+  // Seconds, default 0.5.
+  double stale_s = 0.5;
+  // The LiDAR's pose on the body frame the messages move (sensor frame -> body frame): metres,
+  // and degrees R = Rz(yaw) Ry(pitch) Rx(roll). Default: the LiDAR is the body.
+  double x = 0, y = 0, z = 0, roll_deg = 0, pitch_deg = 0, yaw_deg = 0;
+};
+
 struct DaemonOptions {
   std::vector<SensorOptions> sensors = {SensorOptions{}};
   detector::DetectorOptions detector = daemon_detector_defaults();
   // Evidence over rotations (one tracker per sensor, fed in rotation order).
   detector::TrackerOptions tracker;
+  EgoMotionConfig ego_motion;
   LcmOptions lcm;
   PipelineOptions pipeline;
   StatusOptions status;

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "lidartag/daemon/config.hpp"
+#include "lidartag/daemon/ego_motion_input.hpp"
 #include "lidartag/daemon/lcm_bus.hpp"
 #include "lidartag/daemon/logging.hpp"
 #include "lidartag/daemon/mcap_recorder.hpp"
@@ -67,6 +68,7 @@ class Daemon {
   int workers_;
   Notifier notifier_;
   std::unique_ptr<LcmBus> bus_;
+  std::unique_ptr<EgoMotionInput> ego_;  // ego_motion.channel set; outlives the pipelines
   std::unique_ptr<tbb::global_control> threads_;
   std::unique_ptr<tbb::task_arena> arena_;
   std::unique_ptr<PcapRecorder> recorder_;

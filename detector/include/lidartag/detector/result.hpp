@@ -146,6 +146,9 @@ struct Candidate {
   // The outline placed the tag along one axis only (a square mount): decoding chose the shift
   // along the other, so votes and scores agree with the decoder by construction there.
   bool shift_searched = false;
+  // That axis (sensor frame, unit; zero when every side was seen): a tracker searches along it
+  // again over the evidence of every rotation.
+  Eigen::Vector3d unseen_axis = Eigen::Vector3d::Zero();
   // Fewer boundary points than eq. (6) asks but at least validation.track_boundary_scale of them:
   // never a detection (its diagnostic says validation/few_boundary_points), but evidence for a
   // tracker like any other candidate (its own gates confirm an ID over rotations).
