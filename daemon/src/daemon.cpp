@@ -96,6 +96,7 @@ Daemon::Daemon(DaemonOptions options, RunOptions run, Logging* logging)
   if (!options_.record_pcap.empty()) {
     recorder_ = std::make_unique<PcapRecorder>(options_.record_pcap);
   }
+  if (!options_.mcap.empty()) mcap_ = std::make_unique<McapRecorder>(options_.mcap);
   if (run.print_detections != nullptr) {
     printer_ = std::make_unique<LinePrinter>(run.print_detections);
   }
@@ -103,6 +104,7 @@ Daemon::Daemon(DaemonOptions options, RunOptions run, Logging* logging)
     pipelines_.push_back(std::make_unique<SensorPipeline>(sensor, options_, *bus_, *arena_,
                                                           workers_, recorder_.get(), printer_.get(),
                                                           run.detect_hook));
+    pipelines_.back()->record_mcap(mcap_.get());
   }
 }
 
@@ -160,6 +162,7 @@ void Daemon::publish_status(bool final) {
         status_message_.reason += (status_message_.reason.empty() ? "" : "; ") + note;
     }
     bus_->publish(channel_of(p->sensor(), options_.lcm.channels.status), status_message_);
+    if (mcap_) mcap_->status(s);
     last_status_.push_back(std::move(s));
   }
   const std::string text = summary();
@@ -285,6 +288,7 @@ int Daemon::run() {
   for (auto& p : pipelines_) p->stop();
   for (auto& p : pipelines_) p->join();
   publish_status(true);
+  if (mcap_) mcap_->close();
   if (recorder_) {
     recorder_->close();
     if (!recorder_->error().empty()) {

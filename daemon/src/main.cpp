@@ -34,7 +34,7 @@ struct Args {
   std::string config;
   std::vector<std::string> set;
   std::optional<std::string> lcm_url;
-  std::string replay, replay_lcm, record, topic, metadata;
+  std::string replay, replay_lcm, record, mcap, topic, metadata;
   std::optional<double> rate;
   bool max_speed = false, loop = false;
   std::optional<int> workers;
@@ -49,6 +49,7 @@ void apply(const Args& a, DaemonOptions& o) {
   if (a.log_level) o.logging.level = *a.log_level;
   if (a.log_file) o.logging.file = *a.log_file;
   if (!a.record.empty()) o.record_pcap = a.record;
+  if (!a.mcap.empty()) o.mcap = a.mcap;
   for (auto& sensor : o.sensors) {
     auto& src = sensor.source;
     if (!a.replay.empty()) {
@@ -129,8 +130,9 @@ int data_loss_status(const lidartag::daemon::Daemon& daemon, int status) {
                   failures + bus.published(), bus.last_error());
   }
   const auto* recorder = daemon.recorder();
-  const bool lost =
-      failures > 0 || (recorder != nullptr && recorder->failed()) || daemon.sources_cut_short() > 0;
+  const bool lost = failures > 0 || (recorder != nullptr && recorder->failed()) ||
+                    (daemon.mcap() != nullptr && daemon.mcap()->failed()) ||
+                    daemon.sources_cut_short() > 0;
   return status == 0 && lost ? kExitDataLost : status;
 }
 
@@ -181,6 +183,10 @@ int main(int argc, char** argv) {
   app.add_option("--record", a.record,
                  "Write every received packet to this pcap file (a write error, e.g. a full disk, "
                  "stops recording: exit status 3)");
+  app.add_option("--mcap", a.mcap,
+                 "Also write what is published (clouds when lcm.cloud_decimation > 0, tags, "
+                 "detections, status) to this MCAP file for Foxglove (docs/foxglove.md; a write "
+                 "error: exit status 3)");
   app.add_option("--workers", a.workers, "Detector threads (0: one per core)");
   app.add_option("--log-level", a.log_level, "trace, debug, info, warn, error, critical, off");
   app.add_option("--log-file", a.log_file, "Log to this file (reopened on SIGHUP)");

@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include "lidartag/daemon/ego_motion_input.hpp"
+#include "lidartag/daemon/mcap_recorder.hpp"
 #include "lidartag/daemon/messages.hpp"
 #include "lidartag/daemon/sensor_pipeline.hpp"
 #include "lidartag/daemon/tap_source.hpp"
@@ -97,6 +98,7 @@ bool RotationPublisher::publish(const RotationResult& r, uint64_t dropped) {
     fill_point_cloud(r, sensor_.name, sensor_.frame_id, cloud_message_);
     if (!bus_.publish(cloud_channel_, cloud_message_)) failures_.failed(cloud_channel_);
   }
+  if (mcap_ != nullptr) mcap_->rotation(sensor_, r, tracker_ ? &tracked_ : nullptr);
   const int64_t after = steady_ns();
   windows_[kQueue]->record(ms(r.taken_ns - r.assembled_ns));
   windows_[kDetect]->record(ms(r.detected_ns - r.taken_ns));

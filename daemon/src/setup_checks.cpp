@@ -334,6 +334,10 @@ void check_setup(const DaemonOptions& options) {
     check_plain_output("record_pcap", options.record_pcap, "the --record file");
     check_not_an_input(options, "record_pcap", options.record_pcap, "the --record file");
   }
+  if (!options.mcap.empty()) {
+    check_plain_output("mcap", options.mcap, "the --mcap file");
+    check_not_an_input(options, "mcap", options.mcap, "the --mcap file");
+  }
   if (!options.logging.file.empty()) {
     check_log_output(options.logging.file);
     try {

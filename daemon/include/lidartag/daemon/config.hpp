@@ -228,6 +228,9 @@ struct DaemonOptions {
   LoggingOptions logging;
   // Every raw packet received by the sources is also written to this pcap; empty: none.
   std::string record_pcap;
+  // lidartagd --mcap: what is published, also written to this MCAP file (mcap_recorder.hpp);
+  // empty: none. The command line only (not a configuration key).
+  std::string mcap;
 };
 
 // Parses a YAML document (`origin` names it in messages). `overrides` are "dotted.key=value" (a

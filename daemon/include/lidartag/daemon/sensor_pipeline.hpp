@@ -77,6 +77,8 @@ class SensorPipeline {
   SensorPipeline(const SensorPipeline&) = delete;
   SensorPipeline& operator=(const SensorPipeline&) = delete;
 
+  // lidartagd --mcap: the published rotations also go to `mcap` (before start()).
+  void record_mcap(McapRecorder* mcap) { publisher_.record_to(mcap); }
   void start();
   // Ends the source: the rotation in progress is flushed, every rotation taken is published.
   void stop();
