@@ -12,6 +12,7 @@
 #include <string_view>
 #include <type_traits>
 
+#include "lidartag/detector/fused_grid.hpp"
 #include "lidartag/detector/tag_family.hpp"
 
 namespace lidartag::detector {
@@ -571,8 +572,13 @@ void Tracker::add_evidence(Track& t, const Candidate& c, const ScanResult& resul
   // would beat it by that alone (a VLP-32C's 1.2 m tag16h5 at 24 m and 45 degrees, whose codes
   // tag16h6 shares, was never confirmed).
   const bool other_better = t.other_count > 0 && t.other_sum > t.own_sum + 1e-6 * t.other_count;
-  t.confirmed = t.rotations >= opt_.min_rotations && t.margin >= opt_.min_margin_cells &&
-                t.mean_score >= min_score_ && !other_better;
+  // The score: the rotations' mean, or the fused grid's under a stricter margin (the far edge,
+  // where each rotation's own fit scores low: fused_grid_confirms).
+  const bool scored =
+      t.mean_score >= min_score_ || fused_grid_confirms(fam.dict, lead, t.votes, t.counts,
+                                                        opt_.full_cell_votes, t.margin, min_score_);
+  t.confirmed = t.rotations >= opt_.min_rotations && t.margin >= opt_.min_margin_cells && scored &&
+                !other_better;
 }
 
 void Tracker::fill_info(const Track& t, TrackInfo& info) const {

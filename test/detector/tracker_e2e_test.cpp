@@ -331,5 +331,58 @@ TEST(TrackerEndToEnd, CalibrationBoardsAndSignsGiveNoTagNorConfirmedTrack) {
   expect_no_tag("clutter.pcap", all, false);
 }
 
+// Issue 33's far edge: a VLP-32C's 1.2 m tag16h5 at 28 m turned 45 degrees returns fewer points
+// than eq. (3) asks in every rotation (validation/too_few_points alone) and is never decoded
+// alone; as track-only candidates (validation.track_returns_per_cell, the ring-dependent
+// boundary bound) their votes, fused in the track's frame over rotations, decode it: the right
+// ID from the 4th rotation on, from the track, never a wrong one. Without the track tier
+// (track_returns_per_cell at min_returns_per_cell) the tag is never found.
+TEST(TrackerEndToEnd, AFarTagTurned45DegreesIsDecodedOnlyFromEvidenceFusedOverRotations) {
+  int right = 0, decoded = 0, wrong = 0, right_off = 0;
+  for (int code : {9, 16, 23}) {
+    const sim::Scene scene = eval::accuracy_scene(velodyne::Model::kVLP32C, 28.0, 45, code);
+    const auto seen = run(scene, 11, 5045 + static_cast<uint64_t>(code));
+    DetectorOptions off;
+    off.validation.track_returns_per_cell = off.validation.min_returns_per_cell;
+    off.validation.track_boundary_scale = off.validation.boundary_scale;
+    const auto seen_off = run(scene, 11, 5045 + static_cast<uint64_t>(code), off);
+    for (size_t k = 0; k < seen.size(); ++k) {
+      wrong += (seen[k].wrong ? 1 : 0) + (seen_off[k].wrong ? 1 : 0);
+      decoded += seen[k].decoded ? 1 : 0;
+      if (k < 3) continue;
+      right += seen[k].right ? 1 : 0;
+      right_off += seen_off[k].right ? 1 : 0;
+    }
+  }
+  EXPECT_EQ(wrong, 0);
+  EXPECT_EQ(decoded, 0);    // no rotation decodes it alone
+  EXPECT_GE(right, 12);     // of 24 rotations from the 4th on (measured: 15)
+  EXPECT_EQ(right_off, 0);  // without the track tier: never
+}
+
+// The same far tag printed from another family (tag25h9, wrong codes for the configured
+// tag16h5), and the same tag seen by a detector configured for another family: its track-only
+// evidence never confirms an ID.
+TEST(TrackerEndToEnd, AFarTagOfAnotherFamilyNeverGetsAnIdFromFusedEvidence) {
+  int wrong = 0, rotations = 0;
+  for (int code : {3, 17}) {
+    sim::Scene scene = eval::accuracy_scene(velodyne::Model::kVLP32C, 28.0, 45, code);
+    scene.tags.front().family = "tag25h9";
+    for (const auto& s : run(scene, 11, 700 + static_cast<uint64_t>(code))) {
+      wrong += s.right || s.wrong ? 1 : 0;  // any ID at the tag is wrong here
+      ++rotations;
+    }
+    DetectorOptions other;
+    other.families = {"tag36h11"};
+    const sim::Scene printed = eval::accuracy_scene(velodyne::Model::kVLP32C, 28.0, 45, code);
+    for (const auto& s : run(printed, 11, 800 + static_cast<uint64_t>(code), other)) {
+      wrong += s.wrong ? 1 : 0;
+      ++rotations;
+    }
+  }
+  EXPECT_EQ(rotations, 44);
+  EXPECT_EQ(wrong, 0);
+}
+
 }  // namespace
 }  // namespace lidartag::detector

@@ -113,8 +113,9 @@ std::string lacked(const det::ClusterDiagnostic& c, const det::Detector& detecto
                    const std::vector<double>& elevation_deg) {
   const auto& o = detector.options();
   if (c.rejection == det::Rejection::kTooFewPoints)
-    return fmt::format("{} points, eq. (3) asks {} for the configured families", c.points,
-                       detector.limits().min_points);
+    return fmt::format(
+        "{} points, eq. (3) asks {} for the configured families ({} as a track's evidence)",
+        c.points, detector.limits().min_points, detector.limits().min_track_points);
   if (c.rejection != det::Rejection::kFewFeatures) return {};
   const int rings = c.max_ring - c.min_ring + 1;
   std::string s =
