@@ -46,9 +46,12 @@ if [ "${1:-}" != "--no-sanitizers" ]; then
     -DLIDARTAG_BUILD_BENCHMARKS=OFF -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG"
   targets="test_driver_core test_driver_captures test_scan_buffer test_pcap_writer test_pcap_source
     test_udp_source test_live_source test_calibration_file test_pcd test_capture_reader test_sim
-    test_capture_mutation test_ouster test_ouster_reader test_cli_ouster test_bag test_sim_ouster"
+    test_capture_mutation test_ouster test_ouster_reader test_open_reader test_cli_ouster test_bag
+    test_sim_ouster"
+  # MCAP out: the writer, read back with the project's reader (issue 34).
+  targets="$targets test_mcap_writer"
   # The daemon's configuration parsing, LCM URL/log/bus, recorder and setup checks.
-  targets="$targets test_daemon_config test_daemon_setup"
+  targets="$targets test_daemon_config test_daemon_setup test_ego_motion_input"
   # The lidartag tool's drawing (tag, render), run as a user would (they build the tool).
   targets="$targets test_cli_tag test_cli_render"
   # Calibration: intrinsics files and the result's forms (issue 30).

@@ -24,6 +24,8 @@
 
 #include "lidartag/detector/options.hpp"
 #include "lidartag/driver/io/udp_frame.hpp"
+#include "lidartag/driver/ouster/models.hpp"
+#include "lidartag/driver/ouster/packet.hpp"
 
 namespace lidartag::daemon {
 
@@ -167,9 +169,19 @@ Names<JournalMode> journal_modes() {
 
 // A value as text (the printer, and the value quoted in errors): the rules' value_text, and a
 // model by its name.
+// The `model` key: a Velodyne model, an Ouster model name or auto (SensorOptions::model and
+// ouster_model).
+struct ModelKey {
+  std::optional<velodyne::Model>* velodyne;
+  std::string* ouster;
+};
+
 template <class T>
 std::string to_text(const T& v) {
-  if constexpr (std::is_same_v<T, std::optional<velodyne::Model>>) {
+  if constexpr (std::is_same_v<T, ModelKey>) {
+    if (!v.ouster->empty()) return *v.ouster;
+    return *v.velodyne ? std::string(velodyne::model_spec(**v.velodyne).name) : "auto";
+  } else if constexpr (std::is_same_v<T, std::optional<velodyne::Model>>) {
     return v ? std::string(velodyne::model_spec(*v).name) : "auto";
   } else {
     return value_text(v);
@@ -353,6 +365,23 @@ class Reader {
     out = velodyne::model_from_name(text);
     if (!out) throw ConfigError(name, text, "expected auto or " + velodyne::model_names());
   }
+  static void read(const std::string& name, const YAML::Node& n, ModelKey& out) {
+    const std::string text = scalar(name, n);
+    if (driver::ouster::is_model_name(text)) {
+      out.velodyne->reset();
+      *out.ouster = text;
+      return;
+    }
+    out.ouster->clear();
+    try {
+      read(name, n, *out.velodyne);
+    } catch (const ConfigError&) {
+      throw ConfigError(name, text,
+                        "expected auto, a Velodyne model (" + velodyne::model_names() +
+                            ") or an Ouster model (os0, os1 or os2 with 16, 32, 64 or 128 "
+                            "beams: os1-128)");
+    }
+  }
   template <class T>
   static void read(const std::string& name, const YAML::Node& n, std::vector<T>& out) {
     if (!n.IsSequence()) throw ConfigError(name, node_text(n), "expected a list");
@@ -434,8 +463,17 @@ void visit_sensor(V& v, SensorOptions& o) {
   v.field("name", o.name, printable(false));
   v.field("frame_id", o.frame_id, printable(false));
   v.field("channel_prefix", o.channel_prefix, printable(true));
-  v.field("model", o.model);
+  ModelKey model{&o.model, &o.ouster_model};
+  v.field("model", model);
   v.field("calibration", o.calibration);
+  v.field("metadata", o.metadata);
+  if constexpr (std::is_same_v<V, Reader>) {
+    // An Ouster sensor's ports are its own unless the entry names others (read next).
+    if (!o.metadata.empty()) {
+      o.source.data_port = driver::ouster::kLidarPort;
+      o.source.position_port = driver::ouster::kImuPort;
+    }
+  }
   driver::visit_batcher_options(v, o.batcher);  // the driver's own tables, at this level
   velodyne::visit_decoder_options(v, o.decoder);
   v.section("source", [&](V& s) {
@@ -450,6 +488,7 @@ void visit_sensor(V& v, SensorOptions& o) {
     s.field("interface", src.interface);
     s.field("promiscuous", src.promiscuous);
     s.field("file", src.file);
+    s.field("topic", src.topic, printable(true));
     s.field("rate", src.rate, replay_rate());
     s.field("loop", src.loop);
     s.field("channel", src.channel);
@@ -503,6 +542,21 @@ void visit(V& v, DaemonOptions& o) {
   v.field("record_pcap", o.record_pcap);
   v.section("detector", [&](V& s) { detector::visit_options(s, o.detector); });
   v.section("tracker", [&](V& s) { detector::visit_tracker_options(s, o.tracker); });
+  v.section("ego_motion", [&](V& s) {
+    EgoMotionConfig& e = o.ego_motion;
+    s.field("channel", e.channel, printable(true));
+    s.field("url", e.url);
+    detector::visit_ego_motion_options(s, e.buffer);
+    s.field("stale_s", e.stale_s, closed(0.001, 3600.0));
+    s.section("sensor_in_body", [&](V& m) {
+      m.field("x", e.x, closed(-1000.0, 1000.0));
+      m.field("y", e.y, closed(-1000.0, 1000.0));
+      m.field("z", e.z, closed(-1000.0, 1000.0));
+      m.field("roll_deg", e.roll_deg, closed(-360.0, 360.0));
+      m.field("pitch_deg", e.pitch_deg, closed(-360.0, 360.0));
+      m.field("yaw_deg", e.yaw_deg, closed(-360.0, 360.0));
+    });
+  });
 }
 
 // The detector's rules (each field's, also on options built in code, and those between fields),
@@ -544,6 +598,17 @@ void check_relations(const DaemonOptions& o) {
         throw ConfigError(key + ".min_range_m", to_text(s.decoder.min_range_m),
                           fmt::format("must be below the model's maximum range ({} m)", limit));
       }
+    }
+    if (!s.ouster_model.empty() && s.metadata.empty()) {
+      throw ConfigError(key + ".metadata", s.metadata,
+                        fmt::format("required for the Ouster model {} (the sensor's metadata "
+                                    "JSON describes its beams, mode and packets)",
+                                    s.ouster_model));
+    }
+    if (!s.metadata.empty() && (s.model || !s.calibration.empty())) {
+      throw ConfigError(key + (s.model ? ".model" : ".calibration"),
+                        s.model ? to_text(s.model) : s.calibration,
+                        "is Velodyne's, but the sensor has Ouster metadata (sensors[].metadata)");
     }
     const SourceOptions& src = s.source;
     const std::string kind(source_kind_name(src.kind));

@@ -89,9 +89,14 @@ Daemon::Daemon(DaemonOptions options, RunOptions run, Logging* logging)
                tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)));
   arena_ = std::make_unique<tbb::task_arena>(workers_, 0);
   bus_ = std::make_unique<LcmBus>(options_.lcm.url);
+  if (!options_.ego_motion.channel.empty()) {
+    ego_ = std::make_unique<EgoMotionInput>(options_.ego_motion, options_.lcm.url);
+    bus_->attach_ego_motion(ego_.get());
+  }
   if (!options_.record_pcap.empty()) {
     recorder_ = std::make_unique<PcapRecorder>(options_.record_pcap);
   }
+  if (!options_.mcap.empty()) mcap_ = std::make_unique<McapRecorder>(options_.mcap);
   if (run.print_detections != nullptr) {
     printer_ = std::make_unique<LinePrinter>(run.print_detections);
   }
@@ -99,6 +104,7 @@ Daemon::Daemon(DaemonOptions options, RunOptions run, Logging* logging)
     pipelines_.push_back(std::make_unique<SensorPipeline>(sensor, options_, *bus_, *arena_,
                                                           workers_, recorder_.get(), printer_.get(),
                                                           run.detect_hook));
+    pipelines_.back()->record_mcap(mcap_.get());
   }
 }
 
@@ -134,6 +140,10 @@ std::string Daemon::summary() const {
                         health_state_name(s.health.state), s.health.reason.empty() ? "" : " (",
                         s.health.reason.empty() ? "" : s.health.reason + ")");
   }
+  if (ego_) {
+    const std::string note = ego_->health_note();
+    if (!note.empty()) text += "; " + note;
+  }
   return text;
 }
 
@@ -144,7 +154,15 @@ void Daemon::publish_status(bool final) {
   for (auto& p : pipelines_) {
     SensorStatus s = p->status(now);
     fill_status(s, wall_utime(), uptime, status_message_);
+    if (ego_) {
+      // The ego-motion input's note (nothing yet, stale, dropped messages): the trackers run
+      // without it meanwhile, which is no fault of the sensor (its health stays as it is).
+      const std::string note = ego_->health_note();
+      if (!note.empty())
+        status_message_.reason += (status_message_.reason.empty() ? "" : "; ") + note;
+    }
     bus_->publish(channel_of(p->sensor(), options_.lcm.channels.status), status_message_);
+    if (mcap_) mcap_->status(s);
     last_status_.push_back(std::move(s));
   }
   const std::string text = summary();
@@ -158,6 +176,11 @@ void Daemon::publish_status(bool final) {
 
 int Daemon::run() {
   started_ns_ = steady_ns();
+  if (ego_) {
+    ego_->start();
+    spdlog::info("ego motion: receiving {} (the trackers place tags in its odometry frame)",
+                 ego_->channel());
+  }
   for (auto& p : pipelines_) p->start();
   for (const auto& s : options_.sensors) {
     spdlog::info("sensor {}: {} source{}{}, frame {}, channels {}*", s.name,
@@ -265,6 +288,7 @@ int Daemon::run() {
   for (auto& p : pipelines_) p->stop();
   for (auto& p : pipelines_) p->join();
   publish_status(true);
+  if (mcap_) mcap_->close();
   if (recorder_) {
     recorder_->close();
     if (!recorder_->error().empty()) {

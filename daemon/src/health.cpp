@@ -176,10 +176,10 @@ std::string HealthMonitor::ended_reason(const HealthSample& s) const {
     note(s.foreign, "from other senders");
     add(fmt::format("no data packet on port {}{}", s.data_port, instead));
   } else if (s.decoded == 0) {
-    add(
-        fmt::format("none of its {} data packets could be decoded (another sensor model, or not "
-                    "Velodyne data?)",
-                    s.data_packets));
+    add(fmt::format(
+        "none of its {} data packets could be decoded (another sensor model or vendor, or "
+        "not LiDAR data?)",
+        s.data_packets));
   }
   if (!s.model_problem.empty()) add(s.model_problem);
   if (s.model_mismatch > 0) {

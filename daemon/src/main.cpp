@@ -21,6 +21,7 @@
 #include "lidartag/daemon/daemon.hpp"
 #include "lidartag/daemon/logging.hpp"
 #include "lidartag/daemon/setup_checks.hpp"
+#include "lidartag/driver/ouster/packet.hpp"
 #include "lidartag/version.hpp"
 
 namespace {
@@ -33,7 +34,7 @@ struct Args {
   std::string config;
   std::vector<std::string> set;
   std::optional<std::string> lcm_url;
-  std::string replay, replay_lcm, record;
+  std::string replay, replay_lcm, record, mcap, topic, metadata;
   std::optional<double> rate;
   bool max_speed = false, loop = false;
   std::optional<int> workers;
@@ -48,6 +49,7 @@ void apply(const Args& a, DaemonOptions& o) {
   if (a.log_level) o.logging.level = *a.log_level;
   if (a.log_file) o.logging.file = *a.log_file;
   if (!a.record.empty()) o.record_pcap = a.record;
+  if (!a.mcap.empty()) o.mcap = a.mcap;
   for (auto& sensor : o.sensors) {
     auto& src = sensor.source;
     if (!a.replay.empty()) {
@@ -56,6 +58,16 @@ void apply(const Args& a, DaemonOptions& o) {
     } else if (!a.replay_lcm.empty()) {
       src.kind = SourceKind::kLcm;
       src.file = a.replay_lcm;
+    }
+    if (!a.topic.empty()) src.topic = a.topic;
+    if (!a.metadata.empty()) {
+      // An Ouster sensor: its own ports unless the configuration named others.
+      sensor.metadata = a.metadata;
+      if (src.data_port == lidartag::velodyne::kDefaultDataPort &&
+          src.position_port == lidartag::velodyne::kDefaultPositionPort) {
+        src.data_port = lidartag::driver::ouster::kLidarPort;
+        src.position_port = lidartag::driver::ouster::kImuPort;
+      }
     }
     if (a.max_speed) src.rate = 0.0;
     if (a.rate) src.rate = *a.rate;
@@ -118,8 +130,9 @@ int data_loss_status(const lidartag::daemon::Daemon& daemon, int status) {
                   failures + bus.published(), bus.last_error());
   }
   const auto* recorder = daemon.recorder();
-  const bool lost =
-      failures > 0 || (recorder != nullptr && recorder->failed()) || daemon.sources_cut_short() > 0;
+  const bool lost = failures > 0 || (recorder != nullptr && recorder->failed()) ||
+                    (daemon.mcap() != nullptr && daemon.mcap()->failed()) ||
+                    daemon.sources_cut_short() > 0;
   return status == 0 && lost ? kExitDataLost : status;
 }
 
@@ -148,7 +161,17 @@ int main(int argc, char** argv) {
                  "e.g. file:///tmp/tags.lcmlog?mode=w writes a log instead of using the network");
   // Whether the file can be read is a setup check (exit 1, naming sensors[N].source.file), as for
   // a replay file named in the configuration.
-  auto* replay = app.add_option("--replay", a.replay, "Replay this pcap for every sensor");
+  auto* replay = app.add_option(
+      "--replay", a.replay,
+      "Replay this capture for every sensor: a pcap or pcapng of Velodyne or Ouster packets "
+      "(Ouster "
+      "metadata from --metadata or NAME.json beside NAME.pcap), or a ROS 1 bag, ROS 2 bag or MCAP "
+      "file of VelodyneScan or Ouster packet messages");
+  app.add_option("--topic", a.topic,
+                 "The LiDAR topic of a replayed bag (default: its one LiDAR topic)");
+  app.add_option("--metadata", a.metadata,
+                 "Ouster sensor metadata JSON for every sensor (the sensor is then an Ouster; "
+                 "ports 7502/7503 unless configured otherwise)");
   auto* replay_lcm =
       app.add_option("--replay-lcm", a.replay_lcm,
                      "Replay the raw packets of this LCM log (lcm-logger of the raw channel)");
@@ -160,6 +183,10 @@ int main(int argc, char** argv) {
   app.add_option("--record", a.record,
                  "Write every received packet to this pcap file (a write error, e.g. a full disk, "
                  "stops recording: exit status 3)");
+  app.add_option("--mcap", a.mcap,
+                 "Also write what is published (clouds when lcm.cloud_decimation > 0, tags, "
+                 "detections, status) to this MCAP file for Foxglove (docs/foxglove.md; a write "
+                 "error: exit status 3)");
   app.add_option("--workers", a.workers, "Detector threads (0: one per core)");
   app.add_option("--log-level", a.log_level, "trace, debug, info, warn, error, critical, off");
   app.add_option("--log-file", a.log_file, "Log to this file (reopened on SIGHUP)");

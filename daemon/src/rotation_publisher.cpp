@@ -2,6 +2,8 @@
 
 #include <spdlog/spdlog.h>
 
+#include "lidartag/daemon/ego_motion_input.hpp"
+#include "lidartag/daemon/mcap_recorder.hpp"
 #include "lidartag/daemon/messages.hpp"
 #include "lidartag/daemon/sensor_pipeline.hpp"
 #include "lidartag/daemon/tap_source.hpp"
@@ -70,7 +72,14 @@ bool RotationPublisher::publish(const RotationResult& r, uint64_t dropped) {
   if (tracker_) {
     // Every rotation reaches this point in order; dropped ones need nothing (tracks age by the
     // scan's time, and a stamp that steps back, a looping replay, ends every track).
-    tracker_->update(r.detection, r.stamp_ns, tracked_);
+    // With the robot's motion (config ego_motion): candidates placed in its odometry frame.
+    if (EgoMotionInput* ego = bus_.ego_motion()) {
+      ego->read([&](const detector::EgoMotion& e) {
+        tracker_->update(r.detection, r.stamp_ns, tracked_, &e);
+      });
+    } else {
+      tracker_->update(r.detection, r.stamp_ns, tracked_);
+    }
     fill_tracked_detections(tracked_, message_);
     for (const detector::TrackedDetection& t : tracked_.tags) check_size(t.detection);
   } else {
@@ -89,6 +98,7 @@ bool RotationPublisher::publish(const RotationResult& r, uint64_t dropped) {
     fill_point_cloud(r, sensor_.name, sensor_.frame_id, cloud_message_);
     if (!bus_.publish(cloud_channel_, cloud_message_)) failures_.failed(cloud_channel_);
   }
+  if (mcap_ != nullptr) mcap_->rotation(sensor_, r, tracker_ ? &tracked_ : nullptr);
   const int64_t after = steady_ns();
   windows_[kQueue]->record(ms(r.taken_ns - r.assembled_ns));
   windows_[kDetect]->record(ms(r.detected_ns - r.taken_ns));

@@ -22,26 +22,16 @@ double seconds(int64_t ns) {
   return static_cast<double>(ns) * 1e-9;
 }
 
-// Models that the packets' timing and layout cannot tell apart (VLP-16 and Puck Hi-Res).
-bool same_timing(velodyne::Model a, velodyne::Model b, velodyne::ReturnMode mode) {
-  const auto& sa = velodyne::model_spec(a);
-  const auto& sb = velodyne::model_spec(b);
-  return (sa.blocks_per_firing > 1) == (sb.blocks_per_firing > 1) &&
-         std::abs(sa.packet_period_us(mode) - sb.packet_period_us(mode)) <
-             0.01 * sa.packet_period_us(mode);
-}
-
 }  // namespace
 
 // What the receiving thread knows, copied at every return of CaptureReader::read (each rotation,
 // and at least every 100 ms) for the status.
 struct SensorMonitor::Snapshot {
-  velodyne::CaptureCounts counts;
+  driver::ReaderCounts counts;
   driver::SourceStats source;
   driver::BatcherStats batcher;
-  std::optional<velodyne::Model> model;
-  std::optional<velodyne::ReturnMode> mode;
-  velodyne::TimeSource time_source = velodyne::TimeSource::kHost;
+  // driver::SensorDescription's views: valid while the reader lives, which outlives the status.
+  std::string_view model, mode;
   float rpm = 0;
   int64_t sensor_ns = 0;          // first firing of the last rotation assembled
   uint64_t data_packets = 0;      // data-port packets received (also while the model is probed)
@@ -65,7 +55,7 @@ struct SensorMonitor::Senders {
   size_t size = 0, last = 0;
   uint64_t data_packets = 0, seen_data = 0;  // data packets, and at the last snapshot
   // The model check's last verdict, and its text (empty: the model fits).
-  std::optional<velodyne::Model> problem_model, problem_timing;
+  std::string_view problem_model, problem_timing;
   std::string model_problem;
   uint64_t noted_mismatch = 0;  // CaptureCounts::model_mismatch when model_note was taken
 };
@@ -73,6 +63,7 @@ struct SensorMonitor::Senders {
 SensorMonitor::SensorMonitor(const SensorOptions& sensor, const DaemonOptions& options)
     : sensor_(sensor),
       options_(options),
+      data_port_(sensor.source.data_port),
       health_(options.health),
       senders_(std::make_unique<Senders>()),
       snapshot_(std::make_unique<Snapshot>()) {
@@ -92,7 +83,7 @@ void SensorMonitor::started(int64_t now) {
 // ---- Published by the data path --------------------------------------------------------------
 
 void SensorMonitor::note_sender(const driver::RawPacket& p) {
-  if (p.destination_port != sensor_.source.data_port) return;
+  if (p.destination_port != data_port_) return;
   Senders& s = *senders_;
   ++s.data_packets;
   if (p.source_ipv4 == 0) return;  // unknown (some replays)
@@ -121,58 +112,43 @@ void SensorMonitor::note_sender(const driver::RawPacket& p) {
   s.last = slot;
 }
 
-void SensorMonitor::after_read(const velodyne::CaptureReader& reader, const Scan* last) {
+void SensorMonitor::after_read(const driver::ScanReader& reader, const Scan* last) {
   const int64_t now = steady_ns();
   Senders& mine = *senders_;
-  const auto& counts = reader.counts();
-  // The model decided (configured, or the product byte) against the packets' timing, which
-  // follows the latest packets: a wrong configuration or a change mid-stream shows here. The
-  // text is made when the verdict changes, not per rotation.
-  const auto model = reader.model();
-  const auto timing = reader.model_check().timing_model();
-  const auto mode = reader.return_mode().value_or(velodyne::ReturnMode::kStrongest);
-  const bool mismatch = model && timing && !same_timing(*model, *timing, mode);
+  const driver::ReaderCounts counts = reader.reader_counts();
+  // The model decided (configured, or the product byte) against the packets' own evidence (the
+  // timing, which follows the latest packets): a wrong configuration or a change mid-stream shows
+  // here. The text is made when the verdict changes, not per rotation.
+  const driver::SensorDescription d = reader.description();
+  const bool mismatch = !d.model.empty() && !d.evidence_fits.empty();
   if (!mismatch) {
     mine.model_problem.clear();
-  } else if (mine.problem_model != model || mine.problem_timing != timing) {
-    const std::string decided(velodyne::model_spec(*model).name);
-    const std::string fits(velodyne::model_spec(*timing).name);
+  } else if (mine.problem_model != d.model || mine.problem_timing != d.evidence_fits) {
     mine.model_problem = sensor_.model
                              ? fmt::format(
                                    "configured model {} does not fit the packets (their "
                                    "timing is that of a {}): check sensors[].model",
-                                   decided, fits)
+                                   d.model, d.evidence_fits)
                              : fmt::format(
                                    "decoding as {} (the product byte) but the packets' timing "
                                    "is that of a {}: set sensors[].model",
-                                   decided, fits);
+                                   d.model, d.evidence_fits);
   }
-  mine.problem_model = model;
-  mine.problem_timing = timing;
+  mine.problem_model = d.model;
+  mine.problem_timing = d.evidence_fits;
   std::lock_guard lock(snapshot_mutex_);
   Snapshot& s = *snapshot_;
-  s.counts.data_packets = counts.data_packets;
-  s.counts.position_packets = counts.position_packets;
-  s.counts.decoded = counts.decoded;
-  s.counts.decode_errors = counts.decode_errors;
-  s.counts.undecodable = counts.undecodable;
-  s.counts.model_mismatch = counts.model_mismatch;
-  s.counts.position_ok = counts.position_ok;
-  s.counts.position_errors = counts.position_errors;
-  s.counts.position_checksum = counts.position_checksum;
-  s.counts.gprmc_valid = counts.gprmc_valid;
-  s.counts.pps = counts.pps;
+  s.counts = counts;
   if (mine.data_packets != mine.seen_data) s.last_data_ns = now;
   mine.seen_data = mine.data_packets;
   s.data_packets = mine.data_packets;
   s.source = reader.source_stats();
   s.batcher = reader.batcher_stats();
-  s.model = model;
-  s.mode = reader.return_mode();
-  s.time_source = reader.clock().source();
+  s.model = d.model;
+  s.mode = d.return_mode;
   s.model_problem = mine.model_problem;  // copied into storage it keeps
   if (counts.model_mismatch != mine.noted_mismatch) {
-    s.model_note = reader.model_mismatch();
+    s.model_note = reader.mismatch_text();
     mine.noted_mismatch = counts.model_mismatch;
   }
   s.senders.clear();
@@ -300,19 +276,17 @@ SensorStatus SensorMonitor::status(int64_t now_ns, const PathGauges& gauges) {
   h.ended = gauges.finished;
   h.stopped = stopped_.load();
   h.stall = stall(now_ns);
-  h.data_port = sensor_.source.data_port;
+  h.data_port = data_port_;
   {
     std::lock_guard lock(snapshot_mutex_);
     const Snapshot& s = *snapshot_;
-    if (s.model) st.model = std::string(velodyne::model_spec(*s.model).name);
-    if (s.mode) st.return_mode = std::string(velodyne::return_mode_name(*s.mode));
+    st.model = std::string(s.model);
+    st.return_mode = std::string(s.mode);
     st.rpm = s.rpm;
-    st.time_source = static_cast<int>(s.time_source);
-    st.pps = static_cast<int>(s.counts.pps);
-    st.position_packets = s.counts.position_packets;
+    st.time_source = s.counts.time_source;
+    st.pps = s.counts.pps;
+    st.position_packets = s.counts.aux_packets;
     st.gprmc_valid = s.counts.gprmc_valid;
-    uint64_t decode_errors = 0;
-    for (uint64_t e : s.counts.decode_errors) decode_errors += e;
     st.packets_data = s.counts.data_packets;
     st.packets_decoded = s.counts.decoded;
     st.packets_kernel_dropped = s.source.kernel_drops;
@@ -323,9 +297,7 @@ SensorStatus SensorMonitor::status(int64_t now_ns, const PathGauges& gauges) {
     st.packets_duplicate = s.batcher.duplicates;
     st.packets_reordered =
         std::max(s.batcher.reordered, s.batcher.late_packets - s.batcher.duplicates);
-    st.packets_malformed = s.source.truncated + s.source.malformed + decode_errors +
-                           s.counts.undecodable + s.counts.position_errors +
-                           s.counts.position_checksum;
+    st.packets_malformed = s.source.truncated + s.source.malformed + s.counts.refused;
     st.packets_foreign = s.source.foreign_source;
     st.packets_inconsistent = s.batcher.inconsistent;
     st.packets_model_mismatch = s.counts.model_mismatch;

@@ -18,6 +18,7 @@
 #include "lidartag/driver/io/pcap_source.hpp"
 #include "lidartag/driver/io/udp_frame.hpp"
 #include "lidartag/driver/io/udp_source.hpp"
+#include "lidartag/driver/sources/open_reader.hpp"
 
 namespace lidartag::daemon {
 
@@ -59,8 +60,37 @@ std::vector<uint32_t> steer_senders(const SensorOptions& sensor, const DaemonOpt
   return senders;
 }
 
-std::unique_ptr<driver::PacketSource> open_source(const SensorOptions& sensor,
-                                                  const DaemonOptions& options) {
+// The driver's view of a sensor entry. A replay's ports left at Velodyne's defaults are the
+// vendor's defaults (an Ouster capture, found so by its content, is read on 7502/7503).
+driver::ScanSourceOptions scan_options(const SensorOptions& sensor) {
+  const SourceOptions& s = sensor.source;
+  driver::ScanSourceOptions o;
+  const bool vendor_ports = s.kind == SourceKind::kPcap &&
+                            s.data_port == velodyne::kDefaultDataPort &&
+                            s.position_port == velodyne::kDefaultPositionPort;
+  if (!vendor_ports) {
+    o.data_port = s.data_port;
+    o.aux_port = s.position_port;
+  }
+  o.replay.sensor_ipv4 = sender(s);
+  o.replay.pacing =
+      s.rate > 0 ? driver::ReplayPacing::kCaptureTime : driver::ReplayPacing::kAsFastAsPossible;
+  o.replay.rate = s.rate > 0 ? s.rate : 1.0;
+  o.replay.loop = s.loop;
+  o.topic = s.topic;
+  o.metadata = sensor.metadata;
+  o.velodyne_model = sensor.model;
+  o.ouster_model = sensor.ouster_model;
+  o.calibration_file = sensor.calibration;
+  o.velodyne_decoder = sensor.decoder;
+  o.batcher = sensor.batcher;
+  return o;
+}
+
+// A live source (UDP sockets, an interface's capture) or an LCM log of raw packets, on the
+// configured ports (an Ouster entry's default to 7502/7503: config.cpp).
+std::unique_ptr<driver::PacketSource> open_live_source(const SensorOptions& sensor,
+                                                       const DaemonOptions& options) {
   const SourceOptions& s = sensor.source;
   switch (s.kind) {
     case SourceKind::kUdp: {
@@ -84,17 +114,6 @@ std::unique_ptr<driver::PacketSource> open_source(const SensorOptions& sensor,
       o.buffer_bytes = s.receive_buffer_bytes;
       return std::make_unique<driver::LiveSource>(o);
     }
-    case SourceKind::kPcap: {
-      driver::PcapSourceOptions o;
-      o.data_port = s.data_port;
-      o.position_port = s.position_port;
-      o.sensor_ipv4 = sender(s);
-      o.pacing =
-          s.rate > 0 ? driver::ReplayPacing::kCaptureTime : driver::ReplayPacing::kAsFastAsPossible;
-      o.rate = s.rate > 0 ? s.rate : 1.0;
-      o.loop = s.loop;
-      return std::make_unique<driver::PcapSource>(s.file, o);
-    }
     case SourceKind::kLcm: {
       LcmLogSourceOptions o;
       o.channel = s.channel.empty() ? channel_of(sensor, options.lcm.channels.raw) : s.channel;
@@ -102,6 +121,8 @@ std::unique_ptr<driver::PacketSource> open_source(const SensorOptions& sensor,
       o.loop = s.loop;
       return std::make_unique<LcmLogSource>(s.file, o);
     }
+    case SourceKind::kPcap:
+      break;  // a file: driver::open_capture, by content
   }
   return nullptr;
 }
@@ -203,16 +224,26 @@ SensorPipeline::SensorPipeline(const SensorOptions& sensor, const DaemonOptions&
       if (!bus_.publish(raw_channel_, raw_message_)) failures_.failed(raw_channel_);
     }
   };
-  auto source = std::make_unique<TapSource>(open_source(sensor, options), recorder, tap);
-  tap_ = source.get();
-  velodyne::CaptureReaderOptions reader;
-  reader.source.data_port = sensor.source.data_port;
-  reader.source.position_port = sensor.source.position_port;
-  reader.model = sensor.model;
-  reader.calibration_file = sensor.calibration;
-  reader.decoder = sensor.decoder;
-  reader.batcher = sensor.batcher;
-  reader_ = std::make_unique<velodyne::CaptureReader>(std::move(source), reader);
+  // Every packet passes the tap (counted, recorded, published raw), whatever the source.
+  const driver::SourceWrap wrap = [&](std::unique_ptr<driver::PacketSource> inner) {
+    auto source = std::make_unique<TapSource>(std::move(inner), recorder, tap);
+    tap_ = source.get();
+    return std::unique_ptr<driver::PacketSource>(std::move(source));
+  };
+  const driver::ScanSourceOptions scan = scan_options(sensor);
+  driver::OpenedReader opened =
+      sensor.source.kind == SourceKind::kPcap
+          ? driver::open_capture(sensor.source.file, scan, wrap)
+          : driver::open_live(wrap(open_live_source(sensor, options)), scan);
+  reader_ = std::move(opened.reader);
+  monitor_.set_data_port(opened.data_port);
+  spdlog::info("sensor {}: {} {} ({}), data port {}, {} port {}", sensor.name,
+               opened.vendor == driver::Vendor::kOuster ? "Ouster" : "Velodyne",
+               sensor.source.kind == SourceKind::kPcap
+                   ? sensor.source.file
+                   : std::string(source_kind_name(sensor.source.kind)),
+               opened.what, opened.data_port,
+               opened.vendor == driver::Vendor::kOuster ? "IMU" : "position", opened.aux_port);
   // Built inside the arena, so that its tasks run there.
   arena_.execute([&] { graph_ = std::make_unique<Graph>(*this, workers_); });
 }
@@ -265,7 +296,7 @@ void SensorPipeline::receive() {
     for (;;) {
       const auto result = reader_->read(slot->scan, std::chrono::milliseconds(100));
       monitor_.beat(steady_ns());
-      using Result = velodyne::CaptureReader::ReadResult;
+      using Result = driver::ReadResult;
       monitor_.after_read(*reader_, result == Result::kRotation ? &slot->scan : nullptr);
       if (result == Result::kEnd) break;
       if (result == Result::kTimeout) continue;  // the rotation in progress stays in the slot

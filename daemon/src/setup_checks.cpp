@@ -14,7 +14,10 @@
 #include <filesystem>
 
 #include "lidartag/daemon/lcm_url.hpp"
+#include "lidartag/driver/bag/message_reader.hpp"
 #include "lidartag/driver/io/udp_frame.hpp"
+#include "lidartag/driver/ouster/metadata.hpp"
+#include "lidartag/driver/ouster/models.hpp"
 #include "lidartag/driver/velodyne/io/calibration_file.hpp"
 
 namespace lidartag::daemon {
@@ -169,17 +172,40 @@ void check_small_regular_file(const std::string& key, const std::string& path,
   }
 }
 
-// `path` can be read and is not a directory (a FIFO is fine for a replay).
-void check_readable(const std::string& key, const std::string& path, const std::string& what) {
+// `path` can be read and is not a directory (a FIFO is fine for a replay), unless `bag_folder`
+// and it is a ROS 2 bag's folder.
+void check_readable(const std::string& key, const std::string& path, const std::string& what,
+                    bool bag_folder = false) {
   struct stat st {};
   if (::stat(path.c_str(), &st) != 0) {
     throw SetupError(key, fmt::format("{} '{}': {}", what, path, errno_text(errno)));
   }
-  if (S_ISDIR(st.st_mode)) throw SetupError(key, fmt::format("{} '{}' is a directory", what, path));
+  if (S_ISDIR(st.st_mode) &&
+      !(bag_folder && driver::bag::detect_bag_format(path) == driver::bag::BagFormat::kRosbag2)) {
+    throw SetupError(key, fmt::format("{} '{}' is a directory", what, path));
+  }
   if (::access(path.c_str(), R_OK) != 0) {
     throw SetupError(key, fmt::format("{} '{}' cannot be read: {}", what, path, errno_text(errno)));
   }
   if (S_ISFIFO(st.st_mode)) check_fifo_writer(key, path, what);
+}
+
+// The Ouster metadata file parses and describes the configured model (if any).
+void check_metadata(const std::string& key, const SensorOptions& sensor) {
+  check_small_regular_file(key, sensor.metadata, "Ouster metadata file", kMaxCalibrationBytes);
+  try {
+    const driver::ouster::SensorInfo info = driver::ouster::load_metadata(sensor.metadata);
+    const std::string described = driver::ouster::model_name(info);
+    const std::string& want = sensor.ouster_model;
+    if (!want.empty() && !driver::ouster::describes_model(info, want)) {
+      throw SetupError(key, fmt::format("Ouster metadata file '{}' describes an {} ({}, {} beams), "
+                                        "not the configured model {}",
+                                        sensor.metadata, described, info.prod_line,
+                                        info.pixels_per_column, want));
+    }
+  } catch (const driver::ouster::MetadataError& e) {
+    throw SetupError(key, fmt::format("Ouster metadata file '{}': {}", sensor.metadata, e.what()));
+  }
 }
 
 // The calibration file parses and fits the configured model; with model auto, some model (the
@@ -308,6 +334,10 @@ void check_setup(const DaemonOptions& options) {
     check_plain_output("record_pcap", options.record_pcap, "the --record file");
     check_not_an_input(options, "record_pcap", options.record_pcap, "the --record file");
   }
+  if (!options.mcap.empty()) {
+    check_plain_output("mcap", options.mcap, "the --mcap file");
+    check_not_an_input(options, "mcap", options.mcap, "the --mcap file");
+  }
   if (!options.logging.file.empty()) {
     check_log_output(options.logging.file);
     try {
@@ -327,6 +357,7 @@ void check_setup(const DaemonOptions& options) {
     const SensorOptions& sensor = options.sensors[i];
     const std::string key = fmt::format("sensors[{}]", i);
     if (!sensor.calibration.empty()) check_calibration(key + ".calibration", sensor);
+    if (!sensor.metadata.empty()) check_metadata(key + ".metadata", sensor);
     const SourceOptions& src = sensor.source;
     switch (src.kind) {
       case SourceKind::kUdp:
@@ -334,6 +365,8 @@ void check_setup(const DaemonOptions& options) {
         check_udp_port(key + ".source.position_port", src, src.position_port);
         break;
       case SourceKind::kPcap:
+        check_readable(key + ".source.file", src.file, "replay file", true);
+        break;
       case SourceKind::kLcm:
         check_readable(key + ".source.file", src.file, "replay file");
         break;

@@ -152,6 +152,23 @@ int rings_in(std::span<const ClusterPoint> points) {
   return n;
 }
 
+int testable_points(std::span<const ClusterPoint> points, const ValidationOptions& opt) {
+  const int two_l = 2 * std::max(opt.gi_ell, 1);
+  int n = 0;
+  size_t first = 0;
+  for (size_t i = 1; i <= points.size(); ++i) {
+    if (i < points.size() && points[i].ring == points[first].ring) continue;
+    n += std::max(0, static_cast<int>(i - first) - two_l);
+    first = i;
+  }
+  return n;
+}
+
+int track_boundary_bound(int testable, int psi, int track_bound) {
+  const int by_points = (std::max(testable, 0) + kTestablePerStep - 1) / kTestablePerStep;
+  return std::max((psi + 3) / 4, std::min(track_bound, by_points));
+}
+
 int count_boundary_points(std::span<const ClusterPoint> points, const ValidationOptions& opt) {
   if (points.empty()) return 0;
   double mean = 0.0;

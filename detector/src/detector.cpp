@@ -37,7 +37,7 @@ DetectorLimits derive_limits(const DetectorOptions& o,
   l.board_max = l.t_max + 2.0 * o.corners.board_margin_m;
   l.max_pair_chord_m = static_cast<float>(l.board_max * std::numbers::sqrt2 * 1.1);
   l.max_extent_m = static_cast<float>(l.board_max * std::numbers::sqrt2 * 1.25);
-  l.min_points = 1 << 30;
+  l.min_points = l.min_track_points = 1 << 30;
   int psi = 1 << 30;  // eq. (6): at least 2 (d + 2) payload boundary points, smallest family
   for (const auto& d : dictionaries) {
     const auto& fam = d.family();
@@ -46,8 +46,14 @@ DetectorLimits derive_limits(const DetectorOptions& o,
         l.min_points,
         static_cast<int>(std::ceil(o.validation.min_returns_per_cell *
                                    static_cast<float>(fam.total_width * fam.total_width))));
+    l.min_track_points = std::min(
+        l.min_track_points,
+        static_cast<int>(std::ceil(o.validation.track_returns_per_cell *
+                                   static_cast<float>(fam.total_width * fam.total_width))));
     psi = std::min(psi, 2 * (fam.payload_width() + 2));
   }
+  l.min_track_points = std::min(l.min_track_points, l.min_points);
+  l.psi = psi;
   l.min_boundary_points = l.min_track_boundary_points = psi;
   if (!dictionaries.empty()) {
     l.min_boundary_points =
@@ -214,12 +220,14 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
   StageClock clock(out.timing_ms);
   ClusterDiagnostic diag = diagnostic_of(b.clusters[c]);
   // Every exit: the time to its stage, the reason counted, the points and the diagnostic kept.
-  // A cluster below eq. (6)'s bound but above the tracks' is looked at to the end for a track
-  // (Candidate::track_only); whatever the later stages say, eq. (6) is why it is no detection.
+  // A cluster below eq. (3)'s or eq. (6)'s bound but above the tracks' is looked at to the end for
+  // a track (Candidate::track_only); whatever the later stages say, the bound it missed is why it
+  // is no detection.
   bool track_only = false;
+  Rejection track_only_reason = Rejection::kFewBoundaryPoints;
   auto finish = [&](Stage s, Rejection r) {
     clock.lap(s);
-    if (track_only) r = Rejection::kFewBoundaryPoints;
+    if (track_only) r = track_only_reason;
     diag.rejection = r;
     if (r != Rejection::kNone) ++out.rejected[static_cast<size_t>(r)];
     if (opt_.keep_cluster_points && !b.points.empty()) {
@@ -251,12 +259,25 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
     if (opt_.keep_cluster_points) features_as_points(scan, b.features, members, b.points);
     return finish(Stage::kClustering, r);
   }
-  r = check_point_counts(b.points, limits_.min_points, limits_.board_max, res, opt_.validation);
+  // The tracks' bounds (issue 33's far edge): eq. (3) with track_returns_per_cell, and eq. (6)
+  // scaled to the points where eq. (5) can fire (track_boundary_bound) when the track tier is
+  // on; a cluster between them and the detection bounds is evidence for a track only.
+  r = check_point_counts(b.points, limits_.min_track_points, limits_.board_max, res,
+                         opt_.validation);
   if (r != Rejection::kNone) return finish(Stage::kValidation, r);
   diag.boundary_points = count_boundary_points(b.points, opt_.validation);
-  if (diag.boundary_points < limits_.min_track_boundary_points)
+  const int track_bound = limits_.min_track_boundary_points < limits_.min_boundary_points
+                              ? track_boundary_bound(testable_points(b.points, opt_.validation),
+                                                     limits_.psi, limits_.min_track_boundary_points)
+                              : limits_.min_track_boundary_points;
+  if (diag.boundary_points < track_bound)
     return finish(Stage::kValidation, Rejection::kFewBoundaryPoints);
-  track_only = diag.boundary_points < limits_.min_boundary_points;
+  if (static_cast<int>(b.points.size()) < limits_.min_points) {
+    track_only = true;
+    track_only_reason = Rejection::kTooFewPoints;
+  } else {
+    track_only = diag.boundary_points < limits_.min_boundary_points;
+  }
   clock.lap(Stage::kValidation);
 
   // Sec. IV-C: the plane and its outlier ratio kappa. Posts and poles above or below the tag are
@@ -355,6 +376,7 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
       add_candidate(dec, frame.center, frame.undecoded, t, points, fit.cost, diag.coverage, out);
   Candidate& candidate = out.candidates[static_cast<size_t>(diag.candidate)];
   candidate.track_only = track_only;
+  if (dec.shift_searched) candidate.unseen_axis = unseen.normalized();
   const FiringTimes times = firing_times(b.points, scan, frame.center);
   candidate.time_first_s = times.first_s;
   candidate.time_center_s = times.center_s;

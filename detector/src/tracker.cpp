@@ -12,6 +12,7 @@
 #include <string_view>
 #include <type_traits>
 
+#include "lidartag/detector/fused_grid.hpp"
 #include "lidartag/detector/tag_family.hpp"
 
 namespace lidartag::detector {
@@ -52,6 +53,13 @@ Eigen::Matrix3d quarter_turn(int q) {
   return Eigen::AngleAxisd(q * std::numbers::pi / 2, Eigen::Vector3d::UnitX()).toRotationMatrix();
 }
 
+// A square-mounted tag's track searches where the tag sits along its unseen axis over the votes of
+// every rotation: kShifts grids of cell votes, grid g shifted by (g - kCentre) quarter cells along
+// that axis from the track's pose (a cell either way, as decoding searches one rotation). Grid
+// kCentre is the track's pose itself, the only one of a track whose tags were seen on every side.
+constexpr int kShifts = 9;
+constexpr int kCentre = kShifts / 2;
+
 }  // namespace
 
 namespace {
@@ -81,7 +89,13 @@ struct Tracker::Track {
   // scores. Per cell of the marker in the track's frame: summed votes (+1 white, -1 black) of the
   // points well inside it, and their number.
   std::vector<double> score_sum;
-  std::vector<float> votes, counts;
+  std::vector<float> votes, counts;  // kShifts grids of W x W cells (kCentre unshifted)
+  // The axis of the track's frame along which its tag's place is searched (1: y, 2: z; 0: none,
+  // every side seen), from its first candidate whose shift decoding searched; the extent of the
+  // voted points along it (track frame, metres), and the grid that leads.
+  int axis = 0;
+  double lo = 0.0, hi = 0.0;
+  int shift = kCentre;
   // Over the rotations in which the families not configured were decoded: their best score and
   // the configured family's best score, summed, and the number of those rotations.
   double other_sum = 0.0, own_sum = 0.0;
@@ -96,6 +110,16 @@ struct Tracker::Track {
   Eigen::Quaterniond ref_frame = Eigen::Quaterniond::Identity();
   Motion motion;
   bool moving = false;
+  // The same window in the odometry frame, where the ego-motion placed its candidates
+  // (odometry[i] valid when placed[i], of odometry frame segment[i]); its model, valid when every
+  // pose of the window is placed in one frame, and the sensor's pose at the newest candidate.
+  std::vector<TimedPose> odometry;
+  std::vector<uint8_t> placed;
+  std::vector<uint32_t> segment;
+  bool odom_valid = false;
+  TimedPose odom_ref;
+  Motion odom_motion;
+  EgoPose ego_now;
   // The size check: measured sizes of its candidates, summed, and how many.
   double size_sum = 0.0;
   int size_count = 0;
@@ -129,17 +153,23 @@ Tracker::Tracker(TrackerOptions options, const DetectorOptions& detector)
   }
   tracks_.resize(static_cast<size_t>(opt_.max_tracks));
   scores_.reserve(static_cast<size_t>(most));
+  best_.reserve(static_cast<size_t>(most));
+  best_grid_.reserve(static_cast<size_t>(most));
   values_.reserve(static_cast<size_t>(cells));
   tables_.reserve(static_cast<size_t>(cells / 8 + 1) * 256);
   for (Track& t : tracks_) {
     t.score_sum.assign(static_cast<size_t>(most), 0.0);
-    t.votes.assign(static_cast<size_t>(cells), 0.0f);
-    t.counts.assign(static_cast<size_t>(cells), 0.0f);
+    t.votes.assign(static_cast<size_t>(kShifts * cells), 0.0f);
+    t.counts.assign(static_cast<size_t>(kShifts * cells), 0.0f);
     t.window.resize(static_cast<size_t>(opt_.window));
+    t.odometry.resize(static_cast<size_t>(opt_.window));
+    t.placed.assign(static_cast<size_t>(opt_.window), 0);
+    t.segment.assign(static_cast<size_t>(opt_.window), 0);
   }
   ordered_.reserve(static_cast<size_t>(opt_.window));
   pairs_.reserve(64);
   assigned_.reserve(64);
+  placed_.reserve(64);
 }
 
 Tracker::~Tracker() = default;
@@ -165,14 +195,17 @@ double aligned_angle(const Eigen::Matrix3d& ref, const Eigen::Matrix3d& frame, i
 
 }  // namespace
 
-void Tracker::update(const ScanResult& result, int64_t stamp_ns, TrackerResult& out) noexcept {
+void Tracker::update(const ScanResult& result, int64_t stamp_ns, TrackerResult& out,
+                     const EgoMotion* ego) noexcept {
   const auto t0 = std::chrono::steady_clock::now();
   out.tags.clear();
   out.seen.clear();
   out.tracks = out.confirmed_tracks = 0;
   out.truncated = false;
+  out.ego_placed = out.ego_missing = 0;
+  out.ego_last_miss = EgoLookup::kOk;
   try {
-    track(result, stamp_ns, out);
+    track(result, stamp_ns, out, ego);
   } catch (...) {
     // Only allocation failure can get here (the buffers grow to the scene): the report of this
     // rotation is incomplete and says so.
@@ -182,7 +215,8 @@ void Tracker::update(const ScanResult& result, int64_t stamp_ns, TrackerResult& 
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
-void Tracker::track(const ScanResult& result, int64_t stamp_ns, TrackerResult& out) {
+void Tracker::track(const ScanResult& result, int64_t stamp_ns, TrackerResult& out,
+                    const EgoMotion* ego) {
   if (have_stamp_ && stamp_ns < last_stamp_ns_) reset();
   if (!have_stamp_) epoch_ns_ = stamp_ns;
   have_stamp_ = true;
@@ -205,15 +239,49 @@ void Tracker::track(const ScanResult& result, int64_t stamp_ns, TrackerResult& o
   const auto& cands = result.candidates;
   pairs_.clear();
   assigned_.assign(cands.size(), -1);
+  // Each candidate in the odometry frame, at its own time, where the ego-motion has a pose.
+  placed_.assign(cands.size(), Placed{});
+  for (size_t c = 0; c < cands.size() && ego != nullptr; ++c) {
+    const Candidate& cand = cands[c];
+    if (evidence(cand, result) == nullptr) continue;
+    // Its firing time after the scan's stamp (a rotation lasts well under a second; anything
+    // else is no time and takes the stamp's).
+    const double dt = std::abs(cand.time_center_s) < 10.0 ? cand.time_center_s : 0.0;
+    Placed& p = placed_[c];
+    const EgoLookup found = ego->at(stamp_ns + static_cast<int64_t>(std::llround(dt * 1e9)), p.ego);
+    if (found != EgoLookup::kOk) {
+      ++out.ego_missing;
+      out.ego_last_miss = found;
+      continue;
+    }
+    ++out.ego_placed;
+    p.ok = true;
+    p.position = p.ego.orientation * cand.position + p.ego.position;
+    p.frame = p.ego.orientation.toRotationMatrix() *
+              cand.undecoded_orientation.normalized().toRotationMatrix();
+  }
   for (size_t c = 0; c < cands.size(); ++c) {
     const Candidate& cand = cands[c];
     if (evidence(cand, result) == nullptr) continue;
     const Eigen::Matrix3d frame = cand.undecoded_orientation.normalized().toRotationMatrix();
     const double t_c = time_of(cand, stamp_ns);
+    const Placed& pl = placed_[c];
     for (size_t k = 0; k < tracks_.size(); ++k) {
       const Track& t = tracks_[k];
       if (!t.live || t.family != cand.family_index || std::abs(t.size_m - cand.size_m) > 1e-9)
         continue;
+      if (pl.ok && t.odom_valid && t.ego_now.segment == pl.ego.segment) {
+        // Both in one odometry frame: the track's model there (a static tag stands still).
+        const TimedPose at = predict(t.odom_ref, t.odom_motion, t_c - t.odom_ref.t_s);
+        const double d = (pl.position - at.position).norm();
+        if (d > opt_.max_distance_m) continue;
+        int delta = 0;
+        const double angle = aligned_angle(at.frame.toRotationMatrix(), pl.frame, delta);
+        if (angle > opt_.max_angle_deg * kDeg) continue;
+        pairs_.push_back({d / opt_.max_distance_m + angle / (opt_.max_angle_deg * kDeg),
+                          static_cast<int>(c), static_cast<int>(k), delta});
+        continue;
+      }
       // A track seen once has no motion of its own: the other tags' when they show it, else
       // gates as wide as the sensor's motion allows.
       const Motion& m = t.window_count == 1 && fleet_.known ? fleet_ : t.motion;
@@ -319,6 +387,9 @@ void Tracker::start(Track& t, const Candidate& c) {
   std::fill(t.score_sum.begin(), t.score_sum.begin() + static_cast<std::ptrdiff_t>(n), 0.0);
   std::fill(t.votes.begin(), t.votes.end(), 0.0f);
   std::fill(t.counts.begin(), t.counts.end(), 0.0f);
+  t.axis = 0;
+  t.lo = t.hi = 0.0;
+  t.shift = kCentre;
   t.other_sum = t.own_sum = 0.0;
   t.other_count = 0;
   t.window_count = t.window_next = 0;
@@ -326,6 +397,7 @@ void Tracker::start(Track& t, const Candidate& c) {
   t.ref_frame = c.undecoded_orientation.normalized();
   t.motion = {};
   t.moving = false;
+  t.odom_valid = false;
   t.size_sum = 0.0;
   t.size_count = 0;
   t.leader = -1;
@@ -344,6 +416,14 @@ void Tracker::add(Track& t, const Candidate& c, const ScanResult& result, int64_
   t.window[w] = {time_of(c, stamp_ns), c.position,
                  Eigen::Quaterniond(c.undecoded_orientation.normalized().toRotationMatrix() *
                                     quarter_turn(t.delta))};
+  const Placed& pl = placed_[static_cast<size_t>(&c - result.candidates.data())];
+  t.placed[w] = pl.ok ? 1 : 0;
+  if (pl.ok) {
+    t.odometry[w] = {t.window[w].t_s, pl.position,
+                     Eigen::Quaterniond(pl.frame * quarter_turn(t.delta)).normalized()};
+    t.segment[w] = pl.ego.segment;
+    t.ego_now = pl.ego;
+  }
   t.window_next = (t.window_next + 1) % opt_.window;
   t.window_count = std::min(t.window_count + 1, opt_.window);
   ordered_.clear();
@@ -361,6 +441,22 @@ void Tracker::add(Track& t, const Candidate& c, const ScanResult& result, int64_
   t.moving = fit.moving;
   t.position_std = fit.position_std_m;
   t.angle_std_deg = fit.angle_std_deg;
+  // In the odometry frame, when the whole window is in one: a static tag's mean (or its own
+  // motion, a tag carried), the sensor's motion taken out by the ego-motion.
+  t.odom_valid = pl.ok;
+  ordered_.clear();
+  for (int i = t.window_count; i > 0 && t.odom_valid; --i) {
+    const auto k = static_cast<size_t>((t.window_next - i + opt_.window) % opt_.window);
+    t.odom_valid = t.placed[k] != 0 && t.segment[k] == pl.ego.segment;
+    ordered_.push_back(t.odometry[k]);
+  }
+  if (t.odom_valid) {
+    const MotionFit odom = fit_motion(ordered_, Motion{});
+    t.odom_ref = odom.pose;
+    t.odom_motion = odom.motion;
+    t.position_std = odom.position_std_m;
+    t.angle_std_deg = odom.angle_std_deg;
+  }
   // Then the evidence, voted in the window's frame at this candidate's time. A track-only
   // candidate (too few boundary points for a detection of its own, eq. (6)) is evidence like any
   // other: the track's own gates decide.
@@ -385,41 +481,90 @@ void Tracker::add_evidence(Track& t, const Candidate& c, const ScanResult& resul
   // Cell votes: the points decoding read, voted again in the track's mean frame (a rotation's own
   // pose scatters by 4-12 mm and 0.4-1.4 degrees at 10 m on a VLP-16, the mean of the window by a
   // few millimetres and tenths of a degree, and the cells crossed near their borders are the ones
-  // that tell codes apart there). None from a cluster whose position along an unseen axis was
-  // searched by decoding: its votes would agree with the decoder by construction.
+  // that tell codes apart there). A cluster whose place along an unseen axis decoding searched (a
+  // square mount: the rings run along its top and bottom edges) was placed where its best code
+  // fits: its votes at that place agree with the decoder by construction. Its track searches
+  // again, as decoding does for one rotation, over the votes of every rotation: every grid of
+  // kShifts along that axis, where the points stay inside the tag, and the margin is taken
+  // against the best other function at any of them.
   const int W = fam.dict.width();
-  if (!c.shift_searched) {
-    const Eigen::Matrix3d u = c.undecoded_orientation.normalized().toRotationMatrix();
-    const Eigen::Matrix3d to_track = t.ref_frame.toRotationMatrix().transpose();
-    const Eigen::Vector3d offset = to_track * (c.position - t.ref_position);
-    const Eigen::Matrix3d m = to_track * u;
+  const auto cells = static_cast<size_t>(W * W);
+  const double step = t.size_m / W / 4.0;
+  // The track's frame and the candidate's pose, both in the odometry frame when the track is
+  // there, else in the sensor's.
+  const Placed& pl = placed_[static_cast<size_t>(&c - result.candidates.data())];
+  const bool odom = t.odom_valid && pl.ok;
+  const Eigen::Matrix3d to_track =
+      (odom ? t.odom_ref.frame : t.ref_frame).toRotationMatrix().transpose();
+  const Eigen::Matrix3d u =
+      odom ? pl.frame : c.undecoded_orientation.normalized().toRotationMatrix();
+  const Eigen::Vector3d offset =
+      to_track * (odom ? pl.position - t.odom_ref.position : c.position - t.ref_position);
+  const Eigen::Matrix3d m = to_track * u;
+  if (c.shift_searched && t.axis == 0 && c.unseen_axis.allFinite() &&
+      c.unseen_axis.squaredNorm() > 0.25) {
+    const Eigen::Vector3d a =
+        m * c.undecoded_orientation.normalized().toRotationMatrix().transpose() * c.unseen_axis;
+    t.axis = std::abs(a.y()) >= std::abs(a.z()) ? 1 : 2;
+    t.lo = std::numeric_limits<double>::infinity();
+    t.hi = -t.lo;
+  }
+  const int first_grid = t.axis == 0 ? kCentre : 0, last_grid = t.axis == 0 ? kCentre : kShifts - 1;
+  {
     for (const VotePoint& p : result.vote_points_of(c)) {
       const Eigen::Vector3d q = m * Eigen::Vector3d(p.x, p.y, p.z) + offset;
-      const int i = vote_cell(q.y() / t.size_m, q.z() / t.size_m, W, vote_inset_);
-      if (i < 0) continue;
-      t.votes[static_cast<size_t>(i)] += point_vote(p.label);
-      t.counts[static_cast<size_t>(i)] += 1.0f;
+      if (t.axis != 0) {
+        t.lo = std::min(t.lo, q[t.axis]);
+        t.hi = std::max(t.hi, q[t.axis]);
+      }
+      const float vote = point_vote(p.label);
+      for (int g = first_grid; g <= last_grid; ++g) {
+        const double sh = (g - kCentre) * step;
+        const double y = q.y() - (t.axis == 1 ? sh : 0.0), z = q.z() - (t.axis == 2 ? sh : 0.0);
+        const int i = vote_cell(y / t.size_m, z / t.size_m, W, vote_inset_);
+        if (i < 0) continue;
+        const size_t k = static_cast<size_t>(g) * cells + static_cast<size_t>(i);
+        t.votes[k] += vote;
+        t.counts[k] += 1.0f;
+      }
     }
   }
   // The decision: every function scored on the cells that tell functions apart, each cell's votes
-  // averaged (a cell with fewer than full_cell_votes votes counts proportionally less); the
-  // margin is in cells: the leading function beats the best other one on that many cells.
+  // averaged (a cell with fewer than full_cell_votes votes counts proportionally less), in each
+  // grid whose shift keeps the points inside the tag (and the track's pose); each function's best
+  // grid. The margin is in cells: the leading function beats the best other one on that many.
   const auto& vary = fam.dict.varying_cells();
   values_.resize(vary.size());
   const auto full = static_cast<float>(opt_.full_cell_votes);
-  for (size_t k = 0; k < vary.size(); ++k) {
-    const auto i = static_cast<size_t>(vary[k]);
-    values_[k] = t.votes[i] / std::max(t.counts[i], full);
+  best_.assign(static_cast<size_t>(n), -1e30f);
+  best_grid_.assign(static_cast<size_t>(n), kCentre);
+  for (int g = first_grid; g <= last_grid; ++g) {
+    const double sh = (g - kCentre) * step, slack = step / 2;
+    if (g != kCentre && (sh < t.hi - t.size_m / 2 - slack || sh > t.lo + t.size_m / 2 + slack))
+      continue;
+    const size_t base = static_cast<size_t>(g) * cells;
+    for (size_t k = 0; k < vary.size(); ++k) {
+      const auto i = base + static_cast<size_t>(vary[k]);
+      values_[k] = t.votes[i] / std::max(t.counts[i], full);
+    }
+    score_functions(fam.dict, values_, tables_, scores_);
+    for (int f = 0; f < n; ++f) {
+      const auto k = static_cast<size_t>(f);
+      if (scores_[k] > best_[k]) {
+        best_[k] = scores_[k];
+        best_grid_[k] = g;
+      }
+    }
   }
-  score_functions(fam.dict, values_, tables_, scores_);
   int lead = 0;
   for (int f = 1; f < n; ++f)
-    if (scores_[static_cast<size_t>(f)] > scores_[static_cast<size_t>(lead)]) lead = f;
+    if (best_[static_cast<size_t>(f)] > best_[static_cast<size_t>(lead)]) lead = f;
   float rival = -1e30f;
   for (int f = 0; f < n; ++f)
-    if (f != lead) rival = std::max(rival, scores_[static_cast<size_t>(f)]);
+    if (f != lead) rival = std::max(rival, best_[static_cast<size_t>(f)]);
   t.leader = lead;
-  t.margin = n > 1 ? (scores_[static_cast<size_t>(lead)] - rival) / 2.0 : 1e9;
+  t.shift = best_grid_[static_cast<size_t>(lead)];
+  t.margin = n > 1 ? (best_[static_cast<size_t>(lead)] - rival) / 2.0 : 1e9;
   t.mean_score = t.score_sum[static_cast<size_t>(lead)] / t.rotations;
   // Another family fitting better on average makes it that family's tag (as the detector's
   // decode/other_family for one rotation), best against best as there: the leading function's own
@@ -427,8 +572,13 @@ void Tracker::add_evidence(Track& t, const Candidate& c, const ScanResult& resul
   // would beat it by that alone (a VLP-32C's 1.2 m tag16h5 at 24 m and 45 degrees, whose codes
   // tag16h6 shares, was never confirmed).
   const bool other_better = t.other_count > 0 && t.other_sum > t.own_sum + 1e-6 * t.other_count;
-  t.confirmed = t.rotations >= opt_.min_rotations && t.margin >= opt_.min_margin_cells &&
-                t.mean_score >= min_score_ && !other_better;
+  // The score: the rotations' mean, or the fused grid's under a stricter margin (the far edge,
+  // where each rotation's own fit scores low: fused_grid_confirms).
+  const bool scored =
+      t.mean_score >= min_score_ || fused_grid_confirms(fam.dict, lead, t.votes, t.counts,
+                                                        opt_.full_cell_votes, t.margin, min_score_);
+  t.confirmed = t.rotations >= opt_.min_rotations && t.margin >= opt_.min_margin_cells && scored &&
+                !other_better;
 }
 
 void Tracker::fill_info(const Track& t, TrackInfo& info) const {
@@ -439,8 +589,24 @@ void Tracker::fill_info(const Track& t, TrackInfo& info) const {
   info.id = t.leader / 4;
   info.margin_cells = t.margin;
   info.mean_score = t.mean_score;
-  info.position = t.ref_position;
+  // The track's pose, moved along the searched axis to the leading grid.
+  Eigen::Vector3d shift = Eigen::Vector3d::Zero();
+  if (t.axis != 0)
+    shift[t.axis] = (t.shift - kCentre) * t.size_m /
+                    families_[static_cast<size_t>(t.family)].dict.width() / 4.0;
+  info.position = t.ref_position + t.ref_frame * shift;
   Eigen::Quaterniond o(t.ref_frame.toRotationMatrix() * quarter_turn(-(t.leader & 3)));
+  info.odometry = t.odom_valid;
+  if (t.odom_valid) {
+    // The odometry frame's pose, seen from the sensor at the newest candidate's time.
+    info.odometry_position = t.odom_ref.position + t.odom_ref.frame * shift;
+    Eigen::Quaterniond w(t.odom_ref.frame.toRotationMatrix() * quarter_turn(-(t.leader & 3)));
+    if (w.w() < 0) w.coeffs() *= -1.0;
+    info.odometry_orientation = w;
+    const Eigen::Quaterniond back = t.ego_now.orientation.conjugate();
+    info.position = back * (info.odometry_position - t.ego_now.position);
+    o = back * w;
+  }
   if (o.w() < 0) o.coeffs() *= -1.0;
   info.orientation = o;
   info.position_std_m = t.position_std;

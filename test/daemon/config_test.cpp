@@ -490,3 +490,49 @@ TEST(Config, TrackerBadValuesNameKeyValueAndRule) {
 
 }  // namespace
 }  // namespace lidartag::daemon
+
+namespace lidartag::daemon {
+namespace {
+
+// The ego-motion input (issue 33): off by default; its keys come from EgoMotionConfig and the
+// detector's rule table of EgoMotionOptions.
+TEST(Config, EgoMotionIsOffByDefaultAndMappedWithItsRules) {
+  const size_t settings = count_table<detector::EgoMotionOptions>([](auto& v, auto& o) {
+                            detector::visit_ego_motion_options(v, o);
+                          }).settings;
+  EXPECT_EQ(field_count<detector::EgoMotionOptions>(), settings);
+  // The buffer's keys, the channel, URL, stale_s and the six of the mount.
+  EXPECT_EQ(printed_keys("ego_motion."), settings + 3 + 6);
+  EXPECT_TRUE(DaemonOptions{}.ego_motion.channel.empty());
+  const DaemonOptions o = parse_config(
+      "ego_motion: {channel: ROBOT_ODOM, max_gap_s: 0.5, stale_s: 2, sensor_in_body: {z: 1.2, "
+      "yaw_deg: 90}}");
+  EXPECT_EQ(o.ego_motion.channel, "ROBOT_ODOM");
+  EXPECT_EQ(o.ego_motion.buffer.max_gap_s, 0.5);
+  EXPECT_EQ(o.ego_motion.stale_s, 2.0);
+  EXPECT_EQ(o.ego_motion.z, 1.2);
+  EXPECT_EQ(o.ego_motion.yaw_deg, 90.0);
+  EXPECT_EQ(print_config(parse_config(print_config(o))), print_config(o));
+  const std::vector<BadCase> cases = {
+      {"ego_motion: {capacity: 1}", "ego_motion.capacity", "1", "must be in [2, 1000000]"},
+      {"ego_motion: {max_gap_s: 0}", "ego_motion.max_gap_s", "0", "must be in (0, 60]"},
+      {"ego_motion: {stale_s: 0}", "ego_motion.stale_s", "0", "must be in [0.001, 3600]"},
+      {"ego_motion: {sensor_in_body: {roll_deg: 400}}", "ego_motion.sensor_in_body.roll_deg", "400",
+       "must be in [-360, 360]"},
+      {"ego_motion: {channel: \"A\\tB\"}", "ego_motion.channel", "A\tB", "printable ASCII"},
+  };
+  for (const auto& c : cases) {
+    SCOPED_TRACE(c.yaml);
+    try {
+      (void)parse_config(c.yaml);
+      ADD_FAILURE() << "accepted";
+    } catch (const ConfigError& e) {
+      EXPECT_EQ(e.key(), c.key);
+      EXPECT_EQ(e.value(), c.value);
+      EXPECT_NE(e.reason().find(c.reason_part), std::string::npos) << e.reason();
+    }
+  }
+}
+
+}  // namespace
+}  // namespace lidartag::daemon

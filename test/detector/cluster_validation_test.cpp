@@ -112,6 +112,52 @@ TEST(ClusterValidation, PayloadBoundaryPointsNeedContrast) {
   EXPECT_EQ(count_boundary_points(flat.points, ValidationOptions{}), 0);
 }
 
+// eq. (5) can fire only at points with gi_ell points of their ring on both sides.
+TEST(ClusterValidation, TestablePointsAreThoseWithNeighboursOnBothSidesOfTheirRing) {
+  std::vector<ClusterPoint> points;
+  for (int ring : {3, 4, 5})
+    for (int c = 0; c < (ring == 3 ? 5 : ring == 4 ? 2 : 10); ++c) {
+      ClusterPoint& p = points.emplace_back();
+      p.ring = ring;
+      p.col = c;
+    }
+  ValidationOptions o;
+  EXPECT_EQ(testable_points(points, o), 3 + 0 + 8);
+  o.gi_ell = 2;
+  EXPECT_EQ(testable_points(points, o), 1 + 0 + 6);
+  EXPECT_EQ(testable_points({}, o), 0);
+}
+
+// The tracks' boundary bound depends on what the rings crossing the cluster can show: a
+// well-sampled cluster keeps track_boundary_scale's bound, a sparse one (few returns per ring)
+// asks for one transition per kTestablePerStep testable points, never below psi / 4.
+TEST(ClusterValidation, TheTracksBoundaryBoundFollowsTheRingsCrossingTheCluster) {
+  const int psi = 12, track = 9;  // tag16h5: 2 (d + 2), and 0.75 of it
+  EXPECT_EQ(track_boundary_bound(500, psi, track), track);
+  EXPECT_EQ(track_boundary_bound(30, psi, track), 5);  // 10 rings of 5 returns: 3 testable each
+  EXPECT_EQ(track_boundary_bound(0, psi, track), 3);
+  EXPECT_EQ(track_boundary_bound(-4, psi, track), 3);
+  // A VLP-32C's 1.2 m tag at 6 m keeps the bound, and shows more transitions than it.
+  const Filled near = fill_tag(6, 220, 20);
+  EXPECT_EQ(track_boundary_bound(testable_points(near.points, {}), psi, track), track);
+  EXPECT_GE(count_boundary_points(near.points, {}), track);
+  // Six rings of five returns across a turned tag at the far edge (white, black, black, white,
+  // white): one transition each, below the well-sampled bound, at the sparse one.
+  std::vector<ClusterPoint> far;
+  for (int ring = 0; ring < 6; ++ring)
+    for (const float intensity : {220.0f, 20.0f, 20.0f, 220.0f, 220.0f}) {
+      ClusterPoint& p = far.emplace_back();
+      p.ring = ring;
+      p.intensity = intensity;
+    }
+  const int shown = count_boundary_points(far, {});
+  EXPECT_EQ(shown, 6);
+  EXPECT_LT(shown, track);
+  const int bound = track_boundary_bound(testable_points(far, {}), psi, track);
+  EXPECT_EQ(bound, 3);
+  EXPECT_GE(shown, bound);
+}
+
 TEST(ClusterValidation, NarrowRingsAboveAndBelowAreTrimmed) {
   // Rings 0-2: a 5 cm post; 3-6: the 1 m board, ring 5 crossing it narrowly at a gap; 7: a lamp.
   std::vector<ClusterPoint> pts;

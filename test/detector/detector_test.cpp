@@ -367,6 +367,38 @@ TEST(Detector, ALargeClusterIsPolishedOnEveryPointOnceItScoresAsATag) {
   }
 }
 
+// Eq. (3)'s bound above both tags' points, the tracks' (track_returns_per_cell) below: the same
+// candidates, track-only, their clusters counted as validation/too_few_points; the tracks' bound
+// at eq. (3)'s: those clusters stop at validation.
+TEST(Detector, ClustersBelowThePointBoundButAboveTheTracksAreTrackOnlyCandidates) {
+  const TwoTags s;
+  const ScanResult res = detect_once(s.scan, s.options);
+  ASSERT_EQ(res.detections.size(), 2u);
+  int most = 0;
+  for (const Candidate& k : res.candidates)
+    if (k.detection >= 0)
+      most = std::max(most, res.diagnostics[static_cast<size_t>(k.cluster)].points);
+  DetectorOptions o = s.options;
+  o.validation.min_returns_per_cell = static_cast<float>(most + 1) / 64.0f;  // tag16h5: 8 x 8
+  o.validation.track_returns_per_cell = 0.5f;
+  const ScanResult weak = detect_once(s.scan, o);
+  EXPECT_TRUE(weak.detections.empty());
+  int track_only = 0;
+  for (const Candidate& k : weak.candidates) {
+    if (!k.track_only || k.rejection != Rejection::kNone) continue;
+    ++track_only;
+    EXPECT_EQ(weak.diagnostics[static_cast<size_t>(k.cluster)].rejection, Rejection::kTooFewPoints);
+    EXPECT_TRUE(std::any_of(res.detections.begin(), res.detections.end(), [&](const Detection& x) {
+      return x.id == k.id && x.position == k.position;
+    }));
+  }
+  EXPECT_EQ(track_only, 2);
+  o.validation.track_returns_per_cell = o.validation.min_returns_per_cell;
+  const ScanResult off = detect_once(s.scan, o);
+  for (const Candidate& k : off.candidates) EXPECT_FALSE(k.track_only);
+  EXPECT_EQ(off.candidates.size() + 2, weak.candidates.size());
+}
+
 TEST(Detector, ClustersBelowTheBoundaryBoundButAboveTheTracksAreTrackOnlyCandidates) {
   const TwoTags s;
   const ScanResult res = detect_once(s.scan, s.options);

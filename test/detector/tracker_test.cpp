@@ -72,6 +72,7 @@ void add(ScanResult& r, const RkhsDictionary& dict, const Cand& c) {
   d.points = 500;
   d.fit_cost = 1.0;
   d.shift_searched = c.shift_searched;
+  if (c.shift_searched) d.unseen_axis = c.frame.col(2);  // the tag's z: a square mount's vertical
   d.track_only = c.track_only;
   d.measured_size_m = c.measured;
   d.first_evidence = static_cast<int>(r.family_evidence.size());
@@ -532,14 +533,41 @@ TEST_F(TrackerTest, OtherFamiliesAreComparedBestAgainstBestInEachRotation) {
   EXPECT_FALSE(out.seen[0].confirmed);
 }
 
-TEST_F(TrackerTest, ClustersWhosePositionWasSearchedByDecodingGiveNoVotes) {
+TEST_F(TrackerTest, ClustersWhosePositionWasSearchedByDecodingAreSearchedAgainOverTheirVotes) {
+  // Decoding placed these candidates half a cell too low along the unseen axis (the tag's z): at
+  // the candidates' own place every point sits on a cell border and votes nowhere. The track
+  // searches the axis over its summed votes, confirms the code half a cell up and reports the
+  // tag near there.
+  const double cell = 1.2 / 8;
   Tracker tracker({}, det_opt);
   Cand c;
   c.shift_searched = true;
-  for (int k = 0; k < 5; ++k) step(tracker, {c});
-  EXPECT_EQ(out.seen[0].rotations, 5);
+  c.tag_at = c.position + facing() * Eigen::Vector3d(0.0, 0.0, cell / 2);
+  for (int k = 0; k < 3; ++k) step(tracker, {c});
+  ASSERT_EQ(out.seen.size(), 1u);
+  EXPECT_EQ(out.seen[0].rotations, 3);
+  EXPECT_EQ(out.seen[0].id, 3);
+  EXPECT_TRUE(out.seen[0].confirmed);
+  EXPECT_GE(out.seen[0].margin_cells, 4.0);
+  // Within the search's step, a quarter cell (the points at cell centres vote alike a quarter
+  // cell either way); the candidates' own place is twice that off.
+  EXPECT_LE((out.seen[0].position - *c.tag_at).norm(), cell / 4 + 1e-6);
+  // Not searched, the same points vote nowhere: no margin, never confirmed.
+  Tracker plain({}, det_opt);
+  c.shift_searched = false;
+  for (int k = 0; k < 5; ++k) step(plain, {c});
   EXPECT_FALSE(out.seen[0].confirmed);
   EXPECT_NEAR(out.seen[0].margin_cells, 0.0, 1e-9);
+  // A searched track whose candidates disagree on the code, each at its own place along the
+  // axis, is confirmed for neither while their evidence is even.
+  Tracker mixed({}, det_opt);
+  Cand a;
+  a.shift_searched = true;
+  Cand b = a;
+  b.code = 9;
+  b.tag_at = b.position + facing() * Eigen::Vector3d(0.0, 0.0, cell / 4);
+  for (int k = 0; k < 6; ++k) step(mixed, {k % 2 == 0 ? a : b});
+  EXPECT_FALSE(out.seen[0].confirmed);
 }
 
 TEST_F(TrackerTest, TrackOnlyCandidatesAreEvidenceButNeverDetectionsOfTheirOwn) {
@@ -625,6 +653,66 @@ TEST_F(TrackerTest, SteadyStateDoesNotAllocate) {
   }
   EXPECT_EQ(testing::heap_allocations() - before, 0);
   EXPECT_EQ(out.tags.size(), 2u);
+}
+
+TEST_F(TrackerTest, WithEgoMotionATagIsAveragedInTheOdometryFrameWithoutAllocating) {
+  // The sensor yaws at 30 deg/s; the tag stands at (6, 0, 0) in the odometry frame, so each
+  // rotation's candidate is there seen from the sensor's pose at the candidate's time.
+  const double w = 30.0 * kPi / 180.0;
+  EgoMotionOptions keep;
+  keep.capacity = 1000;  // the whole test's 7 s at 100 Hz
+  EgoMotion ego(keep);
+  const int64_t start = stamp;
+  auto yaw = [&](int64_t t) {
+    return Eigen::AngleAxisd(w * static_cast<double>(t - start) * 1e-9, Eigen::Vector3d::UnitZ())
+        .toRotationMatrix();
+  };
+  for (int64_t t = start - 50'000'000; t < start + 70 * kPeriod; t += 10'000'000)
+    ASSERT_EQ(ego.add_pose(t, Eigen::Vector3d(0.5, 0.0, 0.0), Eigen::Quaterniond(yaw(t))),
+              EgoSample::kAccepted);
+  const Eigen::Vector3d world(6.0, 0.0, 0.0);
+  Tracker tracker({}, det_opt);
+  auto rotation = [&](int64_t t) {
+    ScanResult r;
+    Cand c;
+    c.frame = yaw(t).transpose() * facing();
+    c.position = yaw(t).transpose() * (world - Eigen::Vector3d(0.5, 0.0, 0.0));
+    add(r, dict, c);
+    return r;
+  };
+  for (int k = 0; k < 5; ++k) {
+    const ScanResult r = rotation(stamp);
+    tracker.update(r, stamp, out, &ego);
+    ASSERT_EQ(out.seen.size(), 1u);
+    EXPECT_EQ(out.seen[0].track_id, 0);
+    EXPECT_EQ(out.ego_placed, 1);
+    EXPECT_TRUE(out.seen[0].odometry);
+    EXPECT_LT((out.seen[0].odometry_position - world).norm(), 1e-9);
+    // Seen from the sensor now: where the candidate is.
+    EXPECT_LT((out.seen[0].position - r.candidates[0].position).norm(), 1e-9);
+    stamp += kPeriod;
+  }
+  EXPECT_TRUE(out.seen[0].confirmed);
+  // Steady state: the same rotations again (their candidates at the same place in the world).
+  std::vector<ScanResult> later;
+  std::vector<int64_t> stamps;
+  for (int k = 0; k < 50; ++k) {
+    later.push_back(rotation(stamp));
+    stamps.push_back(stamp);
+    stamp += kPeriod;
+  }
+  const long before = testing::heap_allocations();
+  for (size_t k = 0; k < later.size(); ++k) tracker.update(later[k], stamps[k], out, &ego);
+  EXPECT_EQ(testing::heap_allocations() - before, 0);
+  ASSERT_EQ(out.seen.size(), 1u);
+  EXPECT_EQ(out.seen[0].track_id, 0);
+  // Two seconds on, past the poses (stale): tracked in the sensor's frame, counted.
+  const ScanResult stale = rotation(stamp + 20 * kPeriod);
+  tracker.update(stale, stamp + 20 * kPeriod, out, &ego);
+  EXPECT_EQ(out.ego_missing, 1);
+  EXPECT_EQ(out.ego_last_miss, EgoLookup::kStale);
+  ASSERT_EQ(out.seen.size(), 1u);
+  EXPECT_FALSE(out.seen[0].odometry);
 }
 
 TEST(TrackerOptionsTest, EveryRuleOfTheTableIsChecked) {

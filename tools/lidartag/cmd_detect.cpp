@@ -27,6 +27,7 @@
 #include "lidartag/driver/io/errors.hpp"
 #include "lidartag/driver/velodyne/io/capture_reader.hpp"
 #include "lidartag/driver/velodyne/io/pcd.hpp"
+#include "lidartag/mcap_output.hpp"
 #include "lidartag/progress.hpp"
 #ifdef LIDARTAG_HAVE_CONFIG
 #include "lidartag/daemon/config.hpp"
@@ -49,6 +50,7 @@ struct DetectArgs {
   std::vector<std::string> families;
   int rings = 0;                // PCD without a ring field and no --model: beams to estimate
   double resolution_deg = 0.2;  // PCD: width of a column
+  McapArgs mcap;                // --mcap: every rotation's cloud and detections for Foxglove
 };
 
 det::DetectorOptions detector_options(const DetectArgs& args) {
@@ -111,8 +113,9 @@ std::string lacked(const det::ClusterDiagnostic& c, const det::Detector& detecto
                    const std::vector<double>& elevation_deg) {
   const auto& o = detector.options();
   if (c.rejection == det::Rejection::kTooFewPoints)
-    return fmt::format("{} points, eq. (3) asks {} for the configured families", c.points,
-                       detector.limits().min_points);
+    return fmt::format(
+        "{} points, eq. (3) asks {} for the configured families ({} as a track's evidence)",
+        c.points, detector.limits().min_points, detector.limits().min_track_points);
   if (c.rejection != det::Rejection::kFewFeatures) return {};
   const int rings = c.max_ring - c.min_ring + 1;
   std::string s =
@@ -455,6 +458,9 @@ int run_detect(const DetectArgs& args) {
   det::TrackerResult tracked;
   Totals totals;
   totals.sizes_m = detector.options().tag_sizes_m;
+  std::optional<McapOutput> mcap;
+  if (!args.mcap.path.empty()) mcap.emplace(args.mcap, args.capture.capture);
+  std::vector<det::Detection> reported;  // what the MCAP file shows: the printed detections
   auto report = [&](const Scan& scan) {
     detector.detect(scan, result);
     Reported rep{&result, nullptr};
@@ -463,11 +469,22 @@ int run_detect(const DetectArgs& args) {
       rep.tracked = &tracked;
     }
     totals.add(rep);
+    std::string json;
+    if (args.json || mcap) json = rotation_json(scan, rep, detector, args.clusters).dump();
     if (args.json) {
-      fmt::print("{}\n", rotation_json(scan, rep, detector, args.clusters).dump());
+      fmt::print("{}\n", json);
       std::fflush(stdout);
     } else {
       print_rotation(scan, rep, detector, args.clusters);
+    }
+    if (mcap) {
+      reported.clear();
+      if (rep.tracked != nullptr) {
+        for (const auto& t : rep.tracked->tags) reported.push_back(t.detection);
+      } else {
+        reported.assign(result.detections.begin(), result.detections.end());
+      }
+      mcap->rotation(scan, reported, json);
     }
   };
 
@@ -498,6 +515,7 @@ int run_detect(const DetectArgs& args) {
       }
       progress.done();
       warn_model_mismatch(reader, args.capture);
+      if (mcap) mcap->close();
       if (!args.json) totals.print();
       if (args.json) totals.print_size_warnings(stderr);
       require_rotations(reader, args.capture, n, totals.skipped, "detects in them");
@@ -510,6 +528,7 @@ int run_detect(const DetectArgs& args) {
     }
     return 0;
   }
+  if (mcap) mcap->close();
   if (!args.json) totals.print();
   if (args.json) totals.print_size_warnings(stderr);
   return 0;
@@ -529,6 +548,11 @@ const Registrar kDetect(
                      "the tracker's options (config/lidartagd.yaml)")
           ->check(CLI::ExistingFile);
       app.add_flag("--json", args->json, "One JSON object per rotation on stdout");
+      app.add_option("--mcap", args->mcap.path,
+                     "Also write every detected rotation to this MCAP file for Foxglove: its "
+                     "cloud, its tags (scene entities and frames) and the --json object "
+                     "(docs/foxglove.md)");
+      add_mcap_options(app, args->mcap);
       app.add_option("--tag-size", args->tag_sizes,
                      "Tag size (full printed marker, white ring included): metres, or with a unit "
                      "(800mm, 80cm, 31.5in); repeat for "

@@ -1,4 +1,5 @@
 // `lidartag dump CAPTURE --out DIR [--organized] [--force]`: one binary PCD per rotation, its
+// (`--format mcap --out FILE`: the clouds in one MCAP file for Foxglove, mcap_output.hpp)
 // stamp in the header (pcd.hpp). Ouster captures (--metadata, or NAME.json beside NAME.pcap): one
 // per frame, destaggered. A bag's PointCloud2 topic: one per cloud.
 #include <fmt/format.h>
@@ -17,6 +18,7 @@
 #include "lidartag/driver/velodyne/io/capture_reader.hpp"
 #include "lidartag/driver/velodyne/io/pcd.hpp"
 #include "lidartag/exit_codes.hpp"
+#include "lidartag/mcap_output.hpp"
 #include "lidartag/progress.hpp"
 
 namespace lidartag::cli {
@@ -33,6 +35,8 @@ struct DumpArgs {
   bool force = false;
   int rings = 0;                // PointCloud2 without a ring field and no --model: beams
   double resolution_deg = 0.2;  // PointCloud2: width of a column
+  std::string format = "pcd";   // pcd: a folder of PCD files; mcap: one MCAP file (--out FILE)
+  McapArgs mcap;
 };
 
 // The files dump writes: rotation_NNNNNN.pcd, NNNNNN the rotation's sequence number (six digits or
@@ -75,9 +79,41 @@ void prepare_output(const DumpArgs& args) {
   }
 }
 
+// --format mcap: the rotations' clouds in one MCAP file (foxglove.PointCloud, docs/foxglove.md).
+template <typename Reader>
+int dump_mcap(const DumpArgs& args, Reader& reader) {
+  std::error_code ec;
+  if (fs::exists(args.out, ec) && !args.force) {
+    throw UsageError(fmt::format("output file '{}' exists; --force replaces it", args.out));
+  }
+  McapArgs mcap = args.mcap;
+  mcap.path = args.out;
+  McapOutput out(mcap, args.capture.capture);
+  Progress progress(fs::file_size(args.capture.capture, ec));
+  size_t written = 0, skipped = 0;
+  while (const Scan* scan = reader.next()) {
+    if (!scan->complete && !args.partial) {
+      ++skipped;
+      continue;
+    }
+    out.rotation(*scan, {}, "", false);
+    ++written;
+    progress.update(capture_bytes_read(reader), fmt::format("{} rotations", written));
+  }
+  progress.done();
+  out.close();
+  warn_model_mismatch(reader, args.capture);
+  fmt::print("wrote {} rotations to {}", written, args.out);
+  if (skipped > 0) fmt::print("; skipped {} incomplete rotations (--partial keeps them)", skipped);
+  fmt::print("\n");
+  require_rotations(reader, args.capture, written, skipped, "writes them");
+  return 0;
+}
+
 // Writes the rotations (Ouster: the frames) of a Velodyne or an Ouster reader.
 template <typename Reader>
 int dump_rotations(const DumpArgs& args, Reader& reader) {
+  if (args.format == "mcap") return dump_mcap(args, reader);
   prepare_output(args);
   std::error_code ec;
   Progress progress(fs::file_size(args.capture.capture, ec));
@@ -105,6 +141,9 @@ int dump_rotations(const DumpArgs& args, Reader& reader) {
 
 int run_dump(const DumpArgs& args) {
   if (is_point_cloud_bag(args.capture)) {  // a bag's PointCloud2 topic: one file per cloud
+    if (args.format != "pcd")
+      throw UsageError("--format " + args.format +
+                       ": a bag's PointCloud2 topic is dumped as PCD files (--format pcd)");
     prepare_output(args);
     dump_bag_clouds(args.capture, args.rings, args.resolution_deg, args.out, args.organized);
     return 0;
@@ -126,8 +165,14 @@ const Registrar kDump(
       app.add_option("--out", args->out,
                      "Output directory (created; must be empty unless --force): one "
                      "rotation_NNNNNN.pcd per rotation, NNNNNN its number (rotation_000001.pcd, "
-                     "...)")
+                     "...); with --format mcap the MCAP file")
           ->required();
+      app.add_option("--format", args->format,
+                     "pcd: one PCD file per rotation; mcap: every rotation's cloud in one MCAP "
+                     "file for Foxglove (docs/foxglove.md)")
+          ->capture_default_str()
+          ->check(CLI::IsMember({"pcd", "mcap"}));
+      add_mcap_options(app, args->mcap);
       app.add_flag("--partial", args->partial,
                    "Also write incomplete rotations (first, last, lossy)");
       app.add_flag("--organized", args->organized,

@@ -51,6 +51,38 @@ std::string model_names() {
   return out;
 }
 
+std::string model_name(const SensorInfo& info) {
+  // "OS-1-128", "OS1-64", "OS-0-32-U1": the digit after "OS" and an optional '-'.
+  std::string line;
+  const std::string& p = info.prod_line;
+  if (p.size() >= 3 && (p[0] == 'O' || p[0] == 'o') && (p[1] == 'S' || p[1] == 's')) {
+    size_t i = 2;
+    if (i < p.size() && p[i] == '-') ++i;
+    if (i < p.size() && p[i] >= '0' && p[i] <= '9') line = p.substr(i, 1);
+  }
+  return "os" + line + "-" + std::to_string(info.pixels_per_column);
+}
+
+bool is_model_name(std::string_view name) {
+  for (const std::string_view line : {"os0-", "os1-", "os2-", "os-"}) {
+    if (name.substr(0, line.size()) != line) continue;
+    const std::string_view beams = name.substr(line.size());
+    return beams == "16" || beams == "32" || beams == "64" || beams == "128";
+  }
+  return false;
+}
+
+bool describes_model(const SensorInfo& info, std::string_view name) {
+  const std::string described = model_name(info);
+  if (described == name) return true;
+  const auto beams = [](std::string_view m) {
+    const size_t dash = m.find('-');
+    return dash == std::string_view::npos ? std::string_view() : m.substr(dash);
+  };
+  const bool unnamed = described.rfind("os-", 0) == 0 || name.substr(0, 3) == "os-";
+  return unnamed && beams(described) == beams(name);
+}
+
 SensorInfo nominal_sensor_info(Model m, int columns, int rate_hz, Profile profile) {
   if ((columns != 512 && columns != 1024 && columns != 2048) || (rate_hz != 10 && rate_hz != 20) ||
       (columns == 2048 && rate_hz != 10))

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "lidartag/detector/detector.hpp"
+#include "lidartag/detector/ego_motion.hpp"
 #include "lidartag/detector/tracker.hpp"
 #include "lidartag/driver/scan_batcher.hpp"
 #include "lidartag/driver/velodyne/decoder.hpp"
@@ -70,7 +71,12 @@ struct SourceOptions {
   int receive_buffer_bytes = 8 * 1024 * 1024;
   std::string interface;     // interface: e.g. "eth0"
   bool promiscuous = false;  // interface: needed only on a shared segment
-  std::string file;          // pcap: the capture; lcm: the LCM log
+  // pcap: the capture (pcap, pcapng, or a ROS 1 bag, ROS 2 bag folder or MCAP file, recognised
+  // by content); lcm: the LCM log
+  std::string file;
+  // pcap (a bag): the LiDAR topic; empty: the bag's one LiDAR topic (an error lists them when
+  // there are several).
+  std::string topic;
   // pcap, lcm: replay speed, 1 = the recorded pace, 2 = twice as fast; 0 = as fast as possible.
   double rate = 1.0;
   bool loop = false;  // pcap, lcm: start again at the end
@@ -85,6 +91,13 @@ struct SensorOptions {
   std::string channel_prefix;         // prepended to every channel of this sensor; unique
   // Model to decode as; empty ("auto"): the product byte, checked against the packets' timing.
   std::optional<velodyne::Model> model;
+  // An Ouster model name of the same `model` key ("os1-128", "os0-32"): the metadata must describe
+  // such a sensor. Empty: none configured (then `model` may name a Velodyne model).
+  std::string ouster_model;
+  // An Ouster sensor's metadata JSON (what the sensor reports; docs/ouster.md). Given, the sensor
+  // is an Ouster and its ports default to 7502 (lidar) and 7503 (IMU). Empty: a Velodyne, or for
+  // a replay whatever the file holds (NAME.json beside NAME.pcap, a bag's metadata topic).
+  std::string metadata;
   // Calibration file (ros-drivers YAML or VeloView XML); empty: the model's built-in table.
   std::string calibration;
   driver::BatcherOptions batcher;    // cut azimuth, flush timeout, jump threshold
@@ -182,11 +195,31 @@ inline detector::DetectorOptions daemon_detector_defaults() {
   return options;
 }
 
+// The robot's own motion for the trackers (issue 33; docs/tracking.md, "Ego-motion"): poses or
+// twists of a body frame in an odometry frame, lidartag.ego_motion_t on an LCM channel. Each tag
+// candidate is placed in the odometry frame at its own time; without messages (none yet, gaps,
+// stale) the trackers follow tags with their own motion model.
+struct EgoMotionConfig {
+  // The channel (not prefixed per sensor). Default empty: no ego-motion input.
+  std::string channel;
+  // LCM URL to receive it on. Default empty: lcm.url.
+  std::string url;
+  // The samples kept and interpolated (capacity, max_gap_s, max_extrapolation_s).
+  detector::EgoMotionOptions buffer;
+  // No message for longer than this (host time): the input is stale (a health note, logged).
+  // Seconds, default 0.5.
+  double stale_s = 0.5;
+  // The LiDAR's pose on the body frame the messages move (sensor frame -> body frame): metres,
+  // and degrees R = Rz(yaw) Ry(pitch) Rx(roll). Default: the LiDAR is the body.
+  double x = 0, y = 0, z = 0, roll_deg = 0, pitch_deg = 0, yaw_deg = 0;
+};
+
 struct DaemonOptions {
   std::vector<SensorOptions> sensors = {SensorOptions{}};
   detector::DetectorOptions detector = daemon_detector_defaults();
   // Evidence over rotations (one tracker per sensor, fed in rotation order).
   detector::TrackerOptions tracker;
+  EgoMotionConfig ego_motion;
   LcmOptions lcm;
   PipelineOptions pipeline;
   StatusOptions status;
@@ -195,6 +228,9 @@ struct DaemonOptions {
   LoggingOptions logging;
   // Every raw packet received by the sources is also written to this pcap; empty: none.
   std::string record_pcap;
+  // lidartagd --mcap: what is published, also written to this MCAP file (mcap_recorder.hpp);
+  // empty: none. The command line only (not a configuration key).
+  std::string mcap;
 };
 
 // Parses a YAML document (`origin` names it in messages). `overrides` are "dotted.key=value" (a

@@ -12,8 +12,10 @@
 #include <vector>
 
 #include "lidartag/daemon/config.hpp"
+#include "lidartag/daemon/ego_motion_input.hpp"
 #include "lidartag/daemon/lcm_bus.hpp"
 #include "lidartag/daemon/logging.hpp"
+#include "lidartag/daemon/mcap_recorder.hpp"
 #include "lidartag/daemon/notifier.hpp"
 #include "lidartag/daemon/sensor_pipeline.hpp"
 #include "lidartag/status_t.hpp"
@@ -51,6 +53,7 @@ class Daemon {
   // For main's exit status (daemon-setup): messages not delivered, an incomplete --record file.
   const LcmBus& bus() const { return *bus_; }
   const PcapRecorder* recorder() const { return recorder_.get(); }
+  const McapRecorder* mcap() const { return mcap_.get(); }
   // Sources that ended before their end (a replay cut short by a corrupt record): data lost.
   size_t sources_cut_short() const;
 
@@ -65,9 +68,11 @@ class Daemon {
   int workers_;
   Notifier notifier_;
   std::unique_ptr<LcmBus> bus_;
+  std::unique_ptr<EgoMotionInput> ego_;  // ego_motion.channel set; outlives the pipelines
   std::unique_ptr<tbb::global_control> threads_;
   std::unique_ptr<tbb::task_arena> arena_;
   std::unique_ptr<PcapRecorder> recorder_;
+  std::unique_ptr<McapRecorder> mcap_;
   std::unique_ptr<LinePrinter> printer_;
   std::vector<std::unique_ptr<SensorPipeline>> pipelines_;
   std::vector<SensorStatus> last_status_;

@@ -20,6 +20,8 @@
 
 namespace lidartag::daemon {
 
+class EgoMotionInput;
+
 class LcmBus {
  public:
   static constexpr double kReportPeriodS = 5.0;
@@ -39,6 +41,10 @@ class LcmBus {
   lcm::LCM& lcm() { return *lcm_; }
   const std::string& url() const { return url_.text; }  // as used (the default filled in)
   const std::string& provider() const { return url_.provider; }
+  // The robot's motion received beside the bus (config ego_motion), for the trackers; null when
+  // none. Set once at setup, before the pipelines start.
+  void attach_ego_motion(EgoMotionInput* input) { ego_motion_ = input; }
+  EgoMotionInput* ego_motion() const { return ego_motion_; }
 
   // Any thread.
   uint64_t failures() const;       // messages not delivered
@@ -53,6 +59,7 @@ class LcmBus {
   std::unique_ptr<lcm::LCM> lcm_;
   std::unique_ptr<LcmLogWriter> log_;  // file:// only
   bool multicast_ = false;             // udpm, mpudpm
+  EgoMotionInput* ego_motion_ = nullptr;
   mutable std::mutex mutex_;
   std::vector<uint8_t> buffer_;
   uint64_t failures_ = 0, published_ = 0;

@@ -27,6 +27,7 @@
 namespace lidartag::daemon {
 
 class LinePrinter;
+class McapRecorder;
 
 // Publish failures of one sensor, from any thread: counted, and logged at most once per
 // `interval` with the number since the last line.
@@ -61,6 +62,8 @@ class RotationPublisher {
   // Publishes `r`, the next rotation in order; `dropped`: rotations dropped so far (in the
   // message). True when its detections message was sent.
   bool publish(const RotationResult& r, uint64_t dropped);
+  // Also writes every published rotation to `mcap` (null: none); before the pipeline starts.
+  void record_to(McapRecorder* mcap) { mcap_ = mcap; }
 
   // Stage latencies, milliseconds: queue (assembled -> taken), detect, order (waiting for earlier
   // rotations), publish, total, then the detector's own stages.
@@ -78,6 +81,7 @@ class RotationPublisher {
   LcmBus& bus_;
   LinePrinter* printer_;
   FailureLog& failures_;
+  McapRecorder* mcap_ = nullptr;
   std::string detections_channel_, tag_points_channel_, cloud_channel_;
   lidartag::tag_detections_t message_;  // reused: no allocation once grown
   lidartag::tag_points_t tag_points_message_;

@@ -15,7 +15,7 @@
 #include "lidartag/daemon/health.hpp"
 #include "lidartag/daemon/sensor_status.hpp"
 #include "lidartag/driver/packet_source.hpp"
-#include "lidartag/driver/velodyne/io/capture_reader.hpp"
+#include "lidartag/driver/scan_reader.hpp"
 
 namespace lidartag::daemon {
 
@@ -48,12 +48,15 @@ class SensorMonitor {
   SensorMonitor& operator=(const SensorMonitor&) = delete;
 
   // ---- Published by the data path ----
+  // The data port the reader uses (the vendor's, for a replay left at the default ports); before
+  // started().
+  void set_data_port(uint16_t port) { data_port_ = port; }
   void started(int64_t now_ns);
   // Receiving thread: every packet of the source (its sender, when on the data port).
   void note_sender(const driver::RawPacket& packet);
   // Receiving thread, after every read of the source: the reader's counters, and the rotation
   // just assembled (else null).
-  void after_read(const velodyne::CaptureReader& reader, const Scan* rotation);
+  void after_read(const driver::ScanReader& reader, const Scan* rotation);
   void beat(int64_t now_ns) { receiver_beat_ns_.store(now_ns, std::memory_order_relaxed); }
   // The receiving loop waits for the pipeline to free a slot (not a stall of its own).
   void waiting(bool waiting) { receiver_waiting_.store(waiting, std::memory_order_relaxed); }
@@ -86,6 +89,7 @@ class SensorMonitor {
 
   const SensorOptions& sensor_;
   const DaemonOptions& options_;
+  uint16_t data_port_;
   HealthMonitor health_;
   std::atomic<int64_t> started_ns_{0}, receiver_beat_ns_{0};
   std::atomic<bool> receiver_waiting_{false}, receiver_done_{false}, stopped_{false};

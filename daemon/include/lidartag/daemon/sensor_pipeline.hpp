@@ -33,7 +33,7 @@
 #include "lidartag/daemon/sensor_status.hpp"
 #include "lidartag/daemon/tap_source.hpp"
 #include "lidartag/detector/detector.hpp"
-#include "lidartag/driver/velodyne/io/capture_reader.hpp"
+#include "lidartag/driver/scan_reader.hpp"
 #include "lidartag/raw_packet_t.hpp"
 
 namespace lidartag::daemon {
@@ -64,10 +64,12 @@ class SensorPipeline {
   // down or stall it in tests). Not reachable from the configuration.
   using DetectHook = std::function<void(const Scan&)>;
 
-  // Opens the source (driver::IoError), the calibration when the model is given
-  // (velodyne::CalibrationError) and builds a detector for each rotation the pipeline may hold
-  // (workers + pipeline.publish_queue; detector::OptionsError). `arena` has `workers` threads; none
-  // of them ever waits for the source, and at most `workers` rotations are detected at once.
+  // Opens the source (driver::IoError, driver::bag::BagError) through the vendor seam
+  // (driver::open_capture, open_live), the calibration when the model is given
+  // (velodyne::CalibrationError) or the Ouster metadata (driver::ouster::MetadataError) and builds
+  // a detector for each rotation the pipeline may hold (workers + pipeline.publish_queue;
+  // detector::OptionsError). `arena` has `workers` threads; none of them ever waits for the source,
+  // and at most `workers` rotations are detected at once.
   SensorPipeline(const SensorOptions& sensor, const DaemonOptions& options, LcmBus& bus,
                  tbb::task_arena& arena, int workers, PcapRecorder* recorder, LinePrinter* printer,
                  DetectHook hook = {});
@@ -75,6 +77,8 @@ class SensorPipeline {
   SensorPipeline(const SensorPipeline&) = delete;
   SensorPipeline& operator=(const SensorPipeline&) = delete;
 
+  // lidartagd --mcap: the published rotations also go to `mcap` (before start()).
+  void record_mcap(McapRecorder* mcap) { publisher_.record_to(mcap); }
   void start();
   // Ends the source: the rotation in progress is flushed, every rotation taken is published.
   void stop();
@@ -117,8 +121,8 @@ class SensorPipeline {
   FailureLog failures_;
   SensorMonitor monitor_;
 
-  TapSource* tap_ = nullptr;  // owned by reader_
-  std::unique_ptr<velodyne::CaptureReader> reader_;
+  TapSource* tap_ = nullptr;                    // owned by reader_
+  std::unique_ptr<driver::ScanReader> reader_;  // any vendor's, by the source's content
   // One per rotation the pipeline may hold (indexed by Rotation::order modulo tokens_).
   std::vector<std::unique_ptr<detector::Detector>> detectors_;
   ScanBuffer<Rotation> buffer_;

@@ -39,6 +39,13 @@ struct ValidationOptions {
   // detection of its own: a sparse rotation misses a few transitions of a tag whose ID several
   // rotations together can show. Default 0.75; a value at or above boundary_scale turns it off.
   float track_boundary_scale = 0.75f;
+  // The far edge (a tag turned away near the end of its range, issue 33): a cluster with fewer
+  // points than eq. (3) asks but at least track_returns_per_cell * total_width^2 goes on the same
+  // way, as evidence for a tracker only; its boundary bound is then track_boundary_bound's, which
+  // depends on the rings crossing it. Default 0.5 (32 points for tag16h5: a 1.2 m tag16h5 at 32 m
+  // and 45 degrees on a VLP-32C returns 35-50); a value at or above min_returns_per_cell turns
+  // it off.
+  float track_returns_per_cell = 0.5f;
   // Rings at the top and bottom of a cluster whose run is narrower than this fraction of the
   // smallest tag size are dropped before the point counts: the post of an easel or a pole under
   // the tag (in the tag's plane, so the plane fit keeps it) would otherwise bend the outline and
@@ -73,6 +80,23 @@ Rejection check_point_counts(std::span<const ClusterPoint> points, int min_point
 
 // Number of rings holding points (M in the paper's upper bound).
 int rings_in(std::span<const ClusterPoint> points);
+
+// The points of `points` (ring by ring, as fill_cluster emits them) at which eq. (5) can be
+// evaluated: those with l = opt.gi_ell points of their ring on both sides, sum over rings of
+// max(0, n_ring - 2 l).
+int testable_points(std::span<const ClusterPoint> points, const ValidationOptions& opt);
+
+// The track-only boundary bound of a cluster with `testable` points where eq. (5) can fire
+// (testable_points), for a family whose eq. (6) bound is psi = 2 (d + 2). Eq. (6) assumes each
+// payload row is crossed by a ring that shows its two transitions; a ring with few returns on a
+// turned tag (its white border one return or none, its end points untestable) shows fewer: at the
+// far edge (VLP-32C, 1.2 m tag at 28-32 m, 45 degrees: 4-6 returns per ring, 2-4 testable) about
+// one transition per ring, below that in half the rotations. The bound scales with the testable
+// points, one per kTestablePerStep of them, never above `track_bound` (the track_boundary_scale
+// bound, which a well-sampled cluster keeps) and never below psi / 4:
+// max(ceil(psi / 4), min(track_bound, ceil(testable / kTestablePerStep))).
+inline constexpr int kTestablePerStep = 6;
+int track_boundary_bound(int testable, int psi, int track_bound);
 
 // eq. (5) along each ring: grad I = |I_{i+l} - I_i| - |I_{i-l} - I_i|; a point whose gradient
 // exceeds the threshold is a payload boundary point. Returns their number.

@@ -31,6 +31,8 @@ struct DetectorLimits {
   float max_pair_chord_m = 0.0f;  // ring runs paired as one object: 1.1 x board_max's diagonal
   float max_extent_m = 0.0f;      // clusters split above 1.25 x board_max's diagonal
   int min_points = 0;             // eq. (3) with min_returns_per_cell, smallest over the families
+  int min_track_points = 0;       // the same with track_returns_per_cell (at most the above)
+  int psi = 0;                    // eq. (6)'s 2 (d + 2), smallest over the families
   int min_boundary_points = 0;    // eq. (6) with boundary_scale, smallest over the families
   int min_track_boundary_points = 0;  // the same with track_boundary_scale (at most the above)
   float min_ring_width_m = 0.0f;      // validation.min_ring_width x the smallest tag size

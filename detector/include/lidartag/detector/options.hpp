@@ -115,6 +115,8 @@ void visit_options(V& v, DetectorOptions& o) {
     s.field("min_intensity_step", o.validation.min_intensity_step, at_least(0.0f), "intensity");
     s.field("boundary_scale", o.validation.boundary_scale, at_least(0.0f), "");
     s.field("track_boundary_scale", o.validation.track_boundary_scale, at_least(0.0f), "");
+    s.field("track_returns_per_cell", o.validation.track_returns_per_cell, at_least(0.0f),
+            "points");
     s.field("min_ring_width", o.validation.min_ring_width, half_open(0.0f, 1.0f), "tag sizes");
   });
   v.section("plane", [&](V& s) {

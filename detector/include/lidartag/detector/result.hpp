@@ -146,9 +146,14 @@ struct Candidate {
   // The outline placed the tag along one axis only (a square mount): decoding chose the shift
   // along the other, so votes and scores agree with the decoder by construction there.
   bool shift_searched = false;
-  // Fewer boundary points than eq. (6) asks but at least validation.track_boundary_scale of them:
-  // never a detection (its diagnostic says validation/few_boundary_points), but evidence for a
-  // tracker like any other candidate (its own gates confirm an ID over rotations).
+  // That axis (sensor frame, unit; zero when every side was seen): a tracker searches along it
+  // again over the evidence of every rotation.
+  Eigen::Vector3d unseen_axis = Eigen::Vector3d::Zero();
+  // Fewer boundary points than eq. (6) asks but at least the tracks' bound (track_boundary_bound),
+  // or fewer points than eq. (3) asks but at least validation.track_returns_per_cell of them:
+  // never a detection (its diagnostic says validation/few_boundary_points or
+  // validation/too_few_points), but evidence for a tracker like any other candidate (its own gates
+  // confirm an ID over rotations).
   bool track_only = false;
   int points = 0;         // points of the pose fit
   double fit_cost = 0.0;  // eq. (8) at the optimum

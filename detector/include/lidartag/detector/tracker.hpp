@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "lidartag/detector/ego_motion.hpp"
 #include "lidartag/detector/options.hpp"
 #include "lidartag/detector/result.hpp"
 #include "lidartag/detector/rkhs_decoder.hpp"
@@ -138,6 +139,13 @@ struct TrackInfo {
   // size by more than the detector's pose.size_warning_ratio.
   double measured_size_m = -1.0;
   bool size_warning = false;
+  // With an ego-motion input (Tracker::update's `ego`) that placed every candidate of the window
+  // in one odometry frame: the tag's pose there (tag frame -> odometry frame, the leading
+  // function's quarter turns; a static tag's mean over the window), and `position` and
+  // `orientation` above are that pose seen from the sensor at this rotation's candidate time.
+  bool odometry = false;
+  Eigen::Vector3d odometry_position = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond odometry_orientation = Eigen::Quaterniond::Identity();
 };
 
 // One tag of a rotation as reported with the tracker: every detection of the rotation, as the
@@ -158,6 +166,12 @@ struct TrackerResult {
   int tracks = 0;            // live tracks after this rotation
   int confirmed_tracks = 0;  // of which confirmed
   double time_ms = 0.0;      // wall time of update()
+  // With an ego-motion input: candidates of this rotation placed in the odometry frame, and those
+  // it had no pose for (tracked in the sensor's frame, the no-ego-motion model), with the reason
+  // of the last of them (EgoLookup::kOk when none).
+  int ego_placed = 0;
+  int ego_missing = 0;
+  EgoLookup ego_last_miss = EgoLookup::kOk;
   // Memory ran out while tracking this rotation: the report is incomplete.
   bool truncated = false;
 };
@@ -173,7 +187,13 @@ class Tracker {
   // One rotation, in rotation order: the detector's result for the scan stamped `stamp_ns` (first
   // firing, ns). Fills `out` (cleared first). A stamp older than the previous one (a replay
   // starting again) drops every track. Never throws; no allocation once warmed up.
-  void update(const ScanResult& result, int64_t stamp_ns, TrackerResult& out) noexcept;
+  // `ego` (optional): the sensor's poses in an odometry frame, on the stamps' clock. Each candidate
+  // is placed there at its own time (stamp_ns + time_center_s); a track whose window is all in one
+  // odometry frame associates and averages there (a static tag: its mean), else in the sensor's
+  // frame with its own motion model, as without `ego` (a candidate the poses do not cover: before
+  // them, in a gap, stale; counted in `out`).
+  void update(const ScanResult& result, int64_t stamp_ns, TrackerResult& out,
+              const EgoMotion* ego = nullptr) noexcept;
 
   // Drops every track (ids keep increasing).
   void reset();
@@ -193,7 +213,14 @@ class Tracker {
     double cost;  // distance and angle, each in units of its gate
     int candidate, track, delta;
   };
-  void track(const ScanResult& result, int64_t stamp_ns, TrackerResult& out);
+  // A candidate of the rotation placed in the odometry frame.
+  struct Placed {
+    bool ok = false;
+    EgoPose ego;  // the sensor's pose at the candidate's time
+    Eigen::Vector3d position = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d frame = Eigen::Matrix3d::Identity();  // undecoded, in the odometry frame
+  };
+  void track(const ScanResult& result, int64_t stamp_ns, TrackerResult& out, const EgoMotion* ego);
   // The candidate's time on the tracker's clock (its centre's firing time), seconds.
   double time_of(const Candidate& c, int64_t stamp_ns) const;
   void update_fleet();
@@ -212,8 +239,11 @@ class Tracker {
   std::vector<Family> families_;
   std::vector<Track> tracks_;  // the pool, max_tracks of them
   std::vector<Pair> pairs_;
-  std::vector<int> assigned_;  // per candidate of the rotation: the track it joined, or -1
+  std::vector<int> assigned_;   // per candidate of the rotation: the track it joined, or -1
+  std::vector<Placed> placed_;  // per candidate of the rotation
   std::vector<float> values_, tables_, scores_;  // scoring scratch
+  std::vector<float> best_;                      // per function: its best score over the grids
+  std::vector<int> best_grid_;                   // ... and that grid
   std::vector<TimedPose> ordered_;               // a window, oldest first
   Motion fleet_;          // the motion of the tags that show it best (the sensor's, reversed)
   int64_t epoch_ns_ = 0;  // the tracker's clock starts at the first stamp

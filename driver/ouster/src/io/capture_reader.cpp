@@ -1,9 +1,12 @@
 #include "lidartag/driver/ouster/io/capture_reader.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <stdexcept>
 #include <string>
 #include <utility>
+
+#include "lidartag/driver/ouster/models.hpp"
 
 namespace lidartag::driver::ouster {
 
@@ -28,13 +31,18 @@ std::string formats_of_size(size_t bytes) {
 
 CaptureReader::CaptureReader(const std::string& path, const SensorInfo& info,
                              CaptureReaderOptions options)
+    : CaptureReader(std::make_unique<PcapSource>(path, options.source), info, options) {}
+
+CaptureReader::CaptureReader(std::unique_ptr<PacketSource> source, const SensorInfo& info,
+                             CaptureReaderOptions options)
     : options_(std::move(options)),
-      source_(std::make_unique<PcapSource>(path, options_.source)),
+      source_(std::move(source)),
       decoder_(info, options_.decoder),
       batcher_(std::make_unique<ScanBatcher>(
           decoder_.layout(), static_cast<uint8_t>(kReturnModeBase + uint8_t(info.profile)),
           info.returns(), options_.batcher)),
-      parsed_(std::make_unique<PacketColumns>()) {
+      parsed_(std::make_unique<PacketColumns>()),
+      model_name_(model_name(info)) {
   // The column window's columns (inclusive ids; a window across the frame's end wraps).
   const int w = info.columns_per_frame;
   const int first = info.column_window[0], last = info.column_window[1];
@@ -71,36 +79,98 @@ void CaptureReader::note_refusal(DecodeStatus status, std::span<const uint8_t> p
   }
 }
 
+bool CaptureReader::take(const RawPacket& raw, Scan& scan) {
+  if (counts_.lidar_packets + counts_.imu_packets + counts_.other_packets == 0)
+    counts_.first_time_ns = raw.receive_time_ns;
+  counts_.last_time_ns = raw.receive_time_ns;
+  if (raw.destination_port != options_.source.data_port) {
+    // The IMU port (the sources deliver no other): never lidar data.
+    ++(raw.payload.size() == kImuPacketSize ? counts_.imu_packets : counts_.other_packets);
+    return false;
+  }
+  ++counts_.lidar_packets;
+  last_data_ = std::chrono::steady_clock::now();
+  const DecodeStatus s = decoder_.parse(raw.payload, *parsed_);
+  if (s != DecodeStatus::kOk) {
+    note_refusal(s, raw.payload);
+    return false;
+  }
+  return batcher_->add(*parsed_, scan);
+}
+
+ReadResult CaptureReader::read(Scan& scan, std::chrono::milliseconds timeout) {
+  using Clock = std::chrono::steady_clock;
+  const auto deadline = Clock::now() + timeout;
+  for (;;) {
+    if (finished_) return ReadResult::kEnd;
+    if (ended_) {
+      // The reorder window may still hold the start of another frame: one per call.
+      if (batcher_->flush(scan)) {
+        deliver(scan);
+        return ReadResult::kRotation;
+      }
+      finished_ = true;
+      return ReadResult::kEnd;
+    }
+    // Rounded up: a source that waits the whole timeout returns after the deadline.
+    const auto left = std::chrono::ceil<std::chrono::milliseconds>(deadline - Clock::now());
+    RawPacket raw;
+    const ReadStatus status = source_->next(raw, std::max(left, std::chrono::milliseconds::zero()));
+    if (status == ReadStatus::kPacket) {
+      if (take(raw, scan)) {
+        deliver(scan);
+        return ReadResult::kRotation;
+      }
+    } else if (status == ReadStatus::kEnd || status == ReadStatus::kError) {
+      ended_ = true;
+      continue;
+    } else if (counts_.lidar_packets > 0) {
+      // A pause or silence of the source: the window releases, or flushes, by itself.
+      const double silent_s = std::chrono::duration<double>(Clock::now() - last_data_).count();
+      if (batcher_->idle(silent_s, scan)) {
+        deliver(scan);
+        return ReadResult::kRotation;
+      }
+    }
+    if (Clock::now() >= deadline) return ReadResult::kTimeout;
+  }
+}
+
 const Scan* CaptureReader::next() {
   Scan& scan = own_[own_next_];
-  auto handed = [&]() -> const Scan* {
-    deliver(scan);
-    own_next_ ^= 1;
-    return &scan;
-  };
-  if (ended_) return batcher_->flush(scan) ? handed() : nullptr;
-  RawPacket raw;
   for (;;) {
-    const ReadStatus status = source_->next(raw, std::chrono::milliseconds(100));
-    if (status == ReadStatus::kTimeout) continue;  // capture timing: the next packet is not due
-    if (status != ReadStatus::kPacket) break;
-    if (counts_.lidar_packets + counts_.imu_packets + counts_.other_packets == 0)
-      counts_.first_time_ns = raw.receive_time_ns;
-    counts_.last_time_ns = raw.receive_time_ns;
-    if (raw.destination_port != options_.source.data_port) {
-      ++(raw.payload.size() == kImuPacketSize ? counts_.imu_packets : counts_.other_packets);
-      continue;
+    switch (read(scan, std::chrono::milliseconds(1000))) {
+      case ReadResult::kRotation:
+        own_next_ ^= 1;
+        return &scan;
+      case ReadResult::kTimeout:
+        continue;  // capture timing: the next packet is not due yet
+      case ReadResult::kEnd:
+        return nullptr;
     }
-    ++counts_.lidar_packets;
-    const DecodeStatus s = decoder_.parse(raw.payload, *parsed_);
-    if (s != DecodeStatus::kOk) {
-      note_refusal(s, raw.payload);
-      continue;
-    }
-    if (batcher_->add(*parsed_, scan)) return handed();
   }
-  ended_ = true;
-  return batcher_->flush(scan) ? handed() : nullptr;
+}
+
+ReaderCounts CaptureReader::reader_counts() const {
+  const auto& st = decoder_.stats().by_status;
+  const auto at = [&st](DecodeStatus s) { return st[static_cast<size_t>(s)]; };
+  ReaderCounts r;
+  r.data_packets = counts_.lidar_packets;
+  r.decoded = at(DecodeStatus::kOk);
+  r.refused_mismatch = at(DecodeStatus::kWrongSize) + at(DecodeStatus::kWrongInitId) +
+                       at(DecodeStatus::kWrongSerial) + at(DecodeStatus::kBadMeasurementId);
+  r.model_mismatch = r.refused_mismatch;
+  r.refused = decoder_.stats().rejected() - r.refused_mismatch + counts_.other_packets;
+  r.aux_packets = counts_.imu_packets;
+  return r;
+}
+
+SensorDescription CaptureReader::description() const {
+  SensorDescription d;
+  d.vendor = "ouster";
+  d.model = model_name_;
+  d.return_mode = profile_name(decoder_.info().profile);
+  return d;
 }
 
 std::string CaptureReader::metadata_mismatch() const {

@@ -16,6 +16,15 @@ constexpr size_t kMinHeld = 1024;
 // Data packets per model check after the decision.
 constexpr size_t kModelEpochPackets = 64;
 
+// Models that the packets' timing and layout cannot tell apart (VLP-16 and Puck Hi-Res).
+bool same_timing(Model a, Model b, ReturnMode mode) {
+  const auto& sa = model_spec(a);
+  const auto& sb = model_spec(b);
+  return (sa.blocks_per_firing > 1) == (sb.blocks_per_firing > 1) &&
+         std::abs(sa.packet_period_us(mode) - sb.packet_period_us(mode)) <
+             0.01 * sa.packet_period_us(mode);
+}
+
 // A bag (by content) or a pcap.
 std::unique_ptr<driver::PacketSource> open_capture(const std::string& path,
                                                    const CaptureReaderOptions& options) {
@@ -48,6 +57,33 @@ driver::BatcherStats CaptureReader::batcher_stats() const {
   driver::BatcherStats s = retired_;
   if (batcher_) s += batcher_->stats();
   return s;
+}
+
+driver::ReaderCounts CaptureReader::reader_counts() const {
+  driver::ReaderCounts r;
+  r.data_packets = counts_.data_packets;
+  r.decoded = counts_.decoded;
+  for (const uint64_t e : counts_.decode_errors) r.refused += e;
+  r.refused += counts_.undecodable + counts_.position_errors + counts_.position_checksum;
+  r.model_mismatch = counts_.model_mismatch;
+  r.aux_packets = counts_.position_packets;
+  r.gprmc_valid = counts_.gprmc_valid;
+  r.pps = static_cast<int>(counts_.pps);
+  r.time_source = static_cast<int>(clock_.source());
+  return r;
+}
+
+driver::SensorDescription CaptureReader::description() const {
+  driver::SensorDescription d;
+  d.vendor = "velodyne";
+  if (model_) d.model = model_spec(*model_).name;
+  if (mode_) d.return_mode = return_mode_name(*mode_);
+  // The model decoded against the packets' timing, which follows the latest packets: a wrong
+  // configuration or a change mid-stream shows here.
+  const std::optional<Model> timing = check_.timing_model();
+  if (model_ && timing && !same_timing(*model_, *timing, mode_.value_or(ReturnMode::kStrongest)))
+    d.evidence_fits = model_spec(*timing).name;
+  return d;
 }
 
 std::string CaptureReader::model_mismatch() const {

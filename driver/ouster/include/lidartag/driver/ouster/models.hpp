@@ -35,6 +35,17 @@ const ModelSpec& model_spec(Model m);
 std::optional<Model> model_from_name(std::string_view name);
 std::string model_names();  // "os1-64, os1-128"
 
+// The model name of the sensor `info` describes, as configurations name it: "os" + the product
+// line's number + "-" + its beams ("OS-1-128" -> "os1-128", "OS-0-32-U1" -> "os0-32"); "os-" +
+// the beams when the product line names no number (an older or edited file).
+std::string model_name(const SensorInfo& info);
+// Whether `name` is such a model name: os0, os1, os2 or os (any line) with 16, 32, 64 or 128
+// beams, lower case ("os1-128").
+bool is_model_name(std::string_view name);
+// Whether `info` describes a sensor of model `name` (model_name(info) == name; only the beams
+// when either names no product line, "os-128").
+bool describes_model(const SensorInfo& info, std::string_view name);
+
 // The SensorInfo (nested layout) a sensor of model `m` reports in lidar mode `columns` x
 // `rate_hz` with `profile`: the model's beam table, pixel_shift_by_row = each beam's azimuth
 // offset in columns (rounded), 16 columns a packet, the whole rotation, the documented default

@@ -17,6 +17,7 @@
 #include "lidartag/driver/ouster/metadata.hpp"
 #include "lidartag/driver/scan.hpp"
 #include "lidartag/driver/scan_batcher.hpp"
+#include "lidartag/driver/scan_reader.hpp"
 
 namespace lidartag::driver::ouster {
 
@@ -54,12 +55,17 @@ struct CaptureCounts {
   int64_t first_time_ns = 0, last_time_ns = 0;  // receive times of the first and last packet
 };
 
-class CaptureReader {
+// Ouster's side of the vendor seam (driver::ScanReader).
+class CaptureReader final : public ScanReader {
  public:
   // Opens the capture (IoError) for a sensor described by `info` (load_metadata()); throws
   // std::invalid_argument for decoder options the profile cannot honour (SIGNAL in RNG15).
   CaptureReader(const std::string& path, const SensorInfo& info, CaptureReaderOptions options = {});
-  ~CaptureReader();
+  // Reads from any source (live UDP, a bag's packets): lidar packets are those to
+  // options.source.data_port, IMU packets those to options.source.position_port.
+  CaptureReader(std::unique_ptr<PacketSource> source, const SensorInfo& info,
+                CaptureReaderOptions options = {});
+  ~CaptureReader() override;
   CaptureReader(const CaptureReader&) = delete;
   CaptureReader& operator=(const CaptureReader&) = delete;
 
@@ -69,16 +75,28 @@ class CaptureReader {
   // column window) arrived, none missing. Ouster frames begin at measurement id 0 whatever the
   // capture's start, so a capture's first and last frames are whole when nothing of them was cut
   // off (the shared assembly alone cannot know that: it marks them incomplete).
+  // read() underneath, waiting through timeouts; do not mix the two on one reader.
   const Scan* next();
 
+  // ScanReader::read: the next frame straight into `scan` (destaggered and marked complete as
+  // next() does). Never throws.
+  [[nodiscard]] ReadResult read(Scan& scan, std::chrono::milliseconds timeout) override;
+  // The seam's view: lidar packets are the data packets; those refused for contradicting the
+  // metadata (another size, init id, serial number or lidar mode) count as model_mismatch and
+  // refused_mismatch, the other refusals (and IMU-port packets of another size) as refused; IMU
+  // packets are the auxiliary ones. The model is the metadata's ("os1-128"), the return mode its
+  // profile; metadata_mismatch() is the mismatch text.
+  ReaderCounts reader_counts() const override;
+  SensorDescription description() const override;
+  std::string mismatch_text() const override { return metadata_mismatch(); }
   const SensorInfo& info() const { return decoder_.info(); }
   const Decoder& decoder() const { return decoder_; }
   const DecoderStats& decoder_stats() const { return decoder_.stats(); }
   const CaptureCounts& counts() const { return counts_; }
-  BatcherStats batcher_stats() const { return batcher_->stats(); }
-  SourceStats source_stats() const { return source_->stats(); }
+  BatcherStats batcher_stats() const override { return batcher_->stats(); }
+  SourceStats source_stats() const override { return source_->stats(); }
   // Why the source ended before its end (PcapSource::error()); empty if it did not.
-  std::string source_error() const { return source_->error(); }
+  std::string source_error() const override { return source_->error(); }
   const CaptureReaderOptions& options() const { return options_; }
   // Packets of a whole frame (the column window's columns over columns_per_packet).
   int frame_packets() const { return frame_packets_; }
@@ -98,15 +116,20 @@ class CaptureReader {
   bool whole(const Scan& scan) const;
   void deliver(Scan& scan);
   void note_refusal(DecodeStatus status, std::span<const uint8_t> payload);
+  // One packet of the source; true when it ended a frame in `scan`.
+  bool take(const RawPacket& raw, Scan& scan);
 
   CaptureReaderOptions options_;
-  std::unique_ptr<PcapSource> source_;
+  std::unique_ptr<PacketSource> source_;
   Decoder decoder_;
   std::unique_ptr<ScanBatcher> batcher_;
   std::unique_ptr<PacketColumns> parsed_;
   std::array<Scan, 2> own_;
   size_t own_next_ = 0;
   bool ended_ = false;
+  bool finished_ = false;
+  std::chrono::steady_clock::time_point last_data_;  // host time of the last lidar packet
+  std::string model_name_;                           // "os1-128" (description())
   int frame_packets_ = 0;
   // The first refused packet's size (kWrongSize) and identity (kWrongInitId, kWrongSerial).
   size_t refused_size_ = 0;

@@ -17,6 +17,7 @@
 #include "lidartag/driver/packet_source.hpp"
 #include "lidartag/driver/scan.hpp"
 #include "lidartag/driver/scan_batcher.hpp"
+#include "lidartag/driver/scan_reader.hpp"
 #include "lidartag/driver/velodyne/calibration.hpp"
 #include "lidartag/driver/velodyne/decoder.hpp"
 #include "lidartag/driver/velodyne/packet.hpp"
@@ -74,7 +75,8 @@ struct CaptureCounts {
   int64_t first_time_ns = 0, last_time_ns = 0;  // receive times of the first and last packet
 };
 
-class CaptureReader {
+// Velodyne's side of the vendor seam (driver::ScanReader).
+class CaptureReader final : public driver::ScanReader {
  public:
   // Opens the capture file (IoError) and, with a model given, the calibration (CalibrationError).
   // The file is recognised by content: a ROS 1 bag, ROS 2 bag folder or MCAP file is read through
@@ -83,16 +85,11 @@ class CaptureReader {
   CaptureReader(const std::string& path, CaptureReaderOptions options);
   // Reads from any source (live or replay); ends when the source reports kEnd or kError.
   CaptureReader(std::unique_ptr<driver::PacketSource> source, CaptureReaderOptions options);
-  ~CaptureReader();
+  ~CaptureReader() override;
   CaptureReader(const CaptureReader&) = delete;
   CaptureReader& operator=(const CaptureReader&) = delete;
 
-  enum class ReadResult : uint8_t {
-    kRotation,  // `scan` holds a whole rotation (complete or not); pass another scan next time
-    kTimeout,   // no rotation ended within the timeout: the one in progress stays in `scan`, call
-                // again with the same scan
-    kEnd,       // the source ended (or failed) and everything was delivered: nothing more
-  };
+  using ReadResult = driver::ReadResult;
   // Assembles the next rotation straight into `scan`: returns kRotation as soon as one ends, or
   // kTimeout once `timeout` has passed (also while packets keep coming without ending one). A
   // scan whose shape does not fit the model is reserved for it (a first use, a return-mode
@@ -100,7 +97,7 @@ class CaptureReader {
   // incomplete, when the source has been silent for BatcherOptions::flush_timeout_s (host time).
   // May throw CalibrationError once, when the model is decided from the data and the calibration
   // file does not fit it.
-  [[nodiscard]] ReadResult read(Scan& scan, std::chrono::milliseconds timeout);
+  [[nodiscard]] ReadResult read(Scan& scan, std::chrono::milliseconds timeout) override;
 
   // The next rotation (complete or not: see Scan::complete) in one of the reader's own scans,
   // valid until the next call; nullptr once the source has ended and everything was flushed.
@@ -116,10 +113,17 @@ class CaptureReader {
   // (or calibration file) that the packets' product byte and timing contradict.
   std::string model_mismatch() const;
   const CaptureCounts& counts() const { return counts_; }
-  driver::SourceStats source_stats() const { return source_->stats(); }
+  driver::SourceStats source_stats() const override { return source_->stats(); }
   // Why the source ended before its end (PacketSource::error()); empty if it did not.
-  std::string source_error() const { return source_->error(); }
-  driver::BatcherStats batcher_stats() const;
+  std::string source_error() const override { return source_->error(); }
+  driver::BatcherStats batcher_stats() const override;
+
+  // The seam's view (driver::ScanReader): counts() summed by kind; the model decided and, when the
+  // packets' timing is that of a model with another timing, that model (evidence_fits);
+  // model_mismatch() as the mismatch text.
+  driver::ReaderCounts reader_counts() const override;
+  driver::SensorDescription description() const override;
+  std::string mismatch_text() const override { return model_mismatch(); }
   const SensorClock& clock() const { return clock_; }
   const Calibration* calibration() const;
 

@@ -1,0 +1,197 @@
+#include "lidartag/daemon/ego_motion_input.hpp"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <cmath>
+#include <numbers>
+
+#include "lidartag/daemon/lcm_url.hpp"
+
+namespace lidartag::daemon {
+
+namespace {
+
+constexpr double kLogPeriodS = 5.0;
+
+int64_t steady_now_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+}  // namespace
+
+SensorMount sensor_mount(const EgoMotionConfig& c) {
+  constexpr double kDeg = std::numbers::pi / 180.0;
+  SensorMount m;
+  m.rotation = (Eigen::AngleAxisd(c.yaw_deg * kDeg, Eigen::Vector3d::UnitZ()) *
+                Eigen::AngleAxisd(c.pitch_deg * kDeg, Eigen::Vector3d::UnitY()) *
+                Eigen::AngleAxisd(c.roll_deg * kDeg, Eigen::Vector3d::UnitX()))
+                   .toRotationMatrix();
+  m.position = Eigen::Vector3d(c.x, c.y, c.z);
+  return m;
+}
+
+EgoMessage apply_ego_message(const lidartag::ego_motion_t& msg, const SensorMount& mount,
+                             detector::EgoMotion& ego) noexcept {
+  // Microseconds to nanoseconds, refusing what would overflow.
+  constexpr int64_t kMaxUtime = INT64_MAX / 1000;
+  if (msg.utime > kMaxUtime || msg.utime < -kMaxUtime) return EgoMessage::kInvalid;
+  const int64_t t_ns = msg.utime * 1000;
+  detector::EgoSample result = detector::EgoSample::kInvalid;
+  if (msg.kind == lidartag::ego_motion_t::POSE) {
+    const Eigen::Vector3d p(msg.position[0], msg.position[1], msg.position[2]);
+    const Eigen::Quaterniond q(msg.orientation[0], msg.orientation[1], msg.orientation[2],
+                               msg.orientation[3]);
+    if (!p.allFinite() || !q.coeffs().allFinite() || std::abs(q.norm() - 1.0) > 0.01)
+      return EgoMessage::kInvalid;
+    // The sensor's pose: body pose * mount.
+    const Eigen::Matrix3d r = q.normalized().toRotationMatrix();
+    result = ego.add_pose(t_ns, p + r * mount.position,
+                          Eigen::Quaterniond(r * mount.rotation).normalized());
+  } else if (msg.kind == lidartag::ego_motion_t::TWIST) {
+    const Eigen::Vector3d v(msg.linear[0], msg.linear[1], msg.linear[2]);
+    const Eigen::Vector3d w(msg.angular[0], msg.angular[1], msg.angular[2]);
+    // A point of the rigid body at p moves at v + w x p; both into the sensor's frame.
+    const Eigen::Matrix3d back = mount.rotation.transpose();
+    result = ego.add_twist(t_ns, back * (v + w.cross(mount.position)), back * w);
+  } else {
+    return EgoMessage::kUnknownKind;
+  }
+  switch (result) {
+    case detector::EgoSample::kAccepted:
+      return EgoMessage::kAccepted;
+    case detector::EgoSample::kOutOfOrder:
+      return EgoMessage::kOutOfOrder;
+    case detector::EgoSample::kInvalid:
+      return EgoMessage::kInvalid;
+  }
+  return EgoMessage::kInvalid;
+}
+
+EgoMotionInput::EgoMotionInput(const EgoMotionConfig& config, const std::string& default_url)
+    : config_(config), mount_(sensor_mount(config)), ego_(config.buffer) {
+  const LcmUrl parsed = parse_lcm_url(config.url.empty() ? default_url : config.url);
+  const std::string& url = parsed.text;
+  // A file:// URL is the daemon's output log (lcm.url), not where a robot's odometry arrives.
+  if (parsed.provider == "file")
+    throw LcmError("ego_motion: cannot receive '" + config.channel + "' from '" + url +
+                   "' (a log file): set ego_motion.url to the LCM URL the robot publishes on");
+  check_multicast_route(parsed);
+  lcm_ = std::make_unique<lcm::LCM>(url);
+  if (!lcm_->good())
+    throw LcmError("ego_motion: cannot open LCM with URL '" + url + "' to receive '" +
+                   config.channel + "' (see LCM's message above)");
+  lcm_->subscribe(config_.channel, &EgoMotionInput::on_message, this);
+}
+
+EgoMotionInput::~EgoMotionInput() {
+  stop();
+}
+
+void EgoMotionInput::start() {
+  if (running_.exchange(true)) return;
+  thread_ = std::thread([this] {
+    while (running_.load(std::memory_order_relaxed)) poll(100);
+  });
+}
+
+void EgoMotionInput::stop() {
+  running_ = false;
+  if (thread_.joinable()) thread_.join();
+}
+
+void EgoMotionInput::poll(int timeout_ms) {
+  lcm_->handleTimeout(timeout_ms);
+  log_problems();
+}
+
+void EgoMotionInput::on_message(const lcm::ReceiveBuffer* buffer, const std::string&) {
+  lidartag::ego_motion_t msg;
+  std::lock_guard lock(mutex_);
+  ++counts_.received;
+  if (buffer->data_size > static_cast<uint32_t>(INT32_MAX) ||
+      msg.decode(buffer->data, 0, static_cast<int>(buffer->data_size)) < 0) {
+    ++counts_.undecodable;
+    return;
+  }
+  switch (apply_ego_message(msg, mount_, ego_)) {
+    case EgoMessage::kAccepted:
+      ++counts_.accepted;
+      last_host_ns_ = steady_now_ns();
+      break;
+    case EgoMessage::kOutOfOrder:
+      ++counts_.out_of_order;
+      break;
+    case EgoMessage::kInvalid:
+      ++counts_.invalid;
+      break;
+    case EgoMessage::kUnknownKind:
+      ++counts_.unknown_kind;
+      break;
+  }
+}
+
+EgoMotionCounts EgoMotionInput::counts() const {
+  std::lock_guard lock(mutex_);
+  return counts_;
+}
+
+std::string EgoMotionInput::health_note() const {
+  std::lock_guard lock(mutex_);
+  const EgoMotionCounts& c = counts_;
+  const uint64_t bad = c.out_of_order + c.invalid + c.unknown_kind + c.undecodable;
+  std::string note;
+  if (last_host_ns_ == 0) {
+    note = fmt::format("ego motion: nothing received on {} yet", config_.channel);
+  } else {
+    const double quiet = static_cast<double>(steady_now_ns() - last_host_ns_) * 1e-9;
+    if (quiet > config_.stale_s)
+      note = fmt::format("ego motion: stale, nothing on {} for {:.1f} s", config_.channel, quiet);
+  }
+  if (bad > 0) {
+    note += fmt::format(
+        "{}ego motion: {} of {} messages dropped ({} out of order, {} invalid, {} "
+        "of unknown kind, {} undecodable)",
+        note.empty() ? "" : "; ", bad, c.received, c.out_of_order, c.invalid, c.unknown_kind,
+        c.undecodable);
+  }
+  return note;
+}
+
+void EgoMotionInput::log_problems() {
+  const int64_t now = steady_now_ns();
+  if (now < next_log_ns_) return;
+  EgoMotionCounts c;
+  bool stale = false;
+  {
+    std::lock_guard lock(mutex_);
+    c = counts_;
+    stale = last_host_ns_ != 0 && static_cast<double>(now - last_host_ns_) * 1e-9 > config_.stale_s;
+  }
+  const uint64_t bad = c.out_of_order + c.invalid + c.unknown_kind + c.undecodable;
+  bool logged = false;
+  if (bad > logged_problems_) {
+    spdlog::warn(
+        "ego motion on {}: {} message{} dropped ({} in all: {} out of order, {} invalid, "
+        "{} of unknown kind, {} undecodable)",
+        config_.channel, bad - logged_problems_, bad - logged_problems_ == 1 ? "" : "s", bad,
+        c.out_of_order, c.invalid, c.unknown_kind, c.undecodable);
+    logged_problems_ = bad;
+    logged = true;
+  }
+  if (stale != stale_logged_) {
+    if (stale)
+      spdlog::warn("ego motion on {}: stale (nothing for {} s): tracking without it",
+                   config_.channel, config_.stale_s);
+    else
+      spdlog::info("ego motion on {}: receiving again", config_.channel);
+    stale_logged_ = stale;
+    logged = true;
+  }
+  if (logged) next_log_ns_ = now + static_cast<int64_t>(kLogPeriodS * 1e9);
+}
+
+}  // namespace lidartag::daemon
