@@ -1,14 +1,19 @@
 // Writes the fuzz targets' seed corpora and the generated dictionaries. Every seed is cut from the
 // project's simulator: its committed captures (pcaps/) and, for the other models and return
 // modes, scenes simulated here; configuration, scene and family seeds from the shipped files and
-// built-in tables. Deterministic: the same sources give the same files.
+// built-in tables; bag and MCAP seeds are written from the formats' specifications
+// (test/bag/synthetic_bags.hpp). Deterministic: the same sources give the same files.
 //
 //   fuzz_make_seeds committed OUT_DIR      test/fuzz/corpus/<target>/ and fuzz/dict/*.dict
 //   (generated
 //                                          part); run by hand when a format changes
-//   fuzz_make_seeds shared CAPTURES OUT    windows of real captures (../shared/captures) as extra
-//                                          seeds at run time; never committed
+//   fuzz_make_seeds shared CAPTURES OUT    windows of real captures (../shared/captures) and its
+//                                          bags as extra seeds at run time; never committed
+#include <bzlib.h>
+#include <lz4frame.h>
+#include <sqlite3.h>
 #include <yaml-cpp/yaml.h>
+#include <zstd.h>
 
 #include <algorithm>
 #include <cstdint>
@@ -25,6 +30,7 @@
 #include <string>
 #include <vector>
 
+#include "bag/synthetic_bags.hpp"
 #include "io/pcap_builder.hpp"
 #include "io/veloview_xml.hpp"
 #include "lidartag/daemon/config.hpp"
@@ -575,7 +581,118 @@ void dictionaries(const fs::path& dict_dir) {
   write_dict(dict_dir / "scene.dict", "scene keys", scene);
 }
 
+// ---- ROS bags and MCAP (synthetic_bags.hpp): a VelodyneScan, a PointCloud2 and a string topic,
+// indexed or not, chunks in and out of time order, every compression the readers take, a cut
+// final chunk; a rosbag2 .db3 (one topic with an empty serialization_format) made with sqlite.
+namespace syn = driver::bag::synthetic;
+
+Bytes compress_bz2(const Bytes& in) {
+  Bytes out(in.size() + in.size() / 100 + 600);
+  auto n = static_cast<unsigned>(out.size());
+  if (BZ2_bzBuffToBuffCompress(reinterpret_cast<char*>(out.data()), &n,
+                               const_cast<char*>(reinterpret_cast<const char*>(in.data())),
+                               static_cast<unsigned>(in.size()), 9, 0, 0) != BZ_OK)
+    throw std::runtime_error("bz2 compression failed");
+  out.resize(n);
+  return out;
+}
+Bytes compress_lz4(const Bytes& in) {
+  Bytes out(LZ4F_compressFrameBound(in.size(), nullptr));
+  const size_t n = LZ4F_compressFrame(out.data(), out.size(), in.data(), in.size(), nullptr);
+  if (LZ4F_isError(n)) throw std::runtime_error("lz4 compression failed");
+  out.resize(n);
+  return out;
+}
+Bytes compress_zstd(const Bytes& in) {
+  Bytes out(ZSTD_compressBound(in.size()));
+  const size_t n = ZSTD_compress(out.data(), out.size(), in.data(), in.size(), 3);
+  if (ZSTD_isError(n)) throw std::runtime_error("zstd compression failed");
+  out.resize(n);
+  return out;
+}
+
+void bag_seeds(const fs::path& out) {
+  const std::vector<syn::Topic> topics = {{"/velodyne_packets", "velodyne_msgs/VelodyneScan"},
+                                          {"/points", "sensor_msgs/PointCloud2"},
+                                          {"/metadata", "std_msgs/String"}};
+  constexpr int64_t t0 = 1'700'000'000'000'000'000, step = 50'000'000;
+  Bytes text = {5, 0, 0, 0, '{', '"', 'a', '"', '}'};
+  auto chunk = [&](int first) {
+    std::vector<syn::Message> c;
+    c.push_back({"/velodyne_packets", t0 + first * step, syn::velodyne_scan_ros1(t0, 1, 0xFF)});
+    c.push_back({"/points", t0 + (first + 1) * step, syn::point_cloud_ros1(t0, 16)});
+    c.push_back({"/metadata", t0 + (first + 2) * step, text});
+    return c;
+  };
+  const syn::Chunks in_order = {chunk(0), chunk(3)}, out_of_order = {chunk(3), chunk(0)};
+  const syn::Compression bz2{"bz2", compress_bz2}, lz4{"lz4", compress_lz4},
+      zstd{"zstd", compress_zstd};
+  const fs::path ros1 = out / "ros1_bag";
+  write_file(ros1 / "indexed.bag", syn::ros1_bag(topics, in_order));
+  write_file(ros1 / "unindexed.bag", syn::ros1_bag(topics, in_order, false));
+  write_file(ros1 / "out_of_order.bag", syn::ros1_bag(topics, out_of_order));
+  write_file(ros1 / "bz2.bag", syn::ros1_bag(topics, in_order, true, bz2));
+  write_file(ros1 / "lz4.bag", syn::ros1_bag(topics, in_order, true, lz4));
+  Bytes cut = syn::ros1_bag(topics, in_order, false);
+  cut.resize(cut.size() - 100);
+  write_file(ros1 / "cut_final_chunk.bag", cut);
+  const fs::path mcap = out / "mcap";
+  write_file(mcap / "summary.mcap", syn::mcap_file(topics, in_order, true, true));
+  write_file(mcap / "no_summary.mcap", syn::mcap_file(topics, in_order, false, true));
+  write_file(mcap / "out_of_order.mcap", syn::mcap_file(topics, out_of_order, true, true));
+  write_file(mcap / "zstd.mcap", syn::mcap_file(topics, in_order, true, true, zstd));
+  write_file(mcap / "lz4.mcap", syn::mcap_file(topics, in_order, true, true, lz4));
+  write_file(
+      mcap / "cdr.mcap",
+      syn::mcap_file({topics[2]}, {{{"/metadata", t0, {0, 1, 0, 0, 3, 0, 0, 0, 'a', 'b', 0}}}}));
+  cut = syn::mcap_file(topics, in_order, false, true);
+  cut.resize(cut.size() - 100);
+  write_file(mcap / "cut_final_chunk.mcap", cut);
+  // A rosbag2 .db3 built in a scratch file, then read back as bytes (sqlite writes the same
+  // bytes for the same statements).
+  const fs::path db_path = fs::temp_directory_path() / "lidartag_fuzz_seed.db3";
+  fs::remove(db_path);
+  sqlite3* db = nullptr;
+  if (sqlite3_open(db_path.c_str(), &db) != SQLITE_OK) throw std::runtime_error("sqlite open");
+  std::string sql =
+      "CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL, "
+      "serialization_format TEXT NOT NULL, offered_qos_profiles TEXT NOT NULL);"
+      "CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER NOT NULL, timestamp "
+      "INTEGER NOT NULL, data BLOB NOT NULL);"
+      "CREATE INDEX timestamp_idx ON messages (timestamp ASC);"
+      "INSERT INTO topics VALUES(1, '/points', 'sensor_msgs/msg/PointCloud2', 'cdr', '');"
+      "INSERT INTO topics VALUES(2, '/metadata', 'std_msgs/msg/String', '', '');";
+  const int rc = sqlite3_exec(db, sql.c_str(), nullptr, nullptr, nullptr);
+  sqlite3_stmt* insert = nullptr;
+  sqlite3_prepare_v2(db, "INSERT INTO messages(topic_id, timestamp, data) VALUES(?, ?, ?)", -1,
+                     &insert, nullptr);
+  // The ROS 1 cloud behind a CDR encapsulation header: not a valid CDR cloud (CDR aligns its
+  // fields), a start for the fuzzer's mutations of the CDR decoder.
+  const Bytes cloud = [&] {
+    Bytes b = {0, 1, 0, 0};
+    const Bytes r = syn::point_cloud_ros1(t0, 4);
+    b.insert(b.end(), r.begin(), r.end());
+    return b;
+  }();
+  const Bytes string_cdr = {0, 1, 0, 0, 3, 0, 0, 0, 'a', 'b', 0};
+  for (int k = 0; k < 4; ++k) {
+    const Bytes& data = k % 2 == 0 ? cloud : string_cdr;
+    sqlite3_bind_int(insert, 1, 1 + k % 2);
+    sqlite3_bind_int64(insert, 2, t0 + (3 - k) * step);  // stored out of time order
+    sqlite3_bind_blob(insert, 3, data.data(), static_cast<int>(data.size()), SQLITE_STATIC);
+    if (sqlite3_step(insert) != SQLITE_DONE) throw std::runtime_error("sqlite insert");
+    sqlite3_reset(insert);
+  }
+  sqlite3_finalize(insert);
+  sqlite3_close(db);
+  if (rc != SQLITE_OK) throw std::runtime_error("sqlite schema");
+  const std::string bytes = read_text(db_path.string());
+  fs::remove(db_path);
+  write_file(out / "rosbag2" / "bag_0.db3", Bytes(bytes.begin(), bytes.end()));
+}
+
 void committed(const fs::path& out, const fs::path& dict_dir) {
+  bag_seeds(out);
   packet_seeds(out);
   capture_seeds(out);
   pcd_seeds(out);
@@ -615,6 +732,22 @@ void shared(const fs::path& captures, const fs::path& out) {
         write_file(out / "position_packet" / stem, q.payload);
         break;
       }
+  }
+  // The real bags (captures/bags), whole, for the bag targets (those under 1 MB: libFuzzer's
+  // default -max_len would cut larger ones anyway).
+  const fs::path bags = captures / "bags";
+  std::error_code ec;
+  if (!fs::is_directory(bags, ec)) return;
+  for (const auto& entry : fs::recursive_directory_iterator(bags, ec)) {
+    const std::string ext = entry.path().extension().string();
+    const char* target = ext == ".bag"    ? "ros1_bag"
+                         : ext == ".mcap" ? "mcap"
+                         : ext == ".db3"  ? "rosbag2"
+                                          : nullptr;
+    if (target == nullptr || !entry.is_regular_file(ec) || entry.file_size(ec) > (1u << 20))
+      continue;
+    const std::string text = read_text(entry.path().string());
+    write_file(out / target / entry.path().filename(), Bytes(text.begin(), text.end()));
   }
 }
 

@@ -57,11 +57,17 @@ __all__ = [
 
 
 def read(path, model=None, calibration=None, cut_deg=180.0, partial=False, data_port=2368,
-         position_port=8308, sensor=None, rings=0, resolution_deg=0.2):
+         position_port=8308, sensor=None, rings=0, resolution_deg=0.2, topic=None, start=0.0,
+         duration=None):
     """The rotations of a pcap/pcapng capture (or of a PCD file: one rotation), read lazily.
 
-    A ROS 1 bag, ROS 2 bag folder or MCAP file of velodyne_msgs/VelodyneScan packets is read as
-    the pcap of those packets (recognised by content; its one LiDAR topic).
+    A ROS 1 bag, ROS 2 bag folder or MCAP file (recognised by content) is read on its LiDAR
+    topic: velodyne_msgs/VelodyneScan packets as the pcap of those packets,
+    sensor_msgs/PointCloud2 clouds each as one Rotation (as Rotation.from_points makes it: the
+    cloud's ring field, or rings from `model`'s elevations or `rings` estimated; stamped with the
+    cloud's header stamp).
+    topic: the bag's LiDAR topic; None: its one LiDAR topic.
+    start, duration: a bag's time window, seconds from its first message (None: to the end).
 
     model: decode as this model (vlp16, puck-hires, vlp32c, hdl32e, vls128); None: the packets'
       product byte, checked against their timing (Reader.model_mismatch says when they disagree).
@@ -69,8 +75,8 @@ def read(path, model=None, calibration=None, cut_deg=180.0, partial=False, data_
     cut_deg: azimuth where rotations are cut, degrees.
     partial: also yield incomplete rotations (the first and last, and those with lost packets).
     data_port, position_port, sensor: which packets are the sensor's (sensor: an IPv4 address).
-    rings, resolution_deg: PCD files without a ring field and no model: beams to regress; column
-      width when a PCD's points are binned by azimuth.
+    rings, resolution_deg: PCD files and PointCloud2 clouds without a ring field and no model:
+      beams to regress; column width when a cloud's points are binned by azimuth.
     Returns a Reader: iterate it (`for rotation in lidartag.read(path)`), or list() it.
     """
     options = _lidartag._ReaderOptions()
@@ -83,6 +89,9 @@ def read(path, model=None, calibration=None, cut_deg=180.0, partial=False, data_
     options.position_port = int(position_port)
     options.rings = int(rings)
     options.resolution_deg = float(resolution_deg)
+    options.topic = topic
+    options.start_s = float(start)
+    options.duration_s = float("inf") if duration is None else float(duration)
     return Reader(_os.fspath(path), options)
 
 

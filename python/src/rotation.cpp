@@ -7,13 +7,16 @@
 #include <cctype>
 #include <cstddef>
 #include <filesystem>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <span>
 #include <string>
 
 #include "bindings.hpp"
+#include "lidartag/bag_cloud_reader.hpp"
 #include "lidartag/detector/cloud_scan.hpp"
+#include "lidartag/driver/bag/message_reader.hpp"
 #include "lidartag/driver/io/errors.hpp"
 #include "lidartag/driver/io/udp_frame.hpp"
 #include "lidartag/driver/velodyne/io/capture_reader.hpp"
@@ -194,19 +197,46 @@ class Reader {
     uint16_t position_port = velodyne::kDefaultPositionPort;
     int rings = 0;
     double resolution_deg = 0.2;
+    std::optional<std::string> topic;  // a bag's LiDAR topic; None: its one LiDAR topic
+    double start_s = 0;                // a bag's time window, seconds from its first message
+    double duration_s = std::numeric_limits<double>::infinity();
   };
 
   Reader(const std::string& path, const Options& o) : path_(path), partial_(o.partial) {
     const auto model = model_option(o.model);
     std::error_code ec;
     // A file, or a folder (a ROS 2 bag): the capture reader tells them apart by content.
-    if (!std::filesystem::exists(path, ec))
-      throw driver::IoError("no such file: '" + path + "'");
+    if (!std::filesystem::exists(path, ec)) throw driver::IoError("no such file: '" + path + "'");
     if (is_pcd(path)) {
       pcd_ = rotation_of_pcd(path, model, o.rings, o.resolution_deg);
       return;
     }
+    const bool is_bag = driver::bag::detect_bag_format(path) != driver::bag::BagFormat::kNone;
+    const std::string topic = o.topic.value_or("");
+    if (!is_bag &&
+        (o.topic || o.start_s != 0 || o.duration_s != std::numeric_limits<double>::infinity()))
+      throw py::value_error("topic, start and duration are for ROS bags and MCAP files; '" + path +
+                            "' is not one");
+    if (const std::string problem = driver::bag::window_problem(o.start_s, o.duration_s);
+        !problem.empty())
+      throw py::value_error(problem);
+    if (is_bag && clouds::holds_point_clouds(path, topic)) {
+      // A PointCloud2 topic: each cloud a Rotation, as Rotation.from_points makes one.
+      clouds::BagCloudOptions c;
+      c.topic = topic;
+      c.start_s = o.start_s;
+      c.duration_s = o.duration_s;
+      c.elevations_deg = velodyne::beam_elevations_deg(model);
+      c.rings = o.rings;
+      c.resolution_deg = o.resolution_deg;
+      clouds_ = std::make_unique<clouds::BagCloudReader>(path, c);
+      cloud_model_ = model;
+      return;
+    }
     velodyne::CaptureReaderOptions options;
+    options.topic = topic;
+    options.bag_start_s = o.start_s;
+    options.bag_duration_s = o.duration_s;
     options.source.data_port = o.data_port;
     options.source.position_port = o.position_port;
     if (o.sensor && !o.sensor->empty()) {
@@ -228,6 +258,7 @@ class Reader {
       ++rotations_;
       return r;
     }
+    if (clouds_) return next_cloud();
     if (!reader_) throw py::stop_iteration();
     std::optional<Rotation> out;
     {
@@ -270,10 +301,55 @@ class Reader {
                           " truncated records (check data_port, sensor, model)");
   }
 
+  // The next cloud of a PointCloud2 topic; clouds that cannot become a scan are counted
+  // (counts["skipped_clouds"], counts["last_problem"]); a topic that gave none raises IoError.
+  Rotation next_cloud() {
+    std::optional<Rotation> out;
+    {
+      py::gil_scoped_release release;
+      for (;;) {
+        const auto step = clouds_->next(cloud_scan_);
+        if (step == clouds::BagCloudReader::Step::kEnd) break;
+        if (step == clouds::BagCloudReader::Step::kSkipped) {
+          cloud_problem_ = clouds_->problem();
+          continue;
+        }
+        if (cloud_model_) cloud_scan_.model = static_cast<uint8_t>(*cloud_model_);
+        out = Rotation::copy_of(cloud_scan_);
+        break;
+      }
+    }
+    if (!out) {
+      if (!ended_ && rotations_ == 0) {
+        ended_ = true;
+        throw driver::IoError("'" + path_ + "': no point cloud of " + clouds_->topic() +
+                              " became a rotation" +
+                              (cloud_problem_.empty() ? std::string(" (none in the window?)")
+                                                      : ": " + cloud_problem_));
+      }
+      throw py::stop_iteration();
+    }
+    ++rotations_;
+    return std::move(*out);
+  }
+
   py::dict counts() const {
     py::dict d;
     d["rotations"] = rotations_;
     d["skipped_incomplete"] = skipped_;
+    if (clouds_) {
+      const auto& s = clouds_->reader().stats();
+      d["messages"] = s.messages;
+      d["skipped_clouds"] = clouds_->skipped();
+      d["last_problem"] = cloud_problem_;
+      d["outside_window"] = s.outside_window;
+      d["skipped_chunks"] = s.skipped_chunks;
+      d["skipped_records"] = s.skipped_records;
+      d["truncated"] = s.truncated;
+      d["bag_error"] = clouds_->reader().error();
+      d["topic"] = clouds_->topic();
+      return d;
+    }
     if (!reader_) return d;
     const auto& c = reader_->counts();
     d["data_packets"] = c.data_packets;
@@ -305,6 +381,10 @@ class Reader {
   bool partial_ = false;
   std::optional<Rotation> pcd_;
   std::unique_ptr<velodyne::CaptureReader> reader_;
+  std::unique_ptr<clouds::BagCloudReader> clouds_;  // a bag's PointCloud2 topic
+  std::optional<velodyne::Model> cloud_model_;
+  Scan cloud_scan_;
+  std::string cloud_problem_;
   uint64_t rotations_ = 0, skipped_ = 0;
   bool ended_ = false;  // end_of_capture() ran
 };
@@ -471,7 +551,10 @@ that cannot be told).)")
       .def_readwrite("data_port", &Reader::Options::data_port)
       .def_readwrite("position_port", &Reader::Options::position_port)
       .def_readwrite("rings", &Reader::Options::rings)
-      .def_readwrite("resolution_deg", &Reader::Options::resolution_deg);
+      .def_readwrite("resolution_deg", &Reader::Options::resolution_deg)
+      .def_readwrite("topic", &Reader::Options::topic)
+      .def_readwrite("start_s", &Reader::Options::start_s)
+      .def_readwrite("duration_s", &Reader::Options::duration_s);
 
   py::class_<Reader>(m, "Reader", "Rotations of a capture, read one at a time (see read()).")
       .def(py::init<const std::string&, const Reader::Options&>())

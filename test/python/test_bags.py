@@ -24,3 +24,47 @@ def test_bag_reads_as_its_pcap(bag, pcap):
     for b, p in zip(from_bag, from_pcap):
         assert (b.sequence, b.stamp_ns, b.complete) == (p.sequence, p.stamp_ns, p.complete)
         assert np.array_equal(b.points, p.points)
+
+
+def luminar():
+    path = CAPTURES / "bags" / "ros1" / "luminar_pointcloud2_lz4.bag"
+    if not path.exists():
+        pytest.skip(f"no bags in {CAPTURES / 'bags'}")
+    return path
+
+
+def test_a_point_cloud2_topic_reads_as_one_rotation_per_cloud():
+    reader = lidartag.read(luminar(), topic="/luminar_pointcloud")
+    rotations = list(reader)
+    assert len(rotations) == 5
+    assert reader.counts["messages"] == 5 and reader.counts["skipped_clouds"] == 0
+    assert [r.sequence for r in rotations] == [0, 1, 2, 3, 4]
+    # Stamped with the clouds' header stamps, 0.1 s apart (a 10 Hz sensor).
+    stamps = np.array([r.stamp_ns for r in rotations])
+    assert stamps[0] == 1583971570015299642
+    assert np.all(np.abs(np.diff(stamps) - 100_000_000) < 2_000_000)
+    # The Rotation a pcap gives, with the same points layout.
+    pcap = next(iter(lidartag.read(CAPTURES / "vlp16_dual_nebula.pcap")))
+    for r in rotations:
+        assert isinstance(r, lidartag.Rotation) and r.complete and len(r) > 0
+        assert r.points.dtype == pcap.points.dtype
+        # laser_id (0 and 1: two lasers) is the ring field: two rings.
+        assert r.rings == 2
+    # The detector takes them as it takes a pcap's rotations: no tags in this recording.
+    detector = lidartag.Detector()
+    assert all(len(detector.detect(r)) == 0 for r in rotations)
+
+
+def test_a_bag_time_window_and_a_wrong_topic():
+    window = list(lidartag.read(luminar(), start=0.15, duration=0.2))
+    assert [r.stamp_ns for r in window] == [1583971570215200989, 1583971570315396514]
+    with pytest.raises(lidartag.IoError, match="no topic /nope"):
+        lidartag.read(luminar(), topic="/nope")
+    with pytest.raises(ValueError, match="--duration"):
+        lidartag.read(luminar(), duration=0)
+    with pytest.raises(ValueError, match="for ROS bags"):
+        lidartag.read(CAPTURES / "vlp16_dual_nebula.pcap", start=1.0)
+    velodyne = CAPTURES / "bags" / "rosbag2" / "vlp16_dual"
+    reader = lidartag.read(velodyne, start=0.15, duration=0.2, partial=True)
+    list(reader)
+    assert reader.counts["data_packets"] == 301  # two VelodyneScan messages of four

@@ -493,7 +493,10 @@ int run_detect(const DetectArgs& args) {
     load_pcd_scan(args.capture, args.rings, args.resolution_deg, scan);
     report(scan);
   } else if (is_point_cloud_bag(args.capture)) {
-    if (for_each_bag_cloud(args.capture, args.rings, args.resolution_deg, report) == 0)
+    if (for_each_bag_cloud(args.capture, args.rings, args.resolution_deg, [&](const Scan& s) {
+          report(s);
+          return true;
+        }) == 0)
       throw std::runtime_error(args.capture.capture + ": no point cloud could be read");
   } else {
     // The rotations (Ouster: the frames, destaggered) of a Velodyne or an Ouster reader.

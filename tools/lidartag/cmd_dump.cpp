@@ -1,7 +1,7 @@
 // `lidartag dump CAPTURE --out DIR [--organized] [--force]`: one binary PCD per rotation, its
 // (`--format mcap --out FILE`: the clouds in one MCAP file for Foxglove, mcap_output.hpp)
 // stamp in the header (pcd.hpp). Ouster captures (--metadata, or NAME.json beside NAME.pcap): one
-// per frame, destaggered.
+// per frame, destaggered. A bag's PointCloud2 topic: one per cloud.
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
@@ -11,6 +11,7 @@
 #include <string>
 #include <system_error>
 
+#include "lidartag/bag_clouds.hpp"
 #include "lidartag/commands.hpp"
 #include "lidartag/common.hpp"
 #include "lidartag/driver/io/errors.hpp"
@@ -32,7 +33,9 @@ struct DumpArgs {
   bool partial = false;
   bool organized = false;
   bool force = false;
-  std::string format = "pcd";  // pcd: a folder of PCD files; mcap: one MCAP file (--out FILE)
+  int rings = 0;                // PointCloud2 without a ring field and no --model: beams
+  double resolution_deg = 0.2;  // PointCloud2: width of a column
+  std::string format = "pcd";   // pcd: a folder of PCD files; mcap: one MCAP file (--out FILE)
   McapArgs mcap;
 };
 
@@ -137,6 +140,14 @@ int dump_rotations(const DumpArgs& args, Reader& reader) {
 }
 
 int run_dump(const DumpArgs& args) {
+  if (is_point_cloud_bag(args.capture)) {  // a bag's PointCloud2 topic: one file per cloud
+    if (args.format != "pcd")
+      throw UsageError("--format " + args.format +
+                       ": a bag's PointCloud2 topic is dumped as PCD files (--format pcd)");
+    prepare_output(args);
+    dump_bag_clouds(args.capture, args.rings, args.resolution_deg, args.out, args.organized);
+    return 0;
+  }
   if (const auto metadata = ouster_metadata(args.capture.capture, args.ouster.metadata)) {
     const auto reader = ouster_reader(args.capture, args.ouster, *metadata);
     return dump_rotations(args, *reader);
@@ -172,6 +183,11 @@ const Registrar kDump(
                    "(rotation_*.pcd, "
                    "scan_*.pcd) are deleted first, "
                    "other files are kept");
+      app.add_option("--rings", args->rings,
+                     "PointCloud2 without a ring field: beams to estimate (or --model)");
+      app.add_option("--resolution", args->resolution_deg,
+                     "PointCloud2: horizontal resolution (column width), degrees")
+          ->capture_default_str();
       return [args] { return run_dump(*args); };
     });
 

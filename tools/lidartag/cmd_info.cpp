@@ -1,6 +1,7 @@
 // `lidartag info CAPTURE`: what a capture holds: sensor, return mode, rate, packets by kind,
 // rotations, losses, GPS state. An Ouster capture (--metadata FILE.json, or NAME.json beside
-// NAME.pcap when that is an Ouster sensor's metadata): profile, frames, packets, refusals.
+// NAME.pcap when that is an Ouster sensor's metadata): profile, frames, packets, refusals. A bag's
+// PointCloud2 topic: clouds, points, stamps.
 #include <fmt/format.h>
 
 #include <array>
@@ -10,6 +11,7 @@
 #include <optional>
 #include <string>
 
+#include "lidartag/bag_clouds.hpp"
 #include "lidartag/commands.hpp"
 #include "lidartag/common.hpp"
 #include "lidartag/driver/io/pcap_source.hpp"
@@ -137,6 +139,7 @@ constexpr DecodeStatus kDecodeErrors[] = {DecodeStatus::kWrongSize, DecodeStatus
 int run_info(const InfoArgs& args) {
   if (const auto metadata = ouster_metadata(args.capture.capture, args.metadata))
     return run_info_ouster(args, *metadata);
+  if (is_point_cloud_bag(args.capture)) return info_bag_clouds(args.capture, args.json);
   velodyne::CaptureReader reader(args.capture.capture, reader_options(args.capture));
   uint64_t rotations = 0, complete = 0, points = 0, rated = 0;
   double rpm_complete = 0, rpm_any = 0;

@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "lidartag/bag_clouds.hpp"
 #include "lidartag/commands.hpp"
 #include "lidartag/common.hpp"
 #include "lidartag/detector/detector.hpp"
@@ -229,6 +230,9 @@ int run_render(const RenderArgs& args) {
       throw UsageError(fmt::format("--rotation {}: a PCD file holds one rotation (rotation {})",
                                    args.rotation, pcd_scan.sequence));
     }
+    scan = &pcd_scan;
+  } else if (is_point_cloud_bag(args.capture)) {  // a bag's PointCloud2 topic: cloud --rotation
+    bag_cloud_scan(args.capture, args.rings, args.resolution_deg, args.rotation, pcd_scan);
     scan = &pcd_scan;
   } else {
     // The rotations (Ouster: the frames, destaggered) of a Velodyne or an Ouster reader.

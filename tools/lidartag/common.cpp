@@ -15,6 +15,7 @@
 
 #include "lidartag/detector/cloud_scan.hpp"
 #include "lidartag/draw/units.hpp"
+#include "lidartag/driver/bag/message_reader.hpp"
 #include "lidartag/driver/io/errors.hpp"
 #include "lidartag/driver/io/udp_frame.hpp"
 #include "lidartag/driver/velodyne/io/pcd.hpp"
@@ -42,7 +43,7 @@ CLI::Validator length_in_metres() {
 void add_capture_options(CLI::App& app, CaptureArgs& args) {
   app.add_option("capture", args.capture,
                  "pcap or pcapng file, or a ROS 1 bag, ROS 2 bag folder or MCAP file of "
-                 "VelodyneScan packets (recognised by content)")
+                 "VelodyneScan packets or PointCloud2 clouds (recognised by content)")
       ->required()
       ->check(CLI::ExistingPath);
   const std::string names = velodyne::model_names();
@@ -75,7 +76,23 @@ void add_capture_options(CLI::App& app, CaptureArgs& args) {
           },
           "IPV4"));
   app.add_option("--topic", args.topic,
-                 "ROS bag / MCAP: the VelodyneScan topic (default: the bag's one LiDAR topic)");
+                 "ROS bag / MCAP: the LiDAR topic (default: the bag's one LiDAR topic)");
+  app.add_option("--start", args.start_s,
+                 "ROS bag / MCAP: skip the messages of the first SECONDS (from the bag's first "
+                 "message)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--duration", args.duration_s,
+                 "ROS bag / MCAP: read the messages of SECONDS from --start only")
+      ->check(CLI::PositiveNumber);
+}
+
+void require_bag_for_window(const CaptureArgs& args) {
+  if (args.windowed() &&
+      driver::bag::detect_bag_format(args.capture) == driver::bag::BagFormat::kNone)
+    throw UsageError(fmt::format(
+        "--start/--duration take a ROS bag or MCAP file; {} is not one (cut a pcap with editcap "
+        "-A/-B)",
+        args.capture));
 }
 
 velodyne::CaptureReaderOptions reader_options(const CaptureArgs& args) {
@@ -89,6 +106,9 @@ velodyne::CaptureReaderOptions reader_options(const CaptureArgs& args) {
   if (!args.model.empty()) options.model = velodyne::model_from_name(args.model);
   options.calibration_file = args.calibration;
   options.topic = args.topic;
+  require_bag_for_window(args);
+  options.bag_start_s = args.start_s;
+  options.bag_duration_s = args.duration_s;
   options.batcher.cut_azimuth_deg = args.cut_deg;
   return options;
 }
@@ -139,6 +159,7 @@ bool is_pcd(const std::string& path) {
 // --model's beam table, or --rings beams estimated from the cloud). The stamp and the rotation's
 // other fields come from the header comments `lidartag dump` writes.
 void load_pcd_scan(const CaptureArgs& args, int rings, double resolution_deg, Scan& scan) {
+  require_bag_for_window(args);
   const std::string& path = args.capture;
   const velodyne::PcdCloud pcd = velodyne::read_pcd_points(path);
   const detector::CloudFields fields =

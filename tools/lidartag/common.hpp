@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstddef>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <span>
@@ -27,14 +28,24 @@ struct CaptureArgs {
   uint16_t position_port = velodyne::kDefaultPositionPort;
   std::string sensor;  // sender address filter, dotted quad
   std::string topic;   // ROS bag / MCAP: the VelodyneScan topic; empty: the bag's one LiDAR topic
+  // ROS bag / MCAP: the time window, seconds from the bag's first message (--start, --duration).
+  double start_s = 0;
+  double duration_s = std::numeric_limits<double>::infinity();
+  bool windowed() const {
+    return start_s > 0 || duration_s < std::numeric_limits<double>::infinity();
+  }
 };
 
-// Adds CAPTURE, --model, --calibration, --cut, --data-port, --position-port, --sensor, --topic to
-// `app`.
+// Adds CAPTURE, --model, --calibration, --cut, --data-port, --position-port, --sensor, --topic,
+// --start, --duration to `app`.
 void add_capture_options(CLI::App& app, CaptureArgs& args);
 
-// The reader options for `args` (names already validated by CLI11).
+// The reader options for `args` (names already validated by CLI11). A time window (--start,
+// --duration) on a capture that is not a bag: UsageError.
 velodyne::CaptureReaderOptions reader_options(const CaptureArgs& args);
+
+// UsageError when `args` asks for a time window and its capture is not a bag.
+void require_bag_for_window(const CaptureArgs& args);
 
 // Bytes of the capture file read so far, for a progress bar (pcap record and UDP/IP headers
 // estimated).

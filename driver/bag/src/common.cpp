@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <filesystem>
 #include <limits>
 
@@ -124,7 +125,18 @@ void MessageReader::note(const std::string& problem) {
   ++notes_;
   if (notes_ <= kShown) {
     if (!error_.empty()) error_ += "; ";
-    error_ += problem;
+    // One line whatever the file holds: a corrupt compression name is quoted from the file.
+    static constexpr char kHex[] = "0123456789abcdef";
+    for (const char ch : problem) {
+      const auto c = static_cast<unsigned char>(ch);
+      if (c >= 0x20 && c != 0x7F) {
+        error_ += ch;
+      } else {
+        error_ += "\\x";
+        error_ += kHex[c >> 4];
+        error_ += kHex[c & 15];
+      }
+    }
   } else if (notes_ == kShown + 1) {
     error_ += "; more problems follow (see the counters)";
   }
@@ -133,6 +145,29 @@ void MessageReader::note(const std::string& problem) {
 bool MessageReader::wanted(std::string_view topic) const {
   return options_.topics.empty() ||
          std::find(options_.topics.begin(), options_.topics.end(), topic) != options_.topics.end();
+}
+
+bool MessageReader::in_window(int64_t time_ns) {
+  if (!start_ns_) start_ns_ = time_ns;
+  const double start = options_.start_s > 0 ? options_.start_s : 0.0;
+  const double duration = options_.duration_s;
+  const bool bounded = duration > 0 && duration < std::numeric_limits<double>::infinity();
+  if (start == 0 && !bounded) return true;  // the whole bag
+  int64_t since = 0;
+  // Times of corrupt records may be anything: 292 years or more from the start is outside any
+  // window but an open-ended one.
+  if (__builtin_sub_overflow(time_ns, *start_ns_, &since)) return time_ns > *start_ns_ && !bounded;
+  const double t = static_cast<double>(since) * 1e-9;  // exact to a ns for 104 days
+  if (t < start) return false;
+  return !bounded || t - start < duration;
+}
+
+std::string window_problem(double start_s, double duration_s) {
+  if (std::isnan(start_s) || start_s < 0)
+    return "--start " + std::to_string(start_s) + ": seconds from the first message, 0 or more";
+  if (std::isnan(duration_s) || duration_s <= 0)
+    return "--duration " + std::to_string(duration_s) + ": seconds, more than 0";
+  return {};
 }
 
 std::string_view format_name(BagFormat format) {

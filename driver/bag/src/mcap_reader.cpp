@@ -5,6 +5,7 @@
 // (0x0F) or the Footer (0x02). The summary section (found through the Footer) gives the channel
 // list and the Statistics record (0x0B) the per-channel counts.
 #include <map>
+#include <optional>
 
 #include "internal.hpp"
 
@@ -152,7 +153,12 @@ class McapReader final : public MessageReader {
       }
       Connection& conn = connections_[it->second];
       if (!counted_) ++conn.count;
+      const bool inside = in_window(static_cast<int64_t>(log_time));
       if (!wanted(conn.topic)) return false;
+      if (!inside) {
+        ++stats_.outside_window;
+        return false;
+      }
       out.connection = it->second;
       out.time_ns = static_cast<int64_t>(log_time);
       out.data = body.subspan(c.pos());
@@ -207,6 +213,7 @@ class McapReader final : public MessageReader {
     Cursor s(summary);
     std::map<uint16_t, uint64_t> counts;
     bool have_statistics = false;
+    std::optional<int64_t> statistics_start;
     while (s.left() > 0) {
       const auto op = s.get<uint8_t>();
       const auto length = s.get<uint64_t>();
@@ -216,10 +223,11 @@ class McapReader final : public MessageReader {
       if (op == kChannel) add_channel(body);
       if (op == kStatistics) {
         Cursor t(body);
-        t.get<uint64_t>();  // message_count
-        t.get<uint16_t>();  // schema_count
-        t.take(4 * 4);      // channel .. chunk counts
-        t.take(16);         // start and end times
+        t.get<uint64_t>();                     // message_count
+        t.get<uint16_t>();                     // schema_count
+        t.take(4 * 4);                         // channel, attachment, metadata, chunk counts
+        const auto start = t.get<uint64_t>();  // message_start_time
+        t.get<uint64_t>();                     // message_end_time
         const auto map_len = t.get<uint32_t>();
         Cursor m(t.take(map_len));
         while (t.ok() && m.ok() && m.left() > 0) {  // a short entry ends it
@@ -227,6 +235,7 @@ class McapReader final : public MessageReader {
           counts[id] = m.get<uint64_t>();
         }
         have_statistics = t.ok() && m.ok();
+        if (have_statistics && t.ok()) statistics_start = static_cast<int64_t>(start);
       }
     }
     if (!have_statistics) return;
@@ -236,6 +245,9 @@ class McapReader final : public MessageReader {
       if (it != channels_.end()) connections_[it->second].count = n;
     }
     counted_ = true;
+    // The earliest message's log time (a file without messages declares 0: left unknown).
+    if (statistics_start && connections_.size() > 0 && *statistics_start > 0)
+      start_ns_ = statistics_start;
   }
 
   std::string path_;

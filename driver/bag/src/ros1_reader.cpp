@@ -5,6 +5,7 @@
 // index_pos the connections (0x07) and chunk infos (0x06: per-connection counts). The file is read
 // front to back, one chunk in memory at a time; the index only gives the connection list and
 // counts.
+#include <algorithm>
 #include <map>
 #include <optional>
 
@@ -198,6 +199,7 @@ class Ros1Reader final : public MessageReader {
   // The index: connections and chunk infos, from index_pos to the end.
   void read_index(uint64_t offset) {
     std::map<uint32_t, uint64_t> counts;
+    std::optional<int64_t> first;  // the earliest chunk's start_time
     while (offset < file_.size()) {
       Record r;
       uint64_t after = 0;
@@ -205,6 +207,8 @@ class Ros1Reader final : public MessageReader {
       if (r.fields.op == kOpConnection) {
         if (!add_connection(r.fields, r.data)) return;
       } else if (r.fields.op == kOpChunkInfo) {
+        if (const auto t = r.fields.get("start_time"); t.size() == 8)
+          first = std::min(first.value_or(ros_time(t)), ros_time(t));
         Cursor c(r.data);
         const auto n = r.fields.number<uint32_t>("count").value_or(0);
         for (uint32_t i = 0; i < n && c.ok(); ++i) {
@@ -223,6 +227,7 @@ class Ros1Reader final : public MessageReader {
       connections_[it->second].count = n;
     }
     indexed_ = true;
+    start_ns_ = first;
   }
 
   // A connection record (in a chunk or the index): false when it is corrupt.
@@ -263,9 +268,15 @@ class Ros1Reader final : public MessageReader {
     }
     Connection& c = connections_[it->second];
     if (!indexed_) ++c.count;
+    const int64_t time = ros_time(f.get("time"));
+    const bool inside = in_window(time);
     if (!wanted(c.topic)) return false;
+    if (!inside) {
+      ++stats_.outside_window;
+      return false;
+    }
     out.connection = it->second;
-    out.time_ns = ros_time(f.get("time"));
+    out.time_ns = time;
     out.data = data;
     ++stats_.messages;
     stats_.bytes += data.size();

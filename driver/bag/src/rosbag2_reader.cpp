@@ -93,6 +93,16 @@ class Rosbag2Reader final : public MessageReader {
         throw BagError(files[i].string() + ": cannot read the messages table (" +
                        sqlite3_errmsg(dbs_[i].get()) + ")");
     }
+    // The bag's start: its earliest message (metadata.yaml's starting_time may disagree).
+    for (auto& db : dbs_) {
+      Statement s;
+      if (sqlite3_prepare_v2(db.get(), "SELECT MIN(timestamp) FROM messages", -1, &s.stmt,
+                             nullptr) == SQLITE_OK &&
+          sqlite3_step(s.stmt) == SQLITE_ROW && sqlite3_column_type(s.stmt, 0) != SQLITE_NULL) {
+        const int64_t t = sqlite3_column_int64(s.stmt, 0);
+        start_ns_ = std::min(start_ns_.value_or(t), t);
+      }
+    }
     names_ = files;
   }
 
@@ -127,6 +137,10 @@ class Rosbag2Reader final : public MessageReader {
           continue;
         }
         if (!wanted(connections_[it->second].topic)) continue;
+        if (!in_window(sqlite3_column_int64(query_, 1))) {
+          ++stats_.outside_window;
+          continue;
+        }
         const void* blob = sqlite3_column_blob(query_, 2);
         const int bytes = sqlite3_column_bytes(query_, 2);
         out.connection = it->second;

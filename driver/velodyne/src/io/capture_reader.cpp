@@ -31,7 +31,8 @@ std::unique_ptr<driver::PacketSource> open_capture(const std::string& path,
   if (driver::bag::detect_bag_format(path) == driver::bag::BagFormat::kNone)
     return std::make_unique<driver::PcapSource>(path, options.source);
   return std::make_unique<driver::bag::BagPacketSource>(
-      path, driver::bag::BagPacketSourceOptions{options.topic, options.source.data_port});
+      path, driver::bag::BagPacketSourceOptions{options.topic, options.source.data_port,
+                                                options.bag_start_s, options.bag_duration_s});
 }
 }  // namespace
 

@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -21,6 +22,10 @@ struct BagPacketSourceOptions {
   std::string topic;
   // Port the packets are delivered to (what the reader takes for data packets).
   uint16_t data_port = kDefaultDataPort;
+  // Time window, seconds from the bag's first message (ReaderOptions::start_s, duration_s): only
+  // the VelodyneScan messages received in it are delivered. Defaults: the whole bag.
+  double start_s = 0;
+  double duration_s = std::numeric_limits<double>::infinity();
 };
 
 struct BagPacketCounts {
@@ -30,8 +35,9 @@ struct BagPacketCounts {
 
 class BagPacketSource final : public PacketSource {
  public:
-  // Opens `path` (open_bag) and picks the topic. Throws BagError: not a bag, no such topic, no
-  // LiDAR topic or several, or a topic whose type is not velodyne_msgs/VelodyneScan.
+  // Opens `path` (open_bag, with the options' time window) and picks the topic. Throws BagError:
+  // not a bag, no such topic, no LiDAR topic or several, or a topic whose type is not
+  // velodyne_msgs/VelodyneScan.
   explicit BagPacketSource(const std::string& path, BagPacketSourceOptions options = {});
   // Over an opened reader (reading only `options.topic`'s messages, if it was opened so).
   BagPacketSource(std::unique_ptr<MessageReader> reader, BagPacketSourceOptions options,

@@ -5,7 +5,9 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <memory>
+#include <optional>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -64,6 +66,7 @@ struct ReadStats {
   uint64_t skipped_records = 0;  // records with corrupt headers or unknown connections, skipped
   uint64_t truncated = 0;        // 1 when the file ends inside a record
   uint64_t read_errors = 0;      // storage errors (sqlite)
+  uint64_t outside_window = 0;   // messages of the wanted topics outside the time window
 };
 
 struct ReaderOptions {
@@ -73,7 +76,17 @@ struct ReaderOptions {
   // skipped as corrupt (skipped_chunks, skipped_records). Bounds the memory a reader holds (one
   // chunk at a time). Default 256 MiB: ROS 1 writes chunks of 768 KiB, rosbag2's MCAP of 4 MiB.
   uint64_t max_chunk_bytes = uint64_t{256} << 20;
+  // Time window, seconds from the bag's start (MessageReader::start_time_ns(): its earliest
+  // message): only messages received in [start_s, start_s + duration_s) are delivered, with their
+  // own recorded times. Defaults: the whole bag. Negative or NaN values are the caller's error
+  // (window_problem() says so); the readers treat them as 0 and as no limit.
+  double start_s = 0;
+  double duration_s = std::numeric_limits<double>::infinity();
 };
+
+// Empty when `start_s` and `duration_s` make a window (start >= 0, duration > 0, neither NaN),
+// else what is wrong with them ("--start -1: ...").
+std::string window_problem(double start_s, double duration_s);
 
 class MessageReader {
  public:
@@ -86,16 +99,25 @@ class MessageReader {
   // What was lost: each problem met (first few, with file offsets); empty while nothing was.
   const std::string& error() const { return error_; }
   virtual BagFormat format() const = 0;
+  // Receive time of the bag's earliest message, ns since epoch, as the container declares it at
+  // the open (ROS 1: the index's chunk infos; MCAP: the summary's Statistics; sqlite3: the
+  // smallest message timestamp, not metadata.yaml's starting_time). Without an index or summary:
+  // the first message read (file order), once one was. The time window counts from it.
+  std::optional<int64_t> start_time_ns() const { return start_ns_; }
 
  protected:
   void note(const std::string& problem);
   bool wanted(std::string_view topic) const;
+  // Whether a message received at `time_ns` lies in the time window (options_.start_s,
+  // duration_s); the first message seen anchors the window when the start is not known.
+  bool in_window(int64_t time_ns);
 
   std::vector<Connection> connections_;
   ReadStats stats_;
   ReaderOptions options_;
   std::string error_;
   int notes_ = 0;
+  std::optional<int64_t> start_ns_;
 };
 
 // The container at `path` by its content: a file's first bytes (ROS 1 magic, MCAP magic, SQLite

@@ -7,6 +7,7 @@
 #include <array>
 #include <chrono>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -31,6 +32,10 @@ struct CaptureReaderOptions {
   // A ROS bag or MCAP file (driver/bag): the VelodyneScan topic to read; empty: the bag's one
   // LiDAR topic. Unused for pcaps.
   std::string topic;
+  // A ROS bag or MCAP file: the time window, seconds from the bag's first message
+  // (driver::bag::ReaderOptions::start_s, duration_s). Defaults: the whole bag. Unused for pcaps.
+  double bag_start_s = 0;
+  double bag_duration_s = std::numeric_limits<double>::infinity();
   // Model to decode as. Empty: the product byte of the data packets, checked against their timing
   // by ModelCheck (see model_mismatch()); the timing's model when the byte names none.
   std::optional<Model> model;
