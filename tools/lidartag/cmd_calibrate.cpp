@@ -9,6 +9,8 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+#include <cctype>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -43,6 +45,7 @@ namespace fs = std::filesystem;
 struct CalibrateArgs {
   std::string camera;
   std::vector<std::pair<std::string, std::string>> pairs;  // image, capture
+  std::vector<std::string> pairs_dirs;                     // folders of matching names
   std::vector<std::string> families;
   std::vector<double> tag_sizes;
   std::string out;
@@ -53,6 +56,73 @@ struct CalibrateArgs {
   std::string model;     // of the captures, when their packets do not say
   std::string pictures;  // PREFIX: PREFIX-pairN.png per pair
 };
+
+// The pairs of a folder (--pairs-dir): each image (.png, .jpg, .jpeg) with the capture (.pcap,
+// .pcapng, .pcd) of the same base name, any case of the extension, in the order of the names.
+// Other files (truth files, intrinsics, pictures of another kind) are not inputs and are left
+// alone; sub-folders are not searched. A file of either kind without its partner, or a base name
+// with two images or two captures, is returned in `unmatched` with the reason.
+struct FolderPairs {
+  std::vector<std::pair<std::string, std::string>> pairs;      // image, capture
+  std::vector<std::pair<std::string, std::string>> unmatched;  // file, why
+};
+
+std::string lower_extension(const fs::path& f) {
+  std::string e = f.extension().string();
+  for (char& c : e) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return e;
+}
+
+bool is_image_name(const fs::path& f) {
+  const std::string e = lower_extension(f);
+  return e == ".png" || e == ".jpg" || e == ".jpeg";
+}
+
+bool is_capture_name(const fs::path& f) {
+  const std::string e = lower_extension(f);
+  return e == ".pcap" || e == ".pcapng" || e == ".pcd";
+}
+
+FolderPairs pairs_in_folder(const std::string& dir) {
+  std::map<std::string, std::pair<std::vector<std::string>, std::vector<std::string>>> by_name;
+  for (const fs::directory_entry& e : fs::directory_iterator(dir)) {
+    if (!e.is_regular_file()) continue;
+    const bool image = is_image_name(e.path()), capture = is_capture_name(e.path());
+    if (!image && !capture) continue;
+    auto& [images, captures] = by_name[e.path().stem().string()];
+    (image ? images : captures).push_back(e.path().string());
+  }
+  FolderPairs out;
+  for (auto& [name, files] : by_name) {
+    auto& [images, captures] = files;
+    std::sort(images.begin(), images.end());
+    std::sort(captures.begin(), captures.end());
+    if (images.size() == 1 && captures.size() == 1) {
+      out.pairs.emplace_back(images[0], captures[0]);
+    } else if (images.size() > 1 || captures.size() > 1) {
+      // Which image goes with which capture is anybody's guess: none of the name's files is used.
+      auto count = [](size_t n, const char* what) {
+        return fmt::format("{} {}{}", n, what, n == 1 ? "" : "s");
+      };
+      const std::string why =
+          fmt::format("the base name '{}' has {} and {} in {}: one of each pairs", name,
+                      count(images.size(), "image"), count(captures.size(), "capture"), dir);
+      for (const auto& f : images) out.unmatched.emplace_back(f, why);
+      for (const auto& f : captures) out.unmatched.emplace_back(f, why);
+    } else if (images.size() == 1) {
+      out.unmatched.emplace_back(
+          images[0],
+          fmt::format("no capture {0}.pcap, {0}.pcapng or {0}.pcd beside the image in {1}", name,
+                      dir));
+    } else if (captures.size() == 1) {
+      out.unmatched.emplace_back(
+          captures[0],
+          fmt::format("no image {0}.png, {0}.jpg or {0}.jpeg beside the capture in {1}", name,
+                      dir));
+    }
+  }
+  return out;
+}
 
 // One pair's inputs as found, and why it could not be used when it could not.
 struct PairInput {
@@ -199,7 +269,8 @@ void print_text(const calib::CalibrationResult& r, const std::vector<PairInput>&
                 const calib::FrameNames& frames, const CalibrateArgs& args) {
   for (const auto& p : inputs) {
     if (!p.error.empty()) {
-      fmt::print("pair {} + {}: not used: {}\n", p.image, p.capture, p.error);
+      fmt::print("pair {} + {}: not used: {}\n", p.image.empty() ? "(no image)" : p.image,
+                 p.capture.empty() ? "(no capture)" : p.capture, p.error);
       continue;
     }
     fmt::print("pair {} + {}: image tags {}; LiDAR tags {} ({} rotations); {} paired\n", p.image,
@@ -286,10 +357,28 @@ int run_calibrate(const CalibrateArgs& args) {
 
   std::vector<PairInput> inputs;
   std::vector<calib::TagPose> poses;
-  for (size_t i = 0; i < args.pairs.size(); ++i) {
+  std::vector<std::pair<std::string, std::string>> pairs = args.pairs;
+  std::vector<PairInput> unmatched;  // reported after the pairs, which keep their numbers
+  for (const std::string& dir : args.pairs_dirs) {
+    FolderPairs found = pairs_in_folder(dir);
+    if (found.pairs.empty() && found.unmatched.empty())
+      spdlog::warn("{}: no image or capture in the folder", dir);
+    pairs.insert(pairs.end(), found.pairs.begin(), found.pairs.end());
+    // A file without its partner is reported as a pair that cannot be used.
+    for (const auto& [file, why] : found.unmatched) {
+      PairInput p;
+      (is_image_name(file) ? p.image : p.capture) = file;
+      p.error = why;
+      spdlog::warn("{}: not used: {}", file, why);
+      unmatched.push_back(std::move(p));
+    }
+  }
+  if (pairs.empty() && unmatched.empty())
+    throw UsageError("no pair to calibrate from: give --pair IMAGE CAPTURE or --pairs-dir DIR");
+  for (size_t i = 0; i < pairs.size(); ++i) {
     PairInput p;
-    p.image = args.pairs[i].first;
-    p.capture = args.pairs[i].second;
+    p.image = pairs[i].first;
+    p.capture = pairs[i].second;
     try {
       p.image_tags = image_tags_of(p.image, camera, image_detector, args, p.image_pixels);
       p.lidar_tags = lidar_tags_of(p.capture, args, options, p.rotations, p.points);
@@ -308,6 +397,7 @@ int run_calibrate(const CalibrateArgs& args) {
     poses.insert(poses.end(), p.pairing.poses.begin(), p.pairing.poses.end());
     inputs.push_back(std::move(p));
   }
+  for (PairInput& p : unmatched) inputs.push_back(std::move(p));
   if (poses.empty())
     throw calib::CalibrationError(
         "no tag was seen by both the camera and the LiDAR in any pair (see the warnings above)");
@@ -340,8 +430,11 @@ const Registrar kCalibrate(
           ->check(CLI::ExistingFile);
       app.add_option("--pair", args->pairs,
                      "IMAGE CAPTURE: a PNG or JPEG and a pcap or PCD of the same static scene "
-                     "(repeat for each pose)")
-          ->required();
+                     "(repeat for each pose)");
+      app.add_option("--pairs-dir", args->pairs_dirs,
+                     "DIR: every image (.png .jpg .jpeg) in it with the capture (.pcap .pcapng "
+                     ".pcd) of the same base name (repeat for several folders)")
+          ->check(CLI::ExistingDirectory);
       app.add_option("--family", args->families,
                      "tag family (repeat for several; default tag16h5)");
       app.add_option("--tag-size", args->tag_sizes,
