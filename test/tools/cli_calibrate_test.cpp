@@ -201,7 +201,7 @@ TEST_F(CliCalibrate, PairsDirPairsImagesAndCapturesByBaseName) {
     const std::string n = "cal_0" + std::to_string(i);
     fs::copy_file(dir_ / (n + ".pcap"), folder / (n + ".pcap"));
     fs::copy_file(dir_ / (n + ".png"), folder / (i == 3 ? n + ".PNG" : n + ".png"));
-    fs::copy_file(dir_ / (n + ".json"), folder / (n + ".json"));  // a truth file: not an input
+    std::ofstream(folder / (n + ".json")) << "{}\n";  // a truth file beside it: not an input
   }
   fs::copy_file(dir_ / "cal_00.png", folder / "lonely.png");    // no capture
   fs::copy_file(dir_ / "cal_01.pcap", folder / "orphan.pcap");  // no image
@@ -251,7 +251,10 @@ TEST_F(CliCalibrate, PairsDirPairsImagesAndCapturesByBaseName) {
       << none.out;
   const ToolResult missing = run_tool("calibrate --camera " + path("camera.yaml") +
                                       " --pairs-dir " + path("no_such_folder"));
-  EXPECT_EQ(missing.exit_code, 2) << missing.out;
+  // A folder that does not exist is an input that cannot be read (exit 1, as a missing file).
+  EXPECT_EQ(missing.exit_code, 1) << missing.out;
+  EXPECT_NE(missing.out.find("--pairs-dir: Directory does not exist"), std::string::npos)
+      << missing.out;
 }
 
 }  // namespace
