@@ -6,7 +6,8 @@
 // The true error of its answer against the hidden extrinsic, whether its reported 1-sigma covers
 // that error, its held-out reprojection and its own run time, as a Markdown table of medians.
 //
-//   bench_calibration [--seeds N] [--rows vlp32c,vlp16,degenerate] [--supersample S]
+//   bench_calibration [--seeds N] [--first-seed N] [--rows vlp32c,vlp16,degenerate] [--supersample
+//   S]
 //                     [--rotations N] [--work DIR] [--keep]
 //
 // Rendering dominates (about 2 s per 1280 x 720 image at supersample 2 on one core): a full table
@@ -240,6 +241,7 @@ struct Outcome {
   double held_out_px = NAN, wall_s = NAN, cpu_s = NAN;
   int poses_used = 0;
   std::string weak;  // the weakest direction named, "" when none
+  std::string lost;  // the poses not used and why
   std::string error;
 };
 
@@ -266,13 +268,24 @@ Outcome evaluate(const Run& r, const DataSet& d) {
   o.trans_sigma_mm = std::hypot(ts[0].get<double>(), ts[1].get<double>(), ts[2].get<double>());
   o.held_out_px = j["errors"]["held_out_median_px"].get<double>();
   o.poses_used = j["poses_used"].get<int>();
+  for (const auto& p : j["pairs"]) {
+    if (p.value("paired", 0) > 0) continue;
+    o.lost += "; " + fs::path(p["image"].get<std::string>()).stem().string() + " not paired (" +
+              (p.contains("error")
+                   ? p["error"].get<std::string>()
+                   : "image tags " + p.value("image_tags", nlohmann::json::array()).dump() +
+                         ", LiDAR tags " + p.value("lidar_tags", nlohmann::json::array()).dump()) +
+              ")";
+  }
+  for (const auto& p : j["poses_rejected"])
+    o.lost += "; " + p["label"].get<std::string>() + " rejected: " + p["reason"].get<std::string>();
   const auto& weak = j["degeneracy"]["weak"];
   if (weak.is_array() && !weak.empty()) o.weak = weak[0]["name"].get<std::string>();
   return o;
 }
 
 int run_benchmark(int argc, char** argv) {
-  int seeds = 10, supersample = 2, rotations = 10;
+  int seeds = 10, first_seed = 1, supersample = 2, rotations = 10;
   std::string rows = "vlp32c,vlp16,degenerate", work, cli = LIDARTAG_CLI;
   bool keep = false;
   std::string command = kProgram;
@@ -280,6 +293,8 @@ int run_benchmark(int argc, char** argv) {
     const std::string a = argv[i];
     if (a == "--seeds") {
       seeds = lidartag::bench_args::count(kProgram, argc, argv, i, "--seeds", 1, command);
+    } else if (a == "--first-seed") {
+      first_seed = lidartag::bench_args::count(kProgram, argc, argv, i, "--first-seed", 1, command);
     } else if (a == "--supersample") {
       supersample =
           lidartag::bench_args::count(kProgram, argc, argv, i, "--supersample", 1, command);
@@ -296,7 +311,8 @@ int run_benchmark(int argc, char** argv) {
       keep = true;
     } else {
       std::fprintf(stderr,
-                   "usage: %s [--seeds N] [--rows vlp32c,vlp16,degenerate] [--supersample S] "
+                   "usage: %s [--seeds N] [--first-seed N] [--rows vlp32c,vlp16,degenerate] "
+                   "[--supersample S] "
                    "[--rotations N] [--work DIR] [--keep] [--cli PATH]\n",
                    kProgram);
       return 2;
@@ -317,7 +333,7 @@ int run_benchmark(int argc, char** argv) {
   for (const Row& row : kRows) {
     if (("," + rows + ",").find("," + row.name + ",") == std::string::npos) continue;
     std::vector<Outcome> outcomes;
-    for (int s = 1; s <= seeds; ++s) {
+    for (int s = first_seed; s < first_seed + seeds; ++s) {
       const DataSet d = make_data_set(row, static_cast<uint64_t>(s));
       const fs::path dir = root / (row.name + "_" + std::to_string(s));
       fs::create_directories(dir);
@@ -341,11 +357,11 @@ int run_benchmark(int argc, char** argv) {
       std::fprintf(stderr,
                    "%s seed %d: sim %.0f s; calibrate %.2f s wall, %.2f s CPU; %s rotation %.4f "
                    "deg (1 sigma %.4f), translation %.2f mm (1 sigma %.2f), held out %.2f px, "
-                   "%d poses%s%s\n",
+                   "%d poses%s%s%s\n",
                    row.name.c_str(), s, sim.wall_s, o.wall_s, o.cpu_s,
                    o.solved ? "" : o.error.c_str(), o.rot_err_deg, o.rot_sigma_deg, o.trans_err_mm,
                    o.trans_sigma_mm, o.held_out_px, o.poses_used,
-                   o.weak.empty() ? "" : "; weak: ", o.weak.c_str());
+                   o.weak.empty() ? "" : "; weak: ", o.weak.c_str(), o.lost.c_str());
       outcomes.push_back(o);
       if (!keep) fs::remove_all(dir);
     }
