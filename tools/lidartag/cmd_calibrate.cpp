@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -151,17 +152,26 @@ std::vector<calib::LidarTag> lidar_tags_of(const std::string& path, const Calibr
   // in the last rotations keeps its window). A square-mounted tag's track is never confirmed (its
   // candidates carry no cell votes: Tracker::add_evidence), so a decoded one counts too.
   std::map<int, det::TrackedDetection> latest;
+  std::vector<double> ring_elevations;  // of the last rotation's rings with returns, radians
   rotations = 0;
   auto take = [&](const Scan& scan) {
     detector.detect(scan, result);
     tracker.update(result, scan.stamp_ns, tracked);
     last_detections = result.detections;
     points.clear();
-    for (int ring = 0; ring < scan.rings; ++ring)
+    ring_elevations.clear();
+    for (int ring = 0; ring < scan.rings; ++ring) {
+      double sum = 0;
+      int n = 0;
       for (int col = 0; col < scan.columns; ++col) {
         const size_t i = scan.at(0, ring, col);
-        if (scan.range[i] > 0) points.emplace_back(scan.x[i], scan.y[i], scan.z[i]);
+        if (scan.range[i] <= 0) continue;
+        points.emplace_back(scan.x[i], scan.y[i], scan.z[i]);
+        sum += std::atan2(scan.z[i], std::hypot(scan.x[i], scan.y[i]));
+        ++n;
       }
+      if (n > 0) ring_elevations.push_back(sum / n);
+    }
     for (const det::TrackedDetection& t : tracked.tags)
       if (t.track.confirmed || t.decoded) latest[t.track.track_id] = t;
     ++rotations;
@@ -205,6 +215,9 @@ std::vector<calib::LidarTag> lidar_tags_of(const std::string& path, const Calibr
     for (const det::Detection& d : last_detections)
       out.push_back(calib::lidar_tag_from_detection(d, tags::builtin_family(d.family)));
   }
+  // What the rings' spacing leaves unknown, which the spread over rotations does not show.
+  for (calib::LidarTag& t : out)
+    calib::add_ring_spacing_uncertainty(t, tags::builtin_family(t.family), ring_elevations);
   return out;
 }
 
