@@ -1,7 +1,9 @@
 #include "lidartag/calib/correspondence.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <vector>
 
 namespace lidartag::calib {
 namespace {
@@ -83,6 +85,39 @@ LidarTag lidar_tag_from_track(const detector::TrackInfo& track, const tags::TagF
   t.corner_cov = pose_corner_covariance(t, pos_cov / n, angle_rad / std::sqrt(n));
   t.corner_cov.diagonal().array() += noise.floor_m * noise.floor_m;
   return t;
+}
+
+void add_ring_spacing_uncertainty(LidarTag& tag, const tags::TagFamily& family,
+                                  std::span<const double> ring_elevations_rad) {
+  std::vector<double> el(ring_elevations_rad.begin(), ring_elevations_rad.end());
+  std::sort(el.begin(), el.end());
+  const double range = tag.position.norm();
+  if (el.size() < 2 || range <= 0) return;
+  // The widest gap between rings over the tag's elevation span (centre +- half its diagonal).
+  const double h = black_half_side(family, tag.size_m);
+  const double centre = std::atan2(tag.position.z(), tag.position.head<2>().norm());
+  const double half_span = std::atan2(h * std::numbers::sqrt2, range);
+  double gap_rad = 0;
+  for (size_t i = 1; i < el.size(); ++i)
+    if (el[i] > centre - half_span && el[i - 1] < centre + half_span)
+      gap_rad = std::max(gap_rad, el[i] - el[i - 1]);
+  if (gap_rad <= 0) return;
+  // The rings' direction at the tag (horizontal, across the line of sight) in the tag's plane,
+  // and the direction across them.
+  const Eigen::Matrix3d r = tag.orientation.toRotationMatrix();
+  const Eigen::Vector3d normal = r.col(0);
+  Eigen::Vector3d along = Eigen::Vector3d::UnitZ().cross(tag.position);
+  along -= along.dot(normal) * normal;
+  if (along.norm() < 1e-9) return;
+  along.normalize();
+  const Eigen::Vector3d across = normal.cross(along);
+  // phi: the edges' (tag y and z) smallest angle to the rings.
+  const double c = std::max(std::abs(along.dot(r.col(1))), std::abs(along.dot(r.col(2))));
+  const double sin_phi = std::sqrt(std::max(0.0, 1 - c * c));
+  const double gap_m = range * gap_rad;
+  const double unresolved = std::max(0.0, 1 - 2 * h * sin_phi / gap_m);
+  const double sigma = gap_m / std::sqrt(12.0) * unresolved;
+  tag.corner_cov += pose_corner_covariance(tag, sigma * sigma * across * across.transpose(), 0.0);
 }
 
 std::array<Eigen::Vector2d, 4> calibration_order(const std::array<Eigen::Vector2d, 4>& apriltag_p) {

@@ -2,6 +2,7 @@
 
 #include <Eigen/Dense>
 #include <numbers>
+#include <vector>
 
 #include "lidartag/calib/camera_model.hpp"
 #include "lidartag/calib/correspondence.hpp"
@@ -162,6 +163,68 @@ TEST(Correspondence, TrackCovarianceShrinksWithRotationsAndKeepsTheFloor) {
   // The corners of one pose are correlated (they move together).
   EXPECT_GT(one.corner_cov(0, 3), 0.0);
   EXPECT_EQ(one.corner_cov.llt().info(), Eigen::Success);
+}
+
+// A square-mounted tag's edges run along the rings: its position across them is known to the
+// gap over sqrt(12), whatever the spread over rotations says, and the four corners move together.
+// A tag turned 45 degrees (a diamond) crosses rings with every edge and gets nothing added; finer
+// rings give less.
+TEST(Correspondence, RingSpacingUncertaintyAcrossTheRingsOfASquareTag) {
+  const tags::TagFamily& fam = tags::builtin_family("tag36h11");
+  detector::TrackInfo track;
+  track.id = 5;
+  track.position = Eigen::Vector3d(5, 0, 0);
+  track.orientation = Eigen::Quaterniond(upright_facing_sensor());
+  track.position_std_m = Eigen::Vector3d(0.001, 0.001, 0.001);
+  track.angle_std_deg = 0.1;
+  track.window_rotations = 10;
+  const LidarTag before = lidar_tag_from_track(track, fam, 1.0);
+  std::vector<double> vlp16;  // 16 rings 2 degrees apart, -15..15
+  for (int i = 0; i < 16; ++i) vlp16.push_back((-15.0 + 2.0 * i) * std::numbers::pi / 180);
+  LidarTag square = before;
+  add_ring_spacing_uncertainty(square, fam, vlp16);
+  const double gap = 5 * 2.0 * std::numbers::pi / 180;  // 0.175 m at 5 m
+  const double var = gap * gap / 12;                    // (50 mm)^2
+  for (int k = 0; k < 4; ++k) {
+    const int z = 3 * k + 2;
+    EXPECT_NEAR(square.corner_cov(z, z) - before.corner_cov(z, z), var, 1e-9) << k;
+    // Across the rings only: x (range) and y (along the rings) are unchanged.
+    EXPECT_NEAR(square.corner_cov(3 * k, 3 * k), before.corner_cov(3 * k, 3 * k), 1e-12);
+    EXPECT_NEAR(square.corner_cov(3 * k + 1, 3 * k + 1), before.corner_cov(3 * k + 1, 3 * k + 1),
+                1e-12);
+    // Every corner's z moves with corner 0's.
+    EXPECT_NEAR(square.corner_cov(2, z) - before.corner_cov(2, z), var, 1e-9) << k;
+  }
+  EXPECT_EQ(square.corner_cov.llt().info(), Eigen::Success);
+
+  // Turned 45 degrees in its plane: every edge crosses rings; nothing added.
+  track.orientation = Eigen::Quaterniond(
+      upright_facing_sensor() * Eigen::AngleAxisd(std::numbers::pi / 4, Eigen::Vector3d::UnitX()));
+  const LidarTag diamond_before = lidar_tag_from_track(track, fam, 1.0);
+  LidarTag diamond = diamond_before;
+  add_ring_spacing_uncertainty(diamond, fam, vlp16);
+  EXPECT_NEAR((diamond.corner_cov - diamond_before.corner_cov).norm(), 0.0, 1e-15);
+
+  // Turned 3 degrees: a little resolved (the 0.8 m black square spans 42 mm of the 175 mm gap).
+  track.orientation =
+      Eigen::Quaterniond(upright_facing_sensor() *
+                         Eigen::AngleAxisd(3 * std::numbers::pi / 180, Eigen::Vector3d::UnitX()));
+  LidarTag slight = lidar_tag_from_track(track, fam, 1.0);
+  const double slight_before = slight.corner_cov(2, 2);
+  add_ring_spacing_uncertainty(slight, fam, vlp16);
+  const double left = 1 - 0.8 * std::sin(3 * std::numbers::pi / 180) / gap;
+  EXPECT_NEAR(slight.corner_cov(2, 2) - slight_before, var * left * left, 1e-6 * var);
+
+  // Rings a third of a degree apart about the tag (a VLP-32C's middle) leave a sixth as much.
+  std::vector<double> fine;
+  for (int i = -30; i <= 30; ++i) fine.push_back(i / 3.0 * std::numbers::pi / 180);
+  LidarTag fine_tag = before;
+  add_ring_spacing_uncertainty(fine_tag, fam, fine);
+  EXPECT_NEAR(fine_tag.corner_cov(2, 2) - before.corner_cov(2, 2), var / 36, 1e-9);
+  // No rings known: nothing added.
+  LidarTag none = before;
+  add_ring_spacing_uncertainty(none, fam, {});
+  EXPECT_EQ(none.corner_cov, before.corner_cov);
 }
 
 TEST(Correspondence, PairsByFamilyIdAndSizeAndSaysWhyNot) {

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <numbers>
 #include <string>
@@ -187,6 +188,73 @@ TEST_F(CliCalibrate, AnImageOfAnotherSizeAndMissingInputsAreClearErrors) {
   const ToolResult bad = run_tool("calibrate --camera " + path("camera_bad.yaml") + pair(0));
   EXPECT_EQ(bad.exit_code, 2) << bad.out;
   EXPECT_NE(bad.out.find("camera_bad.yaml"), std::string::npos) << bad.out;
+}
+
+// --pairs-dir: a folder of images and captures paired by base name gives the same answer as the
+// same pairs given one by one; files without a partner, or a base name with two captures, are
+// reported as pairs that cannot be used, and other files are left alone.
+TEST_F(CliCalibrate, PairsDirPairsImagesAndCapturesByBaseName) {
+  ASSERT_EQ(sim_.exit_code, 0) << sim_.out;
+  const fs::path folder = dir_ / "folder";
+  fs::create_directories(folder / "sub");
+  for (int i = 0; i < 6; ++i) {
+    const std::string n = "cal_0" + std::to_string(i);
+    fs::copy_file(dir_ / (n + ".pcap"), folder / (n + ".pcap"));
+    fs::copy_file(dir_ / (n + ".png"), folder / (i == 3 ? n + ".PNG" : n + ".png"));
+    std::ofstream(folder / (n + ".json")) << "{}\n";  // a truth file beside it: not an input
+  }
+  fs::copy_file(dir_ / "cal_00.png", folder / "lonely.png");    // no capture
+  fs::copy_file(dir_ / "cal_01.pcap", folder / "orphan.pcap");  // no image
+  fs::copy_file(dir_ / "cal_02.png", folder / "twice.jpg");     // two captures, one name
+  fs::copy_file(dir_ / "cal_02.pcap", folder / "twice.pcap");
+  fs::copy_file(dir_ / "cal_02.pcap", folder / "twice.pcd");
+  fs::copy_file(dir_ / "cal_04.png", folder / "sub" / "cal_09.png");  // not searched
+  fs::copy_file(dir_ / "cal_04.pcap", folder / "sub" / "cal_09.pcap");
+
+  const ToolResult r =
+      run_split(std::string(LIDARTAG_CLI) + " calibrate --camera " + path("camera.yaml") +
+                " --pairs-dir " + folder.string() + " --family tag36h11 --tag-size 1.0 --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  const auto& pairs = j["pairs"];
+  ASSERT_EQ(pairs.size(), 11u) << pairs.dump();  // 6 pairs, then 5 files without a partner
+  for (size_t i = 0; i < 6; ++i) {
+    const std::string n = "cal_0" + std::to_string(i);
+    EXPECT_EQ(pairs[i]["capture"], (folder / (n + ".pcap")).string());
+    EXPECT_EQ(pairs[i]["image"], (folder / (i == 3 ? n + ".PNG" : n + ".png")).string());
+    EXPECT_FALSE(pairs[i].contains("error")) << pairs[i].dump();
+  }
+  std::map<std::string, std::string> errors_of;
+  for (size_t i = 6; i < pairs.size(); ++i) {
+    const std::string file =
+        pairs[i]["image"].get<std::string>() + pairs[i]["capture"].get<std::string>();
+    errors_of[fs::path(file).filename().string()] = pairs[i]["error"].get<std::string>();
+  }
+  EXPECT_NE(errors_of["lonely.png"].find("no capture lonely.pcap"), std::string::npos);
+  EXPECT_NE(errors_of["orphan.pcap"].find("no image orphan.png"), std::string::npos);
+  for (const char* f : {"twice.jpg", "twice.pcap", "twice.pcd"})
+    EXPECT_NE(errors_of[f].find("the base name 'twice' has 1 image and 2 captures"),
+              std::string::npos)
+        << f << ": " << errors_of[f];
+  EXPECT_NE(r.err.find("lonely.png: not used"), std::string::npos) << r.err;
+  // The same six pairs in the same order: the same answer as --pair.
+  const ToolResult one_by_one = run_tool(command(all_pairs()) + " --json", false);
+  ASSERT_EQ(one_by_one.exit_code, 0);
+  EXPECT_EQ(nlohmann::json::parse(one_by_one.out)["lidar_to_camera"], j["lidar_to_camera"]);
+
+  // A folder with nothing to pair and no --pair: a usage error that says what to give.
+  fs::create_directories(dir_ / "nothing");
+  const ToolResult none =
+      run_tool("calibrate --camera " + path("camera.yaml") + " --pairs-dir " + path("nothing"));
+  EXPECT_EQ(none.exit_code, 2) << none.out;
+  EXPECT_NE(none.out.find("give --pair IMAGE CAPTURE or --pairs-dir DIR"), std::string::npos)
+      << none.out;
+  const ToolResult missing = run_tool("calibrate --camera " + path("camera.yaml") +
+                                      " --pairs-dir " + path("no_such_folder"));
+  // A folder that does not exist is an input that cannot be read (exit 1, as a missing file).
+  EXPECT_EQ(missing.exit_code, 1) << missing.out;
+  EXPECT_NE(missing.out.find("--pairs-dir: Directory does not exist"), std::string::npos)
+      << missing.out;
 }
 
 }  // namespace

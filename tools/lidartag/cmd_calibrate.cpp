@@ -9,6 +9,9 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+#include <cctype>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -43,6 +46,7 @@ namespace fs = std::filesystem;
 struct CalibrateArgs {
   std::string camera;
   std::vector<std::pair<std::string, std::string>> pairs;  // image, capture
+  std::vector<std::string> pairs_dirs;                     // folders of matching names
   std::vector<std::string> families;
   std::vector<double> tag_sizes;
   std::string out;
@@ -53,6 +57,73 @@ struct CalibrateArgs {
   std::string model;     // of the captures, when their packets do not say
   std::string pictures;  // PREFIX: PREFIX-pairN.png per pair
 };
+
+// The pairs of a folder (--pairs-dir): each image (.png, .jpg, .jpeg) with the capture (.pcap,
+// .pcapng, .pcd) of the same base name, any case of the extension, in the order of the names.
+// Other files (truth files, intrinsics, pictures of another kind) are not inputs and are left
+// alone; sub-folders are not searched. A file of either kind without its partner, or a base name
+// with two images or two captures, is returned in `unmatched` with the reason.
+struct FolderPairs {
+  std::vector<std::pair<std::string, std::string>> pairs;      // image, capture
+  std::vector<std::pair<std::string, std::string>> unmatched;  // file, why
+};
+
+std::string lower_extension(const fs::path& f) {
+  std::string e = f.extension().string();
+  for (char& c : e) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return e;
+}
+
+bool is_image_name(const fs::path& f) {
+  const std::string e = lower_extension(f);
+  return e == ".png" || e == ".jpg" || e == ".jpeg";
+}
+
+bool is_capture_name(const fs::path& f) {
+  const std::string e = lower_extension(f);
+  return e == ".pcap" || e == ".pcapng" || e == ".pcd";
+}
+
+FolderPairs pairs_in_folder(const std::string& dir) {
+  std::map<std::string, std::pair<std::vector<std::string>, std::vector<std::string>>> by_name;
+  for (const fs::directory_entry& e : fs::directory_iterator(dir)) {
+    if (!e.is_regular_file()) continue;
+    const bool image = is_image_name(e.path()), capture = is_capture_name(e.path());
+    if (!image && !capture) continue;
+    auto& [images, captures] = by_name[e.path().stem().string()];
+    (image ? images : captures).push_back(e.path().string());
+  }
+  FolderPairs out;
+  for (auto& [name, files] : by_name) {
+    auto& [images, captures] = files;
+    std::sort(images.begin(), images.end());
+    std::sort(captures.begin(), captures.end());
+    if (images.size() == 1 && captures.size() == 1) {
+      out.pairs.emplace_back(images[0], captures[0]);
+    } else if (images.size() > 1 || captures.size() > 1) {
+      // Which image goes with which capture is anybody's guess: none of the name's files is used.
+      auto count = [](size_t n, const char* what) {
+        return fmt::format("{} {}{}", n, what, n == 1 ? "" : "s");
+      };
+      const std::string why =
+          fmt::format("the base name '{}' has {} and {} in {}: one of each pairs", name,
+                      count(images.size(), "image"), count(captures.size(), "capture"), dir);
+      for (const auto& f : images) out.unmatched.emplace_back(f, why);
+      for (const auto& f : captures) out.unmatched.emplace_back(f, why);
+    } else if (images.size() == 1) {
+      out.unmatched.emplace_back(
+          images[0],
+          fmt::format("no capture {0}.pcap, {0}.pcapng or {0}.pcd beside the image in {1}", name,
+                      dir));
+    } else if (captures.size() == 1) {
+      out.unmatched.emplace_back(
+          captures[0],
+          fmt::format("no image {0}.png, {0}.jpg or {0}.jpeg beside the capture in {1}", name,
+                      dir));
+    }
+  }
+  return out;
+}
 
 // One pair's inputs as found, and why it could not be used when it could not.
 struct PairInput {
@@ -81,17 +152,26 @@ std::vector<calib::LidarTag> lidar_tags_of(const std::string& path, const Calibr
   // in the last rotations keeps its window). A square-mounted tag's track is never confirmed (its
   // candidates carry no cell votes: Tracker::add_evidence), so a decoded one counts too.
   std::map<int, det::TrackedDetection> latest;
+  std::vector<double> ring_elevations;  // of the last rotation's rings with returns, radians
   rotations = 0;
   auto take = [&](const Scan& scan) {
     detector.detect(scan, result);
     tracker.update(result, scan.stamp_ns, tracked);
     last_detections = result.detections;
     points.clear();
-    for (int ring = 0; ring < scan.rings; ++ring)
+    ring_elevations.clear();
+    for (int ring = 0; ring < scan.rings; ++ring) {
+      double sum = 0;
+      int n = 0;
       for (int col = 0; col < scan.columns; ++col) {
         const size_t i = scan.at(0, ring, col);
-        if (scan.range[i] > 0) points.emplace_back(scan.x[i], scan.y[i], scan.z[i]);
+        if (scan.range[i] <= 0) continue;
+        points.emplace_back(scan.x[i], scan.y[i], scan.z[i]);
+        sum += std::atan2(scan.z[i], std::hypot(scan.x[i], scan.y[i]));
+        ++n;
       }
+      if (n > 0) ring_elevations.push_back(sum / n);
+    }
     for (const det::TrackedDetection& t : tracked.tags)
       if (t.track.confirmed || t.decoded) latest[t.track.track_id] = t;
     ++rotations;
@@ -135,6 +215,9 @@ std::vector<calib::LidarTag> lidar_tags_of(const std::string& path, const Calibr
     for (const det::Detection& d : last_detections)
       out.push_back(calib::lidar_tag_from_detection(d, tags::builtin_family(d.family)));
   }
+  // What the rings' spacing leaves unknown, which the spread over rotations does not show.
+  for (calib::LidarTag& t : out)
+    calib::add_ring_spacing_uncertainty(t, tags::builtin_family(t.family), ring_elevations);
   return out;
 }
 
@@ -199,7 +282,8 @@ void print_text(const calib::CalibrationResult& r, const std::vector<PairInput>&
                 const calib::FrameNames& frames, const CalibrateArgs& args) {
   for (const auto& p : inputs) {
     if (!p.error.empty()) {
-      fmt::print("pair {} + {}: not used: {}\n", p.image, p.capture, p.error);
+      fmt::print("pair {} + {}: not used: {}\n", p.image.empty() ? "(no image)" : p.image,
+                 p.capture.empty() ? "(no capture)" : p.capture, p.error);
       continue;
     }
     fmt::print("pair {} + {}: image tags {}; LiDAR tags {} ({} rotations); {} paired\n", p.image,
@@ -286,10 +370,28 @@ int run_calibrate(const CalibrateArgs& args) {
 
   std::vector<PairInput> inputs;
   std::vector<calib::TagPose> poses;
-  for (size_t i = 0; i < args.pairs.size(); ++i) {
+  std::vector<std::pair<std::string, std::string>> pairs = args.pairs;
+  std::vector<PairInput> unmatched;  // reported after the pairs, which keep their numbers
+  for (const std::string& dir : args.pairs_dirs) {
+    FolderPairs found = pairs_in_folder(dir);
+    if (found.pairs.empty() && found.unmatched.empty())
+      spdlog::warn("{}: no image or capture in the folder", dir);
+    pairs.insert(pairs.end(), found.pairs.begin(), found.pairs.end());
+    // A file without its partner is reported as a pair that cannot be used.
+    for (const auto& [file, why] : found.unmatched) {
+      PairInput p;
+      (is_image_name(file) ? p.image : p.capture) = file;
+      p.error = why;
+      spdlog::warn("{}: not used: {}", file, why);
+      unmatched.push_back(std::move(p));
+    }
+  }
+  if (pairs.empty() && unmatched.empty())
+    throw UsageError("no pair to calibrate from: give --pair IMAGE CAPTURE or --pairs-dir DIR");
+  for (size_t i = 0; i < pairs.size(); ++i) {
     PairInput p;
-    p.image = args.pairs[i].first;
-    p.capture = args.pairs[i].second;
+    p.image = pairs[i].first;
+    p.capture = pairs[i].second;
     try {
       p.image_tags = image_tags_of(p.image, camera, image_detector, args, p.image_pixels);
       p.lidar_tags = lidar_tags_of(p.capture, args, options, p.rotations, p.points);
@@ -308,6 +410,7 @@ int run_calibrate(const CalibrateArgs& args) {
     poses.insert(poses.end(), p.pairing.poses.begin(), p.pairing.poses.end());
     inputs.push_back(std::move(p));
   }
+  for (PairInput& p : unmatched) inputs.push_back(std::move(p));
   if (poses.empty())
     throw calib::CalibrationError(
         "no tag was seen by both the camera and the LiDAR in any pair (see the warnings above)");
@@ -340,8 +443,11 @@ const Registrar kCalibrate(
           ->check(CLI::ExistingFile);
       app.add_option("--pair", args->pairs,
                      "IMAGE CAPTURE: a PNG or JPEG and a pcap or PCD of the same static scene "
-                     "(repeat for each pose)")
-          ->required();
+                     "(repeat for each pose)");
+      app.add_option("--pairs-dir", args->pairs_dirs,
+                     "DIR: every image (.png .jpg .jpeg) in it with the capture (.pcap .pcapng "
+                     ".pcd) of the same base name (repeat for several folders)")
+          ->check(CLI::ExistingDirectory);
       app.add_option("--family", args->families,
                      "tag family (repeat for several; default tag16h5)");
       app.add_option("--tag-size", args->tag_sizes,
