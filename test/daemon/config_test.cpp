@@ -5,6 +5,7 @@
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
+#include <cstdio>
 #include <fstream>
 #include <functional>
 #include <map>
@@ -431,6 +432,7 @@ TEST(Config, DetectorSectionAloneForTheCli) {
   } catch (const ConfigError& e) {
     EXPECT_EQ(e.key(), "detector.corners.size_tol");
   }
+  std::remove(path.c_str());
 }
 
 }  // namespace

@@ -42,6 +42,18 @@ std::vector<uint8_t> encoded(int64_t time_ns, uint16_t port, std::vector<uint8_t
   return bytes;
 }
 
+// The logs below are written to TempDir under this process's id; removed when the program ends.
+class RemoveLogs : public ::testing::Environment {
+ public:
+  void TearDown() override {
+    for (const char* name : {"_raw_replay.lcmlog", "_raw_times.lcmlog", "_raw_corrupt.lcmlog"}) {
+      std::remove((::testing::TempDir() + "/" + std::to_string(::getpid()) + name).c_str());
+    }
+  }
+};
+[[maybe_unused]] ::testing::Environment* const remove_logs =
+    ::testing::AddGlobalTestEnvironment(new RemoveLogs);
+
 std::string make_log() {
   const std::string path =
       ::testing::TempDir() + "/" + std::to_string(::getpid()) + "_raw_replay.lcmlog";

@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cstdio>
 #include <fstream>
 
 #include "lidartag/sim/scene.hpp"
@@ -191,6 +192,7 @@ TEST(SceneYaml, LoadSceneReadsFilesAndReportsMissingOnes) {
   const Scene s = load_scene(path);
   EXPECT_EQ(s.sensor.model, velodyne::Model::kHDL32E);
   EXPECT_EQ(s.rotations, 2);
+  std::remove(path.c_str());
 }
 
 }  // namespace
