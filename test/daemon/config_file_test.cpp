@@ -10,14 +10,14 @@
 #include <string>
 
 #include "lidartag/daemon/config.hpp"
+#include "temp_dir.hpp"
 
 namespace lidartag::daemon {
 namespace {
 
 std::string temp_path(const std::string& name) {
-  const std::string dir =
-      ::testing::TempDir() + "/lidartag_config_file." + std::to_string(getpid());
-  std::filesystem::create_directories(dir);
+  static const lidartag::test::ProcessTempDir scratch_dir("lidartag_config_file");
+  const std::string& dir = scratch_dir.path();
   return dir + "/" + name;
 }
 

@@ -29,6 +29,7 @@
 #include "lidartag/status_t.hpp"
 #include "lidartag/tag_detections_t.hpp"
 #include "lidartag/tag_points_t.hpp"
+#include "temp_dir.hpp"
 
 namespace lidartag::daemon {
 namespace {
@@ -47,8 +48,8 @@ const std::string kTruth = LIDARTAG_SOURCE_DIR "/pcaps/demo.truth.json";
   }
 
 std::string temp(const std::string& name) {
-  const std::string dir = ::testing::TempDir() + "/lidartagd_e2e." + std::to_string(getpid());
-  std::filesystem::create_directories(dir);
+  static const lidartag::test::ProcessTempDir scratch_dir("lidartagd_e2e");
+  const std::string& dir = scratch_dir.path();
   return dir + "/" + name;
 }
 

@@ -23,6 +23,7 @@
 #include "fake_notify_socket.hpp"
 #include "lidartag/driver/io/pcap_source.hpp"
 #include "lidartag/raw_packet_t.hpp"
+#include "temp_dir.hpp"
 
 namespace lidartag::daemon {
 namespace {
@@ -38,8 +39,8 @@ using namespace test;
   }
 
 std::string temp(const std::string& name) {
-  const std::string dir = ::testing::TempDir() + "/lidartagd_setup." + std::to_string(getpid());
-  std::filesystem::create_directories(dir);
+  static const lidartag::test::ProcessTempDir scratch_dir("lidartagd_setup");
+  const std::string& dir = scratch_dir.path();
   return dir + "/" + name;
 }
 

@@ -26,6 +26,7 @@
 #include "lidartag/point_cloud_t.hpp"
 #include "lidartag/status_t.hpp"
 #include "lidartag/tag_detections_t.hpp"
+#include "temp_dir.hpp"
 
 namespace lidartag::daemon {
 namespace {
@@ -40,8 +41,8 @@ const std::string kBags = LIDARTAG_SHARED_DIR "/captures/bags";
 const std::string kCaptures = LIDARTAG_SHARED_DIR "/captures";
 
 std::string temp(const std::string& name) {
-  const std::string dir = ::testing::TempDir() + "/lidartagd_sources." + std::to_string(getpid());
-  std::filesystem::create_directories(dir);
+  static const lidartag::test::ProcessTempDir scratch_dir("lidartagd_sources");
+  const std::string& dir = scratch_dir.path();
   return dir + "/" + name;
 }
 

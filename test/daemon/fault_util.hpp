@@ -21,14 +21,15 @@
 #include "lidartag/driver/io/pcap_source.hpp"
 #include "lidartag/driver/io/pcap_writer.hpp"
 #include "lidartag/status_t.hpp"
+#include "temp_dir.hpp"
 
 namespace lidartag::test::faults {
 
 using namespace std::chrono_literals;
 
 inline std::string temp(const std::string& name) {
-  const std::string dir = ::testing::TempDir() + "/lidartagd_faults." + std::to_string(getpid());
-  std::filesystem::create_directories(dir);
+  static const lidartag::test::ProcessTempDir scratch_dir("lidartagd_faults");
+  const std::string& dir = scratch_dir.path();
   return dir + "/" + name;
 }
 

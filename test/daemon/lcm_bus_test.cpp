@@ -15,13 +15,14 @@
 #include "daemon/namespaces.hpp"
 #include "io/file_size_limit.hpp"
 #include "lidartag/raw_packet_t.hpp"
+#include "temp_dir.hpp"
 
 namespace lidartag::daemon {
 namespace {
 
 std::string temp_path(const std::string& name) {
-  const std::string dir = ::testing::TempDir() + "/lidartag_lcm_bus." + std::to_string(getpid());
-  std::filesystem::create_directories(dir);
+  static const lidartag::test::ProcessTempDir scratch_dir("lidartag_lcm_bus");
+  const std::string& dir = scratch_dir.path();
   return dir + "/" + name;
 }
 

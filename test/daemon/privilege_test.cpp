@@ -21,6 +21,7 @@
 #include "lidartag/driver/io/pcap_source.hpp"
 #include "lidartag/status_t.hpp"
 #include "lidartag/tag_detections_t.hpp"
+#include "temp_dir.hpp"
 
 namespace lidartag::daemon {
 namespace {
@@ -31,8 +32,8 @@ using namespace test;
 
 // A directory every user may write (the daemon's outputs as nobody), one per test process.
 std::string temp(const std::string& name) {
-  const std::string dir = ::testing::TempDir() + "/lidartagd_priv." + std::to_string(getpid());
-  std::filesystem::create_directories(dir);
+  static const lidartag::test::ProcessTempDir scratch_dir("lidartagd_priv");
+  const std::string& dir = scratch_dir.path();
   std::filesystem::permissions(dir, std::filesystem::perms::all);
   return dir + "/" + name;
 }

@@ -12,6 +12,7 @@
 #include "io/file_size_limit.hpp"
 #include "lidartag/daemon/tap_source.hpp"
 #include "lidartag/driver/io/pcap_source.hpp"
+#include "temp_dir.hpp"
 
 namespace lidartag::daemon {
 namespace {
@@ -19,8 +20,8 @@ namespace {
 using namespace std::chrono_literals;
 
 std::string temp_path(const std::string& name) {
-  const std::string dir = ::testing::TempDir() + "/lidartag_recorder." + std::to_string(getpid());
-  std::filesystem::create_directories(dir);
+  static const lidartag::test::ProcessTempDir scratch_dir("lidartag_recorder");
+  const std::string& dir = scratch_dir.path();
   return dir + "/" + name;
 }
 

@@ -16,12 +16,14 @@
 #include <numbers>
 #include <sstream>
 
+#include "temp_dir.hpp"
+
 namespace lidartag::daemon {
 namespace {
 
 std::string temp_path(const std::string& name) {
-  const std::string dir = ::testing::TempDir() + "/lidartag_setup." + std::to_string(getpid());
-  std::filesystem::create_directories(dir);
+  static const lidartag::test::ProcessTempDir scratch_dir("lidartag_setup");
+  const std::string& dir = scratch_dir.path();
   return dir + "/" + name;
 }
 

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "daemon/namespaces.hpp"
+#include "temp_dir.hpp"
 
 namespace lidartag::velodyne {
 namespace {
@@ -213,8 +214,8 @@ TEST(UdpSource, PortsAreExclusiveUnlessEverySocketShares) {
 }
 
 std::string scratch(const std::string& name) {
-  const std::string dir = ::testing::TempDir() + "/lidartag_udp." + std::to_string(getpid());
-  std::filesystem::create_directories(dir);
+  static const lidartag::test::ProcessTempDir scratch_dir("lidartag_udp");
+  const std::string& dir = scratch_dir.path();
   return dir + "/" + name;
 }
 
