@@ -8,7 +8,6 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
-#include <nlohmann/json.hpp>
 #include <optional>
 #include <span>
 #include <stdexcept>
@@ -18,6 +17,7 @@
 #include "lidartag/driver/bag/message_reader.hpp"
 #include "lidartag/driver/io/errors.hpp"
 #include "lidartag/driver/io/udp_frame.hpp"
+#include "lidartag/driver/sources/open_reader.hpp"
 #include "lidartag/driver/velodyne/io/pcd.hpp"
 #include "lidartag/exit_codes.hpp"
 
@@ -217,15 +217,7 @@ void add_ouster_options(CLI::App& app, OusterArgs& args, bool intensity) {
 std::optional<std::string> ouster_metadata(const std::string& capture,
                                            const std::string& metadata) {
   if (!metadata.empty()) return metadata;
-  std::filesystem::path beside = capture;
-  beside.replace_extension(".json");
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(beside, ec)) return std::nullopt;
-  std::ifstream in(beside);
-  const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
-  if (j.is_object() && (j.contains("beam_intrinsics") || j.contains("beam_altitude_angles")))
-    return beside.string();
-  return std::nullopt;
+  return driver::ouster_metadata_beside(capture);
 }
 
 std::unique_ptr<driver::ouster::CaptureReader> ouster_reader(const CaptureArgs& args,
