@@ -84,7 +84,9 @@ EgoMotionInput::EgoMotionInput(const EgoMotionConfig& config, const std::string&
   if (!lcm_->good())
     throw LcmError("ego_motion: cannot open LCM with URL '" + url + "' to receive '" +
                    config.channel + "' (see LCM's message above)");
-  lcm_->subscribe(config_.channel, &EgoMotionInput::on_message, this);
+  if (lcm_subscribe(lcm_->getUnderlyingLCM(), config_.channel.c_str(), &EgoMotionInput::on_raw,
+                    this) == nullptr)
+    throw LcmError("ego_motion: cannot subscribe to '" + config_.channel + "' on '" + url + "'");
 }
 
 EgoMotionInput::~EgoMotionInput() {
@@ -108,12 +110,15 @@ void EgoMotionInput::poll(int timeout_ms) {
   log_problems();
 }
 
-void EgoMotionInput::on_message(const lcm::ReceiveBuffer* buffer, const std::string&) {
+void EgoMotionInput::on_raw(const lcm_recv_buf_t* buffer, const char*, void* self) {
+  static_cast<EgoMotionInput*>(self)->on_message(buffer->data, buffer->data_size);
+}
+
+void EgoMotionInput::on_message(const void* data, uint32_t size) {
   lidartag::ego_motion_t msg;
   std::lock_guard lock(mutex_);
   ++counts_.received;
-  if (buffer->data_size > static_cast<uint32_t>(INT32_MAX) ||
-      msg.decode(buffer->data, 0, static_cast<int>(buffer->data_size)) < 0) {
+  if (size > static_cast<uint32_t>(INT32_MAX) || msg.decode(data, 0, static_cast<int>(size)) < 0) {
     ++counts_.undecodable;
     return;
   }

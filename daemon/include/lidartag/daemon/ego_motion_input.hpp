@@ -71,7 +71,10 @@ class EgoMotionInput {
   lcm::LCM& lcm() { return *lcm_; }  // for tests: publish into a memq:// instance
 
  private:
-  void on_message(const lcm::ReceiveBuffer* buffer, const std::string& channel);
+  // Through LCM's C API: lcm-cpp's member-function subscription trips UBSan's vptr check on its
+  // own subscription object when dispatched from a memq:// instance.
+  static void on_raw(const lcm_recv_buf_t* buffer, const char* channel, void* self);
+  void on_message(const void* data, uint32_t size);
   void log_problems();
 
   EgoMotionConfig config_;
