@@ -7,7 +7,6 @@
 #include <filesystem>
 #include <lcm/lcm-cpp.hpp>
 #include <stdexcept>
-#include <thread>
 
 #include "lidartag/driver/io/errors.hpp"
 
@@ -152,15 +151,7 @@ ReadStatus LcmLogSource::next(driver::RawPacket& out, std::chrono::milliseconds 
     }
     pending_ = true;
   }
-  if (options_.rate > 0) {
-    const auto now = driver::ReplaySchedule::Clock::now();
-    const auto due = schedule_.due(time_ns_, now);
-    if (due - now > timeout) {
-      std::this_thread::sleep_for(timeout);
-      return ReadStatus::kTimeout;
-    }
-    std::this_thread::sleep_until(due);
-  }
+  if (options_.rate > 0 && !schedule_.wait(time_ns_, timeout)) return ReadStatus::kTimeout;
   pending_ = false;
   out.payload = std::span<const uint8_t>(message_.data.data(), message_.data.size());
   out.receive_time_ns = time_ns_;

@@ -4,7 +4,6 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <system_error>
-#include <thread>
 #include <utility>
 
 #include "lidartag/driver/bag/bag_packet_source.hpp"
@@ -34,15 +33,7 @@ class PacedSource final : public PacketSource {
       if (status != ReadStatus::kPacket) return status;
       pending_ = true;
     }
-    const auto now = ReplaySchedule::Clock::now();
-    const auto due = schedule_.due(held_.receive_time_ns, now);
-    if (due > now) {
-      if (due - now > timeout) {
-        std::this_thread::sleep_for(timeout);
-        return ReadStatus::kTimeout;
-      }
-      std::this_thread::sleep_until(due);
-    }
+    if (!schedule_.wait(held_.receive_time_ns, timeout)) return ReadStatus::kTimeout;
     pending_ = false;
     out = held_;
     return ReadStatus::kPacket;

@@ -43,6 +43,17 @@ ReplaySchedule::Clock::time_point ReplaySchedule::due(int64_t capture_ns, Clock:
   return anchor_ + std::chrono::nanoseconds(static_cast<int64_t>(std::llround(offset_ns)));
 }
 
+bool ReplaySchedule::wait(int64_t capture_ns, std::chrono::milliseconds timeout) {
+  const auto now = Clock::now();
+  const auto at = due(capture_ns, now);
+  if (at - now > timeout) {
+    std::this_thread::sleep_for(timeout);
+    return false;
+  }
+  std::this_thread::sleep_until(at);
+  return true;
+}
+
 PcapSource::PcapSource(const std::string& path, PcapSourceOptions options)
     : path_(path), options_(options), schedule_(options.rate) {
   if (!(options_.rate > 0.0) || !std::isfinite(options_.rate)) {
@@ -181,16 +192,9 @@ ReadStatus PcapSource::next(RawPacket& out, std::chrono::milliseconds timeout) {
       return ReadStatus::kEnd;
     }
   }
-  if (options_.pacing == ReplayPacing::kCaptureTime) {
-    const auto now = ReplaySchedule::Clock::now();
-    const auto due = schedule_.due(pending_packet_.receive_time_ns, now);
-    if (due > now) {
-      if (due - now > timeout) {
-        std::this_thread::sleep_for(timeout);
-        return ReadStatus::kTimeout;
-      }
-      std::this_thread::sleep_until(due);
-    }
+  if (options_.pacing == ReplayPacing::kCaptureTime &&
+      !schedule_.wait(pending_packet_.receive_time_ns, timeout)) {
+    return ReadStatus::kTimeout;
   }
   pending_ = false;
   out = pending_packet_;

@@ -44,6 +44,9 @@ class ReplaySchedule {
   explicit ReplaySchedule(double rate) : rate_(rate) {}
   // Due time of a packet captured at `capture_ns`; the first call anchors at `now`.
   Clock::time_point due(int64_t capture_ns, Clock::time_point now);
+  // Sleeps until that packet is due and returns true, or, when it is due later than `timeout`
+  // from now, sleeps `timeout` and returns false (the caller reports a timeout).
+  bool wait(int64_t capture_ns, std::chrono::milliseconds timeout);
   void reset() { anchored_ = false; }
 
  private:
