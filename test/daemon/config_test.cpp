@@ -16,6 +16,8 @@
 #include <utility>
 #include <vector>
 
+#include "field_count.hpp"
+
 namespace lidartag::daemon {
 namespace {
 
@@ -46,19 +48,7 @@ TEST(Config, ShippedFileHoldsEveryKeyWithItsDefault) {
   EXPECT_EQ(shipped_keys, all_keys);
 }
 
-// Number of fields of an aggregate: the largest N for which T{x1, ..., xN} compiles.
-struct AnyField {
-  template <class T>
-  operator T() const;  // NOLINT: only used in unevaluated contexts
-};
-template <class T, class... A>
-constexpr size_t field_count() {
-  if constexpr (requires { T{A{}..., AnyField{}}; }) {
-    return field_count<T, A..., AnyField>();
-  } else {
-    return sizeof...(A);
-  }
-}
+using lidartag::test::field_count;
 
 // Counts what a rule table lists: per section (a section is one field of its parent), and the
 // settings (fields and choices) in all.
