@@ -152,9 +152,11 @@ def simulate(scene, out=None, rotations=None, seed=None, partial=False):
     """Simulates a scene (see docs/simulator.md): a scene file path, YAML text, or a dict.
 
     With `out` (a .pcap path): writes the capture a real sensor would record and returns the
-    ground truth (a dict, as `lidartag sim --truth` writes it).
+    ground truth (a dict, as `lidartag sim --truth` writes it); an Ouster sensor's metadata goes
+    beside it (NAME.json for NAME.pcap), as `lidartag sim` writes it, so read(out) finds it.
     Without: returns (rotations, truth): the packets decoded in memory into the complete
-    rotations (all of them with partial=True), each matching truth["rotations"][i].
+    rotations (all of them with partial=True; an Ouster sensor's frames as read() gives them),
+    each matching truth["rotations"][i].
     rotations, seed: override the scene's.
     """
     text, is_path = _scene_text(scene)

@@ -188,3 +188,24 @@ def test_a_simulated_ouster_capture_is_read_and_its_tag_detected(lidartag_cli, t
     # The reflectivity scale: the tag's white is diffuse (0-100 of 255).
     assert 0 < rotations[0].points["intensity"].max() <= 255
     assert math.isfinite(float(rotations[0].points["x"].mean()))
+
+
+def test_simulate_writes_an_ouster_capture_with_its_metadata_or_decodes_it_in_memory(tmp_path):
+    scene = SCENE.format(model="os1-64", profile="rng19")
+    rotations, truth = lidartag.simulate(scene)
+    assert len(rotations) == len(truth["rotations"]) == 3
+    detector = lidartag.Detector({"tag_sizes_m": [1.2], "families": ["tag16h5"]})
+    for rotation, expected in zip(rotations, truth["rotations"]):
+        assert rotation.model == "os1-64" and rotation.rings == 64 and rotation.complete
+        assert rotation.return_mode == "RNG19_RFL8_SIG16_NIR16"
+        expect_matches_truth(detector.detect(rotation), expected)
+    # Written: NAME.pcap and its metadata NAME.json, read back as the rotations in memory.
+    pcap = tmp_path / "os1.pcap"
+    written = lidartag.simulate(scene, out=pcap)
+    assert written["rotations"] == truth["rotations"]
+    reader = lidartag.read(pcap)
+    assert reader.source == "pcap, metadata " + str(tmp_path / "os1.json")
+    for a, b in zip(reader, rotations):
+        assert a.stamp_ns == b.stamp_ns and np.array_equal(a.points, b.points)
+    with pytest.raises(ValueError, match="metadata goes"):
+        lidartag.simulate(scene, out=tmp_path / "os1.json")
