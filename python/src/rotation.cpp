@@ -315,6 +315,7 @@ class Reader {
       return;
     }
     driver::ScanSourceOptions so;
+    vendor_ports_ = !o.data_port && !o.position_port;
     capture_model(o.model, so);
     so.topic = topic;
     so.metadata = o.metadata.value_or("");
@@ -424,11 +425,19 @@ class Reader {
                                              "': the metadata does not describe this capture's "
                                              "sensor: " +
                                              ouster_->metadata_mismatch());
+    const driver::SourceStats s = opened_.reader->source_stats();
+    // Nothing on Velodyne's own ports but other traffic: perhaps an Ouster capture whose metadata
+    // was not found.
+    const std::string hint =
+        !ouster_ && vendor_ports_ && c.data_packets == 0 && s.ignored > 0
+            ? "; " + std::to_string(s.ignored) +
+                  " packets to other ports: an Ouster capture is read with its metadata "
+                  "(metadata=FILE.json, or NAME.json beside NAME.pcap)"
+            : "";
     throw driver::IoError("'" + path_ + "': no rotation: " + std::to_string(c.data_packets) +
                           " data packets, " + std::to_string(c.decoded) + " decoded, " +
-                          std::to_string(opened_.reader->source_stats().truncated) +
-                          " truncated records (check data_port, sensor, model" +
-                          (ouster_ ? ", metadata)" : ")"));
+                          std::to_string(s.truncated) + " truncated records (check data_port, " +
+                          "sensor, model" + (ouster_ ? ", metadata)" : ")") + hint);
   }
 
   // The next cloud of a PointCloud2 topic; clouds that cannot become a scan are counted
@@ -566,7 +575,8 @@ class Reader {
   std::string sensor_model_;                         // Ouster: the metadata's model name
   std::array<Scan, 2> scans_;
   size_t next_scan_ = 0;
-  uint64_t outside_window_ = 0;                     // Ouster bag packets outside the time window
+  uint64_t outside_window_ = 0;  // Ouster bag packets outside the time window
+  bool vendor_ports_ = true;     // data_port and position_port not given: the vendor's
   std::unique_ptr<clouds::BagCloudReader> clouds_;  // a bag's PointCloud2 topic
   std::optional<velodyne::Model> cloud_model_;
   Scan cloud_scan_;

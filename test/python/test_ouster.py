@@ -78,6 +78,26 @@ def test_real_ouster_pcaps_read_as_their_frames(name, metadata, model, lidar, im
     assert all(len(detector.detect(r)) == 0 for r in rotations)
 
 
+def test_a_part_of_a_frame_is_read_only_with_partial():
+    # The FUSA dual capture holds 8 packets (128 columns) of one frame.
+    pcap = real("OS-1-128_767798045_1024x10_20230712_120049")
+    with pytest.raises(lidartag.IoError, match="no complete rotation"):
+        list(lidartag.read(pcap))
+    reader = lidartag.read(pcap, partial=True)
+    (frame,) = list(reader)
+    assert not frame.complete and frame.packets == 8 and frame.returns == 2
+    assert frame.return_mode == "FUSA_RNG15_RFL8_NIR8_DUAL"
+    assert reader.counts["decoded"] == 8 and reader.counts["imu_packets"] == 2
+
+
+def test_an_ouster_pcap_without_its_metadata_says_so(tmp_path):
+    alone = tmp_path / "alone.pcap"
+    alone.write_bytes(real("OS-2-128-U1_v2.3.0_1024x10").read_bytes())
+    with pytest.raises(lidartag.IoError, match=r"0 data packets.*74 packets to other ports: an "
+                                               r"Ouster capture is read with its metadata"):
+        list(lidartag.read(alone))
+
+
 def test_real_ouster_metadata_given_and_found_beside_agree():
     pcap = real("OS-2-128-U1_v2.3.0_1024x10")
     beside = next(iter(lidartag.read(pcap)))
@@ -93,6 +113,10 @@ def test_signal_intensity_is_an_option():
     assert np.array_equal(reflectivity["valid"], signal["valid"])
     assert np.array_equal(reflectivity["range"], signal["range"])
     assert not np.array_equal(reflectivity["intensity"], signal["intensity"])
+    # LEGACY carries SIGNAL too.
+    legacy = real("OS-1-32-G_v2.1.1_1024x10")
+    assert not np.array_equal(next(iter(lidartag.read(legacy, intensity="signal"))).points,
+                              next(iter(lidartag.read(legacy))).points)
     # RNG15 carries no SIGNAL: refused, as the C++ decoder refuses it.
     with pytest.raises(ValueError, match="(?i)signal"):
         lidartag.read(real("OS-0-128-U1_v2.3.0_1024x10"), intensity="signal")
