@@ -246,13 +246,18 @@ class WindowSource final : public driver::PacketSource {
   uint64_t& outside_;
 };
 
-// The kind of message on a bag's LiDAR topic (`topic`, or its one LiDAR topic).
-driver::bag::MessageKind bag_topic_kind(const std::string& path, const std::string& topic) {
+// A bag's LiDAR topic (`topic`, or its one LiDAR topic) and the kind of its messages.
+struct BagTopic {
+  std::string name;
+  driver::bag::MessageKind kind = driver::bag::MessageKind::kOther;
+};
+BagTopic bag_topic(const std::string& path, const std::string& topic) {
   const auto probe = driver::bag::open_bag(path);
-  const std::string chosen = driver::bag::choose_lidar_topic(probe->connections(), topic, path);
+  BagTopic t;
+  t.name = driver::bag::choose_lidar_topic(probe->connections(), topic, path);
   for (const driver::bag::Connection& c : probe->connections())
-    if (c.topic == chosen) return driver::bag::message_kind(c.type);
-  return driver::bag::MessageKind::kOther;
+    if (c.topic == t.name) t.kind = driver::bag::message_kind(c.type);
+  return t;
 }
 
 // Reads rotations lazily; the GIL is released while packets are read and decoded. Packet captures
@@ -330,7 +335,8 @@ class Reader {
     if (o.calibration) so.calibration_file = *o.calibration;
     so.batcher.cut_azimuth_deg = o.cut_deg;
     so.ouster_decoder.intensity = intensity_source(o.intensity);
-    if (windowed && bag_topic_kind(path, topic) == driver::bag::MessageKind::kVelodyneScan) {
+    const BagTopic windowed_topic = windowed ? bag_topic(path, topic) : BagTopic{};
+    if (windowed_topic.kind == driver::bag::MessageKind::kVelodyneScan) {
       // VelodyneScan messages hold many packets stamped by the driver: the window is on the
       // messages' receive times, so the bag reader applies it (the seam has no window).
       if (ouster_options)
@@ -348,6 +354,8 @@ class Reader {
       v.batcher = so.batcher;
       opened_.reader = std::make_unique<velodyne::CaptureReader>(path, v);
       opened_.vendor = driver::Vendor::kVelodyne;
+      opened_.what = std::string(driver::bag::format_name(driver::bag::detect_bag_format(path))) +
+                     ", topic " + windowed_topic.name;
     } else {
       driver::SourceWrap wrap;
       if (windowed) {
