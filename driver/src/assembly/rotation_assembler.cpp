@@ -40,7 +40,9 @@ int RotationAssembler::frame_step() const {
   return static_cast<int>(std::min<uint32_t>(ahead, 1u << 30));
 }
 
-bool RotationAssembler::crossed_cut(double from_deg, double to_deg) const {
+// Inline: once per column, in classify().
+[[gnu::always_inline]] inline bool RotationAssembler::crossed_cut(double from_deg,
+                                                                  double to_deg) const {
   // The cut lies in the half-open arc (from, to] travelled clockwise.
   const double step = wrap360(to_deg - from_deg);
   const double to_cut = wrap360(options_.cut_azimuth_deg - from_deg);
