@@ -100,7 +100,10 @@ void RotationAssembler::forgive_loss(int64_t stamp_ns) {
   }
 }
 
-RotationAssembler::Step RotationAssembler::classify(double az, int64_t stamp, int per_packet) {
+// Inline, as follow(): once per column, in run().
+[[gnu::always_inline]] inline RotationAssembler::Step RotationAssembler::classify(double az,
+                                                                                  int64_t stamp,
+                                                                                  int per_packet) {
   Step s;
   const double fp = layout_.column_period_us;
   const double dt = static_cast<double>(stamp - last_column_stamp_ns_) * 1e-3;  // us
@@ -144,7 +147,7 @@ RotationAssembler::Step RotationAssembler::classify(double az, int64_t stamp, in
   return s;
 }
 
-void RotationAssembler::follow(double az, int64_t stamp) {
+[[gnu::always_inline]] inline void RotationAssembler::follow(double az, int64_t stamp) {
   have_last_ = true;
   last_frame_id_ = frame_id_;
   last_column_azimuth_ = az;
