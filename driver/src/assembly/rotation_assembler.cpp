@@ -40,7 +40,9 @@ int RotationAssembler::frame_step() const {
   return static_cast<int>(std::min<uint32_t>(ahead, 1u << 30));
 }
 
-bool RotationAssembler::crossed_cut(double from_deg, double to_deg) const {
+// Inline: once per column, in classify().
+[[gnu::always_inline]] inline bool RotationAssembler::crossed_cut(double from_deg,
+                                                                  double to_deg) const {
   // The cut lies in the half-open arc (from, to] travelled clockwise.
   const double step = wrap360(to_deg - from_deg);
   const double to_cut = wrap360(options_.cut_azimuth_deg - from_deg);
@@ -98,7 +100,10 @@ void RotationAssembler::forgive_loss(int64_t stamp_ns) {
   }
 }
 
-RotationAssembler::Step RotationAssembler::classify(double az, int64_t stamp, int per_packet) {
+// Inline, as follow(): once per column, in run().
+[[gnu::always_inline]] inline RotationAssembler::Step RotationAssembler::classify(double az,
+                                                                                  int64_t stamp,
+                                                                                  int per_packet) {
   Step s;
   const double fp = layout_.column_period_us;
   const double dt = static_cast<double>(stamp - last_column_stamp_ns_) * 1e-3;  // us
@@ -142,7 +147,7 @@ RotationAssembler::Step RotationAssembler::classify(double az, int64_t stamp, in
   return s;
 }
 
-void RotationAssembler::follow(double az, int64_t stamp) {
+[[gnu::always_inline]] inline void RotationAssembler::follow(double az, int64_t stamp) {
   have_last_ = true;
   last_frame_id_ = frame_id_;
   last_column_azimuth_ = az;

@@ -171,14 +171,18 @@ struct LaserConstants {
 // One ring over a run of columns. Each echo is gathered from the payload as a 24-bit key,
 // distance | intensity << 16 (one load, one compare for a pair of echoes), one ring ahead of
 // its conversion (see write_batch()).
+constexpr int kRowLasers = 32;  // RingEchoes::rows
 struct RingEchoes {
   static constexpr size_t kN = detail::BatchColumns::kMaxColumns;
   // As gathered: the last echo and the strongest (or second strongest), or the only one; whether
   // any cell has two different echoes.
   struct Gathered {
     std::array<uint32_t, kN> raw[2];
+    const uint32_t* key[2];  // the ring's echoes: raw, or its laser's rows
     bool differ;
   } gathered[2];
+  // One bank: per echo and laser, the run's echoes (write_columns()).
+  std::array<std::array<uint32_t, kN>, kRowLasers> rows[2];
   std::array<uint32_t, kN> key[2];   // per slot, dual return with two different echoes
   std::array<uint32_t, kN> type[2];  // their ReturnType before the range check
   std::array<float, kN> ok[2];       // 1/0: the slot holds a usable return
@@ -188,6 +192,11 @@ struct RingEchoes {
 // payload for every channel (the last channel of the last block ends 6 bytes before its end).
 inline uint32_t echo_key(const uint8_t* p) {
   return read_u32(p) & 0xFFFFFFu;
+}
+
+// Eight bytes, little-endian (one load on x86).
+inline uint64_t read_u64(const uint8_t* p) {
+  return static_cast<uint64_t>(read_u32(p)) | (static_cast<uint64_t>(read_u32(p + 4)) << 32);
 }
 
 // Dual return: the echoes of a run of cells into the scan's slots, branch-free over the run (the
@@ -455,6 +464,14 @@ DecodeStatus Decoder::parse(std::span<const uint8_t> payload, const SensorClock&
           return DecodeStatus::kBadBlockFlag;
   }
 
+  // The lines of the trig table the columns will read (below), asked for now: the scan's writes
+  // evict the table every rotation, and each column's lookup would otherwise wait for its line in
+  // turn. A group's second firing (VLP-16, Puck Hi-Res) lies about 0.2 deg (20 entries) later.
+  for (int g = 0; g < groups; ++g) {
+    const float* cs = trig_table_ + 2 * static_cast<size_t>(group_azimuth[static_cast<size_t>(g)]);
+    __builtin_prefetch(cs);
+    if (fpb > 1) __builtin_prefetch(cs + 40);
+  }
   // Rotation rate per group from the next group's azimuth; the last group reuses the previous
   // one (never 0); implausible steps (FOV jumps) fall back to the last good rate.
   const uint32_t usec = read_u32(p + kTimestampOffset);
@@ -657,11 +674,66 @@ LIDARTAG_AVX2_CLONE void Decoder::write_columns(const detail::BatchColumns& b,
         firing[e][static_cast<size_t>(bank)][uk] =
             b.payload[uk] + b.channel_offset[uk][static_cast<size_t>(e)][static_cast<size_t>(bank)];
       }
+  // One bank (every model but the VLS-128): a firing's channels are contiguous, so the echoes of
+  // every laser are read column by column (sequential loads, no per-cell pointer) into a row per
+  // laser and echo, which the ring loop then reads whole. (Stored all before the first ring is
+  // converted: the vector loads do not wait for stores still in flight.)
+  const bool by_column = spec_->blocks_per_firing == 1 && lasers_per_firing == spec_->lasers &&
+                         spec_->lasers <= kRowLasers;
+  // Two channels (6 bytes) per 8-byte load; a firing's trip count known at compile time, so that
+  // the loop is unrolled. (The last load reads 2 bytes past the firing's channels: the next
+  // firing's, the next block's flag or the timestamp, all inside the payload.)
+  auto rows_of = [&]<int kLasers>(std::integral_constant<int, kLasers>) {
+    for (int e = 0; e < b.returns; ++e) {
+      auto& rows = echoes.rows[static_cast<size_t>(e)];
+      for (int k = 0; k < count; ++k) {
+        const auto uk = static_cast<size_t>(k);
+        const uint8_t* f = firing[e][0][uk];
+        for (size_t l = 0; l < static_cast<size_t>(kLasers); l += 2) {
+          const uint64_t pair = read_u64(f + l * 3);
+          rows[l][uk] = static_cast<uint32_t>(pair) & 0xFFFFFFu;
+          rows[l + 1][uk] = static_cast<uint32_t>(pair >> 24) & 0xFFFFFFu;
+        }
+      }
+    }
+  };
+  if (by_column && lasers_per_firing == 16) {
+    rows_of(std::integral_constant<int, 16>{});
+  } else if (by_column && lasers_per_firing == 32) {
+    rows_of(std::integral_constant<int, 32>{});
+  } else if (by_column) {
+    for (int e = 0; e < b.returns; ++e) {
+      auto& rows = echoes.rows[static_cast<size_t>(e)];
+      for (int k = 0; k < count; ++k) {
+        const auto uk = static_cast<size_t>(k);
+        const uint8_t* f = firing[e][0][uk];
+        for (int l = 0; l < lasers_per_firing; ++l)
+          rows[static_cast<size_t>(l)][uk] = echo_key(f + static_cast<size_t>(l) * 3);
+      }
+    }
+  }
   auto gather = [&](int ring, RingEchoes::Gathered& g) {
     const int l = laser_of_ring_[static_cast<size_t>(ring)];
+    if (by_column) {
+      const auto ul = static_cast<size_t>(l);
+      g.key[0] = echoes.rows[0][ul].data();
+      if (!dual) {
+        g.differ = false;
+        return;
+      }
+      g.key[1] = echoes.rows[1][ul].data();
+      const uint32_t* __restrict k0 = g.key[0];
+      const uint32_t* __restrict k1 = g.key[1];
+      uint32_t differ = 0;
+      for (int k = 0; k < count; ++k) differ |= k0[k] ^ k1[k];
+      g.differ = differ != 0;
+      return;
+    }
     const auto bank = static_cast<size_t>(l / lasers_per_firing);
     const auto ch = static_cast<size_t>(l % lasers_per_firing) * 3;
     const uint8_t* const* f0 = firing[0][bank].data();
+    g.key[0] = g.raw[0].data();
+    g.key[1] = g.raw[1].data();
     if (!dual) {
       for (int k = 0; k < count; ++k) {
         const auto uk = static_cast<size_t>(k);
@@ -727,19 +799,19 @@ LIDARTAG_AVX2_CLONE void Decoder::write_columns(const detail::BatchColumns& b,
     using FirstOnly = std::integral_constant<Slots, Slots::kFirstOnly>;
     using Both = std::integral_constant<Slots, Slots::kBoth>;
     if (!dual) {
-      points(One{}, g.raw[0].data(), nullptr);
-      ring_types<Slots::kOne>(count, g.raw[0].data(), nullptr, nullptr, nullptr, single_type,
+      points(One{}, g.key[0], nullptr);
+      ring_types<Slots::kOne>(count, g.key[0], nullptr, nullptr, nullptr, single_type,
                               echoes.ok[0].data(), nullptr, sink.intensity + cell0, ty0, nullptr,
                               nullptr);
     } else if (!g.differ) {
-      points(FirstOnly{}, g.raw[0].data(), nullptr);
-      ring_types<Slots::kFirstOnly>(count, g.raw[0].data(), nullptr, nullptr, nullptr,
-                                    ReturnType::kBoth, echoes.ok[0].data(), nullptr,
-                                    sink.intensity + cell0, ty0, sink.intensity + c1, ty1);
+      points(FirstOnly{}, g.key[0], nullptr);
+      ring_types<Slots::kFirstOnly>(count, g.key[0], nullptr, nullptr, nullptr, ReturnType::kBoth,
+                                    echoes.ok[0].data(), nullptr, sink.intensity + cell0, ty0,
+                                    sink.intensity + c1, ty1);
     } else {
       // Which echo goes to which slot, then both slots converted together.
-      select_echoes(count, g.raw[0].data(), g.raw[1].data(), echoes.key[0].data(),
-                    echoes.type[0].data(), echoes.key[1].data(), echoes.type[1].data());
+      select_echoes(count, g.key[0], g.key[1], echoes.key[0].data(), echoes.type[0].data(),
+                    echoes.key[1].data(), echoes.type[1].data());
       points(Both{}, echoes.key[0].data(), echoes.key[1].data());
       ring_types<Slots::kBoth>(count, echoes.key[0].data(), echoes.key[1].data(),
                                echoes.type[0].data(), echoes.type[1].data(), ReturnType::kNone,

@@ -299,12 +299,10 @@ CaptureReader::ReadResult CaptureReader::read(Scan& scan, std::chrono::milliseco
 }
 
 const Scan* CaptureReader::next() {
-  Scan& scan = own_[own_next_];
   for (;;) {
-    switch (read(scan, 1000ms)) {
+    switch (read(own_, 1000ms)) {
       case ReadResult::kRotation:
-        own_next_ = 1 - own_next_;
-        return &scan;
+        return &own_;
       case ReadResult::kTimeout:
         continue;
       case ReadResult::kEnd:

@@ -1,7 +1,7 @@
 // Capture -> rotations: the plumbing shared by `lidartag info/dump/detect` and the daemon's replay.
 // PacketSource -> (data: ModelCheck, Decoder with a SensorClock; position: parse_position_packet,
-// SensorClock::update) -> ScanBatcher -> the caller's scan (read()), or the reader's own two scans
-// handed out one at a time (next()).
+// SensorClock::update) -> ScanBatcher -> the caller's scan (read()), or the reader's own scan
+// (next()).
 #pragma once
 
 #include <array>
@@ -99,8 +99,10 @@ class CaptureReader final : public driver::ScanReader {
   // file does not fit it.
   [[nodiscard]] ReadResult read(Scan& scan, std::chrono::milliseconds timeout) override;
 
-  // The next rotation (complete or not: see Scan::complete) in one of the reader's own scans,
-  // valid until the next call; nullptr once the source has ended and everything was flushed.
+  // The next rotation (complete or not: see Scan::complete) in the reader's own scan, valid until
+  // the next call (which fills the same scan again: the batcher keeps the columns after a cut
+  // itself, so one scan is enough, and a reader allocates and zero-fills one, not two: a VLS-128
+  // scan is 26 MB); nullptr once the source has ended and everything was flushed.
   // read() underneath, waiting through timeouts; do not mix the two on one reader.
   const Scan* next();
 
@@ -171,8 +173,7 @@ class CaptureReader final : public driver::ScanReader {
   std::vector<Held> held_;  // packets read while probing
   size_t held_next_ = 0;    // the first held packet not handled yet (after the decision)
   std::chrono::steady_clock::time_point last_data_;  // host time of the last data packet
-  std::array<Scan, 2> own_;  // next()'s scans: one handed out, one being filled
-  size_t own_next_ = 0;
+  Scan own_;                                         // next()'s scan
 };
 
 }  // namespace lidartag::velodyne
