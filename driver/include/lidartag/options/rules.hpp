@@ -15,6 +15,7 @@
 #include <array>
 #include <charconv>
 #include <cstddef>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <type_traits>
@@ -178,6 +179,15 @@ class RuleChecker {
   void section(const char* key, F&& body) {
     RuleChecker sub(path_ + key + ".", fail_);
     body(sub);
+  }
+
+  // A section that may be absent (std::optional; lidartagd's sensors[].sensor_in_body): its rules
+  // when present.
+  template <class T, class F>
+  void optional_section(const char* key, std::optional<T>& value, F&& body) {
+    if (!value) return;
+    RuleChecker sub(path_ + key + ".", fail_);
+    body(sub, *value);
   }
 
   // A list of option structs, each under KEY[i] (lidartagd's sensors): not empty.
