@@ -191,10 +191,11 @@ void print(const char* what, double distance, int angle, double rate, const Pose
       "%s: VLP-16 %.0f m %d deg, yawing %.0f deg/s: %zu / %zu detections; centre off %.2f -> "
       "%.2f mm, orientation off %.3f -> %.3f deg, measured size off %.2f -> %.2f %% (median, as "
       "fired -> deskewed); with the tracks' model from the 4th rotation: %.2f mm, %.3f deg, %.2f "
-      "%%\n",
+      "%% (%d clusters moved by it)\n",
       what, distance, angle, rate, e.plain_mm.size(), e.deskewed_mm.size(), median(e.plain_mm),
       median(e.deskewed_mm), median(e.plain_deg), median(e.deskewed_deg), median(e.plain_size),
-      median(e.deskewed_size), median(e.model_mm), median(e.model_deg), median(e.model_size));
+      median(e.deskewed_size), median(e.model_mm), median(e.model_deg), median(e.model_size),
+      e.model_clusters);
 }
 
 // Face-on, the turn stretches the tag along the rings by the angle turned while the beams

@@ -8,6 +8,8 @@
 //   template <class E> void choice(const char* key, E& value,
 //                                  const std::vector<std::pair<std::string, E>>& names);
 //   template <class F> void section(const char* key, F&& body);   // body(V&) for the section
+// and, for lidartagd's own table, list(key, vector, prototype, body) and
+// optional_section(key, std::optional<T>&, body): body(V&, T&) for a section that may be absent.
 // The daemon's YAML reader and printer are such visitors, and so is RuleChecker below, which
 // applies the rules to options built in code. A rule returns why a value is bad, or "".
 #pragma once
