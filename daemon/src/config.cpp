@@ -94,6 +94,10 @@ std::string channel_of(const SensorOptions& sensor, const std::string& channel) 
   return sensor.channel_prefix + channel;
 }
 
+const BodyMount& mount_of(const DaemonOptions& options, const SensorOptions& sensor) {
+  return sensor.sensor_in_body ? *sensor.sensor_in_body : options.ego_motion.sensor_in_body;
+}
+
 namespace {
 
 // ---- Value checks: each returns the reason a value is bad, or an empty string. ----
@@ -283,6 +287,19 @@ class Reader {
     sub.finish();
   }
 
+  // A section that may be absent: given (even empty), `value` holds its settings, each from its
+  // default; absent, `value` is left as it is.
+  template <class T, class F>
+  void optional_section(const char* key, std::optional<T>& value, F&& body) {
+    const YAML::Node n = take(key);
+    if (!n.IsDefined()) return;
+    T parsed = value.value_or(T{});
+    Reader sub(n, join_key(path_, key));
+    body(sub, parsed);
+    sub.finish();
+    value = parsed;
+  }
+
   // A list of maps; each element starts from `prototype`.
   template <class T, class F>
   void list(const char* key, std::vector<T>& values, const T& prototype, F&& body) {
@@ -439,6 +456,13 @@ class Printer {
     out_ << YAML::EndMap;
   }
   template <class T, class F>
+  void optional_section(const char* key, std::optional<T>& value, F&& body) {
+    if (!value) return;
+    out_ << YAML::Key << key << YAML::Value << YAML::BeginMap;
+    body(*this, *value);
+    out_ << YAML::EndMap;
+  }
+  template <class T, class F>
   void list(const char* key, std::vector<T>& values, const T&, F&& body) {
     out_ << YAML::Key << key << YAML::Value << YAML::BeginSeq;
     for (auto& v : values) {
@@ -457,6 +481,17 @@ class Printer {
 
 // The detector's section is the detector library's own rule table (detector::visit_options): the
 // same keys, units and rules for the daemon, `lidartag detect --config` and options built in code.
+
+// The LiDAR's pose on the body (ego_motion.sensor_in_body, sensors[].sensor_in_body).
+template <class V>
+void visit_mount(V& m, BodyMount& b) {
+  m.field("x", b.x, closed(-1000.0, 1000.0));
+  m.field("y", b.y, closed(-1000.0, 1000.0));
+  m.field("z", b.z, closed(-1000.0, 1000.0));
+  m.field("roll_deg", b.roll_deg, closed(-360.0, 360.0));
+  m.field("pitch_deg", b.pitch_deg, closed(-360.0, 360.0));
+  m.field("yaw_deg", b.yaw_deg, closed(-360.0, 360.0));
+}
 
 template <class V>
 void visit_sensor(V& v, SensorOptions& o) {
@@ -493,6 +528,9 @@ void visit_sensor(V& v, SensorOptions& o) {
     s.field("loop", src.loop);
     s.field("channel", src.channel);
   });
+  // Given: this LiDAR's own mount; absent (and not printed): ego_motion.sensor_in_body.
+  v.optional_section("sensor_in_body", o.sensor_in_body,
+                     [](V& m, BodyMount& b) { visit_mount(m, b); });
 }
 
 template <class V>
@@ -548,14 +586,7 @@ void visit(V& v, DaemonOptions& o) {
     s.field("url", e.url);
     detector::visit_ego_motion_options(s, e.buffer);
     s.field("stale_s", e.stale_s, closed(0.001, 3600.0));
-    s.section("sensor_in_body", [&](V& m) {
-      m.field("x", e.x, closed(-1000.0, 1000.0));
-      m.field("y", e.y, closed(-1000.0, 1000.0));
-      m.field("z", e.z, closed(-1000.0, 1000.0));
-      m.field("roll_deg", e.roll_deg, closed(-360.0, 360.0));
-      m.field("pitch_deg", e.pitch_deg, closed(-360.0, 360.0));
-      m.field("yaw_deg", e.yaw_deg, closed(-360.0, 360.0));
-    });
+    s.section("sensor_in_body", [&](V& m) { visit_mount(m, e.sensor_in_body); });
   });
 }
 

@@ -90,7 +90,8 @@ Daemon::Daemon(DaemonOptions options, RunOptions run, Logging* logging)
   arena_ = std::make_unique<tbb::task_arena>(workers_, 0);
   bus_ = std::make_unique<LcmBus>(options_.lcm.url);
   if (!options_.ego_motion.channel.empty()) {
-    ego_ = std::make_unique<EgoMotionInput>(options_.ego_motion, options_.lcm.url);
+    ego_ = std::make_unique<EgoMotionInput>(options_.ego_motion, options_.lcm.url,
+                                            sensor_mounts(options_));
     bus_->attach_ego_motion(ego_.get());
   }
   if (!options_.record_pcap.empty()) {
@@ -151,9 +152,12 @@ void Daemon::publish_status(bool final) {
   const int64_t now = steady_ns();
   const double uptime = static_cast<double>(now - started_ns_) * 1e-9;
   last_status_.clear();
+  std::optional<EgoMotionState> ego;
+  if (ego_) ego = ego_->state();
   for (auto& p : pipelines_) {
     SensorStatus s = p->status(now);
     fill_status(s, wall_utime(), uptime, status_message_);
+    fill_ego_status(ego ? &*ego : nullptr, status_message_);
     if (ego_) {
       // The ego-motion input's note (nothing yet, stale, dropped messages): the trackers run
       // without it meanwhile, which is no fault of the sensor (its health stays as it is).

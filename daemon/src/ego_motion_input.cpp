@@ -23,7 +23,7 @@ int64_t steady_now_ns() {
 
 }  // namespace
 
-SensorMount sensor_mount(const EgoMotionConfig& c) {
+SensorMount sensor_mount(const BodyMount& c) {
   constexpr double kDeg = std::numbers::pi / 180.0;
   SensorMount m;
   m.rotation = (Eigen::AngleAxisd(c.yaw_deg * kDeg, Eigen::Vector3d::UnitZ()) *
@@ -32,6 +32,12 @@ SensorMount sensor_mount(const EgoMotionConfig& c) {
                    .toRotationMatrix();
   m.position = Eigen::Vector3d(c.x, c.y, c.z);
   return m;
+}
+
+std::vector<SensorMount> sensor_mounts(const DaemonOptions& options) {
+  std::vector<SensorMount> out;
+  for (const SensorOptions& s : options.sensors) out.push_back(sensor_mount(mount_of(options, s)));
+  return out;
 }
 
 EgoMessage apply_ego_message(const lidartag::ego_motion_t& msg, const SensorMount& mount,
@@ -71,8 +77,12 @@ EgoMessage apply_ego_message(const lidartag::ego_motion_t& msg, const SensorMoun
   return EgoMessage::kInvalid;
 }
 
-EgoMotionInput::EgoMotionInput(const EgoMotionConfig& config, const std::string& default_url)
-    : config_(config), mount_(sensor_mount(config)), ego_(config.buffer) {
+EgoMotionInput::EgoMotionInput(const EgoMotionConfig& config, const std::string& default_url,
+                               std::vector<SensorMount> mounts)
+    : config_(config), mounts_(std::move(mounts)) {
+  if (mounts_.empty()) mounts_.push_back(sensor_mount(config.sensor_in_body));
+  ego_.reserve(mounts_.size());
+  for (size_t i = 0; i < mounts_.size(); ++i) ego_.emplace_back(config.buffer);
   const LcmUrl parsed = parse_lcm_url(config.url.empty() ? default_url : config.url);
   const std::string& url = parsed.text;
   // A file:// URL is the daemon's output log (lcm.url), not where a robot's odometry arrives.
@@ -122,11 +132,25 @@ void EgoMotionInput::on_message(const void* data, uint32_t size) {
     ++counts_.undecodable;
     return;
   }
-  switch (apply_ego_message(msg, mount_, ego_)) {
-    case EgoMessage::kAccepted:
+  // Every sensor's poses take the message through its own mount; the outcome depends on the
+  // message only (its stamp, its values), so the first sensor's is the message's.
+  EgoMessage result = EgoMessage::kInvalid;
+  for (size_t i = 0; i < ego_.size(); ++i) {
+    const EgoMessage r = apply_ego_message(msg, mounts_[i], ego_[i]);
+    if (i == 0) result = r;
+  }
+  switch (result) {
+    case EgoMessage::kAccepted: {
       ++counts_.accepted;
+      const int64_t stamp_ns = msg.utime * 1000;
+      if (last_stamp_ns_ != 0 &&
+          static_cast<double>(stamp_ns - last_stamp_ns_) * 1e-9 > config_.buffer.max_gap_s)
+        ++counts_.gaps;
+      last_stamp_ns_ = stamp_ns;
       last_host_ns_ = steady_now_ns();
+      (void)stale_at(last_host_ns_);  // no longer stale
       break;
+    }
     case EgoMessage::kOutOfOrder:
       ++counts_.out_of_order;
       break;
@@ -141,19 +165,39 @@ void EgoMotionInput::on_message(const void* data, uint32_t size) {
 
 EgoMotionCounts EgoMotionInput::counts() const {
   std::lock_guard lock(mutex_);
+  (void)stale_at(steady_now_ns());
   return counts_;
+}
+
+bool EgoMotionInput::stale_at(int64_t now_ns) const {
+  const bool stale =
+      last_host_ns_ != 0 && static_cast<double>(now_ns - last_host_ns_) * 1e-9 > config_.stale_s;
+  if (stale && !stale_now_) ++counts_.stale_episodes;
+  stale_now_ = stale;
+  return stale;
+}
+
+EgoMotionState EgoMotionInput::state() const {
+  std::lock_guard lock(mutex_);
+  const int64_t now = steady_now_ns();
+  EgoMotionState s;
+  s.stale = stale_at(now);
+  s.counts = counts_;
+  s.age_s = last_host_ns_ == 0 ? -1.0 : static_cast<double>(now - last_host_ns_) * 1e-9;
+  return s;
 }
 
 std::string EgoMotionInput::health_note() const {
   std::lock_guard lock(mutex_);
   const EgoMotionCounts& c = counts_;
-  const uint64_t bad = c.out_of_order + c.invalid + c.unknown_kind + c.undecodable;
+  const uint64_t bad = c.dropped();
   std::string note;
   if (last_host_ns_ == 0) {
     note = fmt::format("ego motion: nothing received on {} yet", config_.channel);
   } else {
-    const double quiet = static_cast<double>(steady_now_ns() - last_host_ns_) * 1e-9;
-    if (quiet > config_.stale_s)
+    const int64_t now = steady_now_ns();
+    const double quiet = static_cast<double>(now - last_host_ns_) * 1e-9;
+    if (stale_at(now))
       note = fmt::format("ego motion: stale, nothing on {} for {:.1f} s", config_.channel, quiet);
   }
   if (bad > 0) {
@@ -168,15 +212,16 @@ std::string EgoMotionInput::health_note() const {
 
 void EgoMotionInput::log_problems() {
   const int64_t now = steady_now_ns();
-  if (now < next_log_ns_) return;
   EgoMotionCounts c;
   bool stale = false;
   {
+    // Every poll: a stale episode is counted however short (the log lines are rate-limited).
     std::lock_guard lock(mutex_);
+    stale = stale_at(now);
     c = counts_;
-    stale = last_host_ns_ != 0 && static_cast<double>(now - last_host_ns_) * 1e-9 > config_.stale_s;
   }
-  const uint64_t bad = c.out_of_order + c.invalid + c.unknown_kind + c.undecodable;
+  if (now < next_log_ns_) return;
+  const uint64_t bad = c.dropped();
   bool logged = false;
   if (bad > logged_problems_) {
     spdlog::warn(

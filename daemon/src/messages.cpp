@@ -168,6 +168,24 @@ void fill_point_cloud(const RotationResult& r, const std::string& sensor,
   out.ring.assign(c.ring.begin(), c.ring.end());
 }
 
+void fill_ego_status(const EgoMotionState* ego, lidartag::status_t& out) {
+  const EgoMotionState none;
+  const EgoMotionState& e = ego != nullptr ? *ego : none;
+  auto i64 = [](uint64_t v) { return static_cast<int64_t>(v); };
+  out.ego_enabled = ego != nullptr;
+  out.ego_received = i64(e.counts.received);
+  out.ego_accepted = i64(e.counts.accepted);
+  out.ego_dropped = i64(e.counts.dropped());
+  out.ego_out_of_order = i64(e.counts.out_of_order);
+  out.ego_invalid = i64(e.counts.invalid);
+  out.ego_unknown_kind = i64(e.counts.unknown_kind);
+  out.ego_undecodable = i64(e.counts.undecodable);
+  out.ego_gaps = i64(e.counts.gaps);
+  out.ego_stale = e.stale;
+  out.ego_stale_episodes = i64(e.counts.stale_episodes);
+  out.ego_age_s = e.age_s;
+}
+
 void fill_status(const SensorStatus& s, int64_t utime, double uptime_s, lidartag::status_t& out) {
   auto i64 = [](uint64_t v) { return static_cast<int64_t>(v); };
   out.utime = utime;
@@ -211,6 +229,12 @@ void fill_status(const SensorStatus& s, int64_t utime, double uptime_s, lidartag
   out.rotations_in_flight = i64(s.rotations_in_flight);
   out.detections = i64(s.detections);
   out.publish_failures = i64(s.publish_failures);
+  out.ego_placed = i64(s.ego_placed);
+  out.ego_missing = i64(s.ego_missing);
+  out.deskewed_ego = i64(s.deskewed_ego);
+  out.deskewed_model = i64(s.deskewed_model);
+  out.deskew_without_motion = i64(s.deskew_without_motion);
+  fill_ego_status(nullptr, out);
   out.buffer_occupancy = static_cast<int32_t>(s.buffer_occupancy);
   out.buffer_depth = static_cast<int32_t>(s.buffer_depth);
   const size_t n = std::min(s.stage_names.size(), s.stages.size());

@@ -2,6 +2,8 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+
 #include "lidartag/daemon/ego_motion_input.hpp"
 #include "lidartag/daemon/mcap_recorder.hpp"
 #include "lidartag/daemon/messages.hpp"
@@ -56,6 +58,8 @@ RotationPublisher::RotationPublisher(const SensorOptions& sensor, const DaemonOp
       tag_points_channel_(channel_of(sensor, options.lcm.channels.tag_points)),
       cloud_channel_(channel_of(sensor, options.lcm.channels.cloud)) {
   if (options.tracker.enabled) tracker_.emplace(options.tracker, options.detector);
+  for (size_t i = 0; i < options.sensors.size(); ++i)
+    if (options.sensors[i].name == sensor.name) sensor_index_ = i;
   stage_names_ = {"queue", "detect", "order", "publish", "total"};
   for (int s = 0; s < detector::kStageCount; ++s) {
     stage_names_.emplace_back(detector::stage_name(static_cast<detector::Stage>(s)));
@@ -74,11 +78,19 @@ bool RotationPublisher::publish(const RotationResult& r, uint64_t dropped) {
     // scan's time, and a stamp that steps back, a looping replay, ends every track).
     // With the robot's motion (config ego_motion): candidates placed in its odometry frame.
     if (EgoMotionInput* ego = bus_.ego_motion()) {
-      ego->read([&](const detector::EgoMotion& e) {
+      ego->read(sensor_index_, [&](const detector::EgoMotion& e) {
         tracker_->update(r.detection, r.stamp_ns, tracked_, &e);
       });
+      ego_placed_.fetch_add(static_cast<uint64_t>(std::max(tracked_.ego_placed, 0)),
+                            std::memory_order_relaxed);
+      ego_missing_.fetch_add(static_cast<uint64_t>(std::max(tracked_.ego_missing, 0)),
+                             std::memory_order_relaxed);
     } else {
       tracker_->update(r.detection, r.stamp_ns, tracked_);
+    }
+    if (options_.detector.deskew.enabled) {
+      std::lock_guard lock(motion_mutex_);
+      motion_ = tracker_->motion();
     }
     fill_tracked_detections(tracked_, message_);
     for (const detector::TrackedDetection& t : tracked_.tags) check_size(t.detection);
@@ -110,6 +122,11 @@ bool RotationPublisher::publish(const RotationResult& r, uint64_t dropped) {
   }
   if (printer_ != nullptr) printer_->print(detections_line(sensor_.name, r));
   return sent;
+}
+
+detector::Motion RotationPublisher::motion() const {
+  std::lock_guard lock(motion_mutex_);
+  return motion_;
 }
 
 void RotationPublisher::check_size(const detector::Detection& d) {

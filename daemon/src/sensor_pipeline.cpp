@@ -12,6 +12,7 @@
 #include <csignal>
 #include <cstring>
 
+#include "lidartag/daemon/ego_motion_input.hpp"
 #include "lidartag/daemon/lcm_log_source.hpp"
 #include "lidartag/daemon/messages.hpp"
 #include "lidartag/driver/io/live_source.hpp"
@@ -215,6 +216,8 @@ SensorPipeline::SensorPipeline(const SensorOptions& sensor, const DaemonOptions&
       tokens_(static_cast<size_t>(workers + options.pipeline.publish_queue)) {
   for (size_t i = 0; i < tokens_; ++i) {
     detectors_.push_back(std::make_unique<detector::Detector>(options.detector));
+    if (options.detector.deskew.enabled && !options.ego_motion.channel.empty())
+      ego_copies_.push_back(std::make_unique<detector::EgoMotion>(options.ego_motion.buffer));
   }
   // Every packet passes here on the receiving thread: senders are noted, raw packets published.
   TapSource::RawTap tap = [this](const driver::RawPacket& p) {
@@ -362,10 +365,31 @@ void SensorPipeline::detect(Rotation& rotation) {
   r.assembled_ns = rotation.assembled_ns;
   // The rotations in the pipeline are consecutive in `order` (taken in order, released in order)
   // and at most tokens_ of them: order modulo tokens_ gives each its own detector.
-  detector::Detector& detector = *detectors_[rotation.order % tokens_];
+  const size_t slot = rotation.order % tokens_;
+  detector::Detector& detector = *detectors_[slot];
+  // The deskew's motion: the sensor's poses (copied: the input's lock is held for the copy, not
+  // the detection), else the tracker's model as of the latest published rotation.
+  detector::SensorMotion motion;
+  if (options_.detector.deskew.enabled) {
+    motion.model = publisher_.motion();
+    EgoMotionInput* ego = bus_.ego_motion();
+    if (ego != nullptr && slot < ego_copies_.size()) {
+      detector::EgoMotion& copy = *ego_copies_[slot];
+      ego->read(publisher_.sensor_index(), [&](const detector::EgoMotion& e) { copy = e; });
+      motion.ego = &copy;
+    }
+  }
   // Isolated: while this thread waits inside the detector's own parallel loops it must not pick
   // up another rotation, which would delay this one (and the publication order) behind it.
-  tbb::this_task_arena::isolate([&] { detector.detect(scan, r.detection); });
+  tbb::this_task_arena::isolate([&] { detector.detect(scan, r.detection, motion); });
+  if (options_.detector.deskew.enabled) {
+    const auto add = [](std::atomic<uint64_t>& a, int v) {
+      a.fetch_add(static_cast<uint64_t>(std::max(v, 0)), std::memory_order_relaxed);
+    };
+    add(deskewed_ego_, r.detection.deskewed_ego);
+    add(deskewed_model_, r.detection.deskewed_model);
+    add(deskew_without_motion_, r.detection.deskew_without_motion);
+  }
   try {
     decimate_scan(scan, options_.lcm.cloud_decimation, r.cloud);
   } catch (const std::exception& e) {
@@ -403,6 +427,11 @@ SensorStatus SensorPipeline::status(int64_t now_ns) {
   gauges.size_warnings = publisher_.size_warnings();
   gauges.size_note = publisher_.size_note();
   SensorStatus st = monitor_.status(now_ns, gauges);
+  st.ego_placed = publisher_.ego_placed();
+  st.ego_missing = publisher_.ego_missing();
+  st.deskewed_ego = deskewed_ego_.load(std::memory_order_relaxed);
+  st.deskewed_model = deskewed_model_.load(std::memory_order_relaxed);
+  st.deskew_without_motion = deskew_without_motion_.load(std::memory_order_relaxed);
   st.stage_names = publisher_.stage_names();
   st.stages = publisher_.take_latencies();
   failures_.report();

@@ -179,6 +179,10 @@ ClusterDiagnostic diagnostic_of(const Cluster& cl) {
 }  // namespace
 
 void Detector::detect(const Scan& scan, ScanResult& out) noexcept {
+  detect(scan, out, SensorMotion{});
+}
+
+void Detector::detect(const Scan& scan, ScanResult& out, const SensorMotion& motion) noexcept {
   out.clear();
   if (scan.rings <= 0 || scan.columns <= 0) return;
   if (!storage_matches(scan)) {
@@ -186,14 +190,14 @@ void Detector::detect(const Scan& scan, ScanResult& out) noexcept {
     return;
   }
   try {
-    detect_clusters(scan, out);
+    detect_clusters(scan, out, motion);
   } catch (...) {
     // Only allocation failure can get here (the stages throw nothing else).
     out.truncated = true;
   }
 }
 
-void Detector::detect_clusters(const Scan& scan, ScanResult& out) {
+void Detector::detect_clusters(const Scan& scan, ScanResult& out, const SensorMotion& motion) {
   Buffers& b = *buf_;
   StageClock clock(out.timing_ms);
   // Sec. IV-A: eq. (1) per ring, with the "one edge among n+1" rule.
@@ -210,11 +214,12 @@ void Detector::detect_clusters(const Scan& scan, ScanResult& out) {
   for (size_t c = 0; c < b.clusters.size(); ++c) {
     if (b.clusters[c].parent >= 0) continue;
     ++out.clusters;
-    process_cluster(scan, static_cast<int>(c), res, out);
+    process_cluster(scan, static_cast<int>(c), res, motion, out);
   }
 }
 
-void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult& out) {
+void Detector::process_cluster(const Scan& scan, int ci, double res, const SensorMotion& motion,
+                               ScanResult& out) {
   Buffers& b = *buf_;
   const auto c = static_cast<size_t>(ci);
   StageClock clock(out.timing_ms);
@@ -279,6 +284,24 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
     track_only = diag.boundary_points < limits_.min_boundary_points;
   }
   clock.lap(Stage::kValidation);
+
+  // Issue 33: the points moved to the cluster's centre time with the sensor's motion, so that the
+  // fits see the tag as from one pose (timed with the plane fit).
+  Deskewed deskewed;
+  if (opt_.deskew.enabled) {
+    deskewed = deskew_cluster(b.points, scan, motion);
+    switch (deskewed.source) {
+      case DeskewSource::kEgo:
+        ++out.deskewed_ego;
+        break;
+      case DeskewSource::kModel:
+        ++out.deskewed_model;
+        break;
+      case DeskewSource::kNone:
+        ++out.deskew_without_motion;
+        break;
+    }
+  }
 
   // Sec. IV-C: the plane and its outlier ratio kappa. Posts and poles above or below the tag are
   // in its plane but not part of it; so are the few ground points where it meets the ground.
@@ -377,7 +400,9 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, ScanResult&
   Candidate& candidate = out.candidates[static_cast<size_t>(diag.candidate)];
   candidate.track_only = track_only;
   if (dec.shift_searched) candidate.unseen_axis = unseen.normalized();
-  const FiringTimes times = firing_times(b.points, scan, frame.center);
+  FiringTimes times = firing_times(b.points, scan, frame.center);
+  // Deskewed points are all seen from the sensor's pose at the time they were moved to.
+  if (deskewed.source != DeskewSource::kNone) times.center_s = deskewed.center_s;
   candidate.time_first_s = times.first_s;
   candidate.time_center_s = times.center_s;
   candidate.time_last_s = times.last_s;

@@ -157,6 +157,7 @@ void ScanResult::clear() {
   timing_ms.fill(0.0);
   rejected.fill(0);
   features = clusters = 0;
+  deskewed_ego = deskewed_model = deskew_without_motion = 0;
   truncated = refused = false;
   diagnostics.clear();
   candidates.clear();

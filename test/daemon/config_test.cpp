@@ -112,7 +112,8 @@ TEST(Config, EveryDetectorOptionIsMapped) {
   EXPECT_EQ(field_count<detector::CornerOptions>(), fields["corners."]);
   EXPECT_EQ(field_count<detector::PoseOptions>(), fields["pose."]);
   EXPECT_EQ(field_count<detector::DecodeOptions>(), fields["decode."]);
-  EXPECT_EQ(fields.size(), 8u);  // the detector's table and its seven sections
+  EXPECT_EQ(field_count<detector::DeskewOptions>(), fields["deskew."]);
+  EXPECT_EQ(fields.size(), 9u);  // the detector's table and its eight sections
   EXPECT_EQ(printed_keys("detector."), settings);
 }
 
@@ -482,6 +483,55 @@ TEST(Config, TrackerBadValuesNameKeyValueAndRule) {
 namespace lidartag::daemon {
 namespace {
 
+// One mount per sensor (issue 33): a sensors[] entry may give its own sensor_in_body, else the
+// global ego_motion.sensor_in_body is its; checked by the same rules, printed only when given.
+TEST(Config, EachSensorMayGiveItsOwnMountOrTakesTheGlobalOne) {
+  const DaemonOptions o = parse_config(
+      "sensors: [{name: front, sensor_in_body: {x: 1.5, z: 0.8}}, {name: rear, channel_prefix: "
+      "REAR_}]\n"
+      "ego_motion: {channel: ODOM, sensor_in_body: {x: -0.5, yaw_deg: 180}}");
+  ASSERT_TRUE(o.sensors[0].sensor_in_body.has_value());
+  EXPECT_FALSE(o.sensors[1].sensor_in_body.has_value());
+  EXPECT_EQ(mount_of(o, o.sensors[0]).x, 1.5);
+  EXPECT_EQ(mount_of(o, o.sensors[0]).z, 0.8);
+  EXPECT_EQ(mount_of(o, o.sensors[0]).yaw_deg, 0.0);  // its own: unset fields are 0, not global
+  EXPECT_EQ(mount_of(o, o.sensors[1]).x, -0.5);
+  EXPECT_EQ(mount_of(o, o.sensors[1]).yaw_deg, 180.0);
+  // Printed back only where given; the round trip keeps both.
+  const std::string printed = print_config(o);
+  const DaemonOptions back = parse_config(printed);
+  ASSERT_TRUE(back.sensors[0].sensor_in_body.has_value());
+  EXPECT_EQ(back.sensors[0].sensor_in_body->x, 1.5);
+  EXPECT_FALSE(back.sensors[1].sensor_in_body.has_value());
+  EXPECT_EQ(print_config(back), printed);
+  EXPECT_EQ(print_config(DaemonOptions{}).find("sensors:\n  - name: lidar\n    sensor_in_body"),
+            std::string::npos);
+  // The same rules as the global mount, on files and on options built in code.
+  try {
+    (void)parse_config("sensors: [{name: a, sensor_in_body: {pitch_deg: 400}}]");
+    ADD_FAILURE() << "accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.key(), "sensors[0].sensor_in_body.pitch_deg");
+    EXPECT_EQ(e.reason(), "must be in [-360, 360]");
+  }
+  try {
+    (void)parse_config("sensors: [{name: a, sensor_in_body: {w: 1}}]");
+    ADD_FAILURE() << "accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.key(), "sensors[0].sensor_in_body.w");
+    EXPECT_EQ(e.reason(), "unknown key");
+  }
+  DaemonOptions built;
+  built.sensors[0].sensor_in_body = BodyMount{};
+  built.sensors[0].sensor_in_body->z = 2000.0;
+  try {
+    validate(built);
+    ADD_FAILURE() << "accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(e.key(), "sensors[0].sensor_in_body.z");
+  }
+}
+
 // The ego-motion input (issue 33): off by default; its keys come from EgoMotionConfig and the
 // detector's rule table of EgoMotionOptions.
 TEST(Config, EgoMotionIsOffByDefaultAndMappedWithItsRules) {
@@ -498,8 +548,8 @@ TEST(Config, EgoMotionIsOffByDefaultAndMappedWithItsRules) {
   EXPECT_EQ(o.ego_motion.channel, "ROBOT_ODOM");
   EXPECT_EQ(o.ego_motion.buffer.max_gap_s, 0.5);
   EXPECT_EQ(o.ego_motion.stale_s, 2.0);
-  EXPECT_EQ(o.ego_motion.z, 1.2);
-  EXPECT_EQ(o.ego_motion.yaw_deg, 90.0);
+  EXPECT_EQ(o.ego_motion.sensor_in_body.z, 1.2);
+  EXPECT_EQ(o.ego_motion.sensor_in_body.yaw_deg, 90.0);
   EXPECT_EQ(print_config(parse_config(print_config(o))), print_config(o));
   const std::vector<BadCase> cases = {
       {"ego_motion: {capacity: 1}", "ego_motion.capacity", "1", "must be in [2, 1000000]"},

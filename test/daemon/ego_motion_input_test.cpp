@@ -34,7 +34,7 @@ lidartag::ego_motion_t pose(int64_t utime, const Eigen::Vector3d& p, double yaw_
 }
 
 TEST(EgoMotionInput, ABodysPoseBecomesTheSensorsThroughTheMount) {
-  EgoMotionConfig config;
+  BodyMount config;
   config.x = 0.5;  // the LiDAR 0.5 m ahead of the body's origin, 1 m up, turned 90 deg left
   config.z = 1.0;
   config.yaw_deg = 90.0;
@@ -52,7 +52,7 @@ TEST(EgoMotionInput, ABodysPoseBecomesTheSensorsThroughTheMount) {
 }
 
 TEST(EgoMotionInput, ABodysTwistBecomesTheSensors) {
-  EgoMotionConfig config;
+  BodyMount config;
   config.x = 1.0;  // a LiDAR 1 m ahead of a body turning in place sees itself move sideways
   const SensorMount mount = sensor_mount(config);
   detector::EgoMotion ego;
@@ -131,6 +131,82 @@ TEST(EgoMotionInput, ReceivesCountsAndSaysWhenStale) {
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   EXPECT_EQ(input.counts().accepted, 6u);
   input.stop();
+}
+
+// One message, one pose per sensor, each through its own mount (sensors[].sensor_in_body).
+TEST(EgoMotionInput, EachSensorGetsTheBodysPoseThroughItsOwnMount) {
+  DaemonOptions options = parse_config(
+      "sensors: [{name: front, sensor_in_body: {x: 1.0}}, {name: rear, channel_prefix: R_}]\n"
+      "ego_motion: {channel: ROBOT_ODOM, sensor_in_body: {x: -1.0, yaw_deg: 180}}");
+  EgoMotionInput input(options.ego_motion, "memq://", sensor_mounts(options));
+  EXPECT_EQ(input.sensors(), 2u);
+  const auto m = pose(kUtime0, {10.0, 0.0, 0.0}, 0.0);
+  input.lcm().publish("ROBOT_ODOM", &m);
+  input.poll(10);
+  EXPECT_EQ(input.counts().accepted, 1u);
+  const int64_t t_ns = kUtime0 * 1000;
+  detector::EgoPose front, rear;
+  input.read(0, [&](const detector::EgoMotion& e) {
+    ASSERT_EQ(e.at(t_ns, front), detector::EgoLookup::kOk);
+  });
+  input.read(1, [&](const detector::EgoMotion& e) {
+    ASSERT_EQ(e.at(t_ns, rear), detector::EgoLookup::kOk);
+  });
+  EXPECT_NEAR((front.position - Eigen::Vector3d(11.0, 0.0, 0.0)).norm(), 0.0, 1e-12);
+  EXPECT_NEAR((rear.position - Eigen::Vector3d(9.0, 0.0, 0.0)).norm(), 0.0, 1e-12);
+  EXPECT_NEAR(front.orientation.angularDistance(Eigen::Quaterniond::Identity()), 0.0, 1e-12);
+  EXPECT_NEAR(rear.orientation.angularDistance(Eigen::Quaterniond::Identity()), kPi, 1e-9);
+}
+
+// The counters of status_t: received = accepted + dropped, dropped by reason; gaps between
+// accepted stamps; stale episodes and the age of the last message.
+TEST(EgoMotionInput, CountersAddUpAndCountGapsAndStaleEpisodes) {
+  EgoMotionConfig config;
+  config.channel = "ROBOT_ODOM";
+  config.stale_s = 0.05;
+  config.buffer.max_gap_s = 0.2;
+  EgoMotionInput input(config, "memq://");
+  EXPECT_LT(input.state().age_s, 0.0);
+  auto send = [&](const lidartag::ego_motion_t& m) {
+    input.lcm().publish("ROBOT_ODOM", &m);
+    input.poll(10);
+  };
+  send(pose(kUtime0, {0, 0, 0}, 0.0));
+  send(pose(kUtime0 + 10'000, {0, 0, 0}, 0.0));
+  send(pose(kUtime0 + 510'000, {0, 0, 0}, 0.0));  // 0.5 s later: a gap
+  send(pose(kUtime0 + 5'000, {0, 0, 0}, 0.0));    // out of order
+  auto bad = pose(kUtime0 + 600'000, {0, 0, 0}, 0.0);
+  bad.orientation[0] = 3.0;  // no rotation
+  send(bad);
+  auto odd = pose(kUtime0 + 600'000, {0, 0, 0}, 0.0);
+  odd.kind = 9;
+  send(odd);
+  const char garbage[2] = {0, 1};
+  input.lcm().publish("ROBOT_ODOM", garbage, 2);
+  input.poll(10);
+  EgoMotionState s = input.state();
+  EXPECT_EQ(s.counts.received, 7u);
+  EXPECT_EQ(s.counts.accepted, 3u);
+  EXPECT_EQ(s.counts.out_of_order, 1u);
+  EXPECT_EQ(s.counts.invalid, 1u);
+  EXPECT_EQ(s.counts.unknown_kind, 1u);
+  EXPECT_EQ(s.counts.undecodable, 1u);
+  EXPECT_EQ(s.counts.dropped(), 4u);
+  EXPECT_EQ(s.counts.received, s.counts.accepted + s.counts.dropped());
+  EXPECT_EQ(s.counts.gaps, 1u);
+  EXPECT_GE(s.age_s, 0.0);
+  // Quiet past stale_s twice, with a message between: two episodes.
+  EXPECT_EQ(s.counts.stale_episodes, 0u);
+  std::this_thread::sleep_for(std::chrono::milliseconds(80));
+  input.poll(1);
+  s = input.state();
+  EXPECT_TRUE(s.stale);
+  EXPECT_EQ(s.counts.stale_episodes, 1u);
+  send(pose(kUtime0 + 520'000, {0, 0, 0}, 0.0));
+  EXPECT_FALSE(input.state().stale);
+  std::this_thread::sleep_for(std::chrono::milliseconds(80));
+  input.poll(1);
+  EXPECT_EQ(input.state().counts.stale_episodes, 2u);
 }
 
 TEST(EgoMotionInput, ALogFileIsNoPlaceToReceiveFrom) {

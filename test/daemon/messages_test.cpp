@@ -384,6 +384,58 @@ TEST(Messages, StatusCarriesHealthEveryCounterAndStagePercentiles) {
   EXPECT_EQ(got.max_ms[0], 4);
 }
 
+// status_t version 2: the ego-motion input's counters, the tracker's placements and the deskew's
+// clusters, each a different value, each in its own field; without an input all 0 and disabled.
+TEST(Messages, EgoMotionCountersLandEachInItsOwnField) {
+  SensorStatus s;
+  s.ego_placed = 41;
+  s.ego_missing = 42;
+  s.deskewed_ego = 43;
+  s.deskewed_model = 44;
+  s.deskew_without_motion = 45;
+  EgoMotionState e;
+  e.counts.received = 100;
+  e.counts.accepted = 90;
+  e.counts.out_of_order = 1;
+  e.counts.invalid = 2;
+  e.counts.unknown_kind = 3;
+  e.counts.undecodable = 4;
+  e.counts.gaps = 5;
+  e.counts.stale_episodes = 6;
+  e.stale = true;
+  e.age_s = 0.75;
+  lidartag::status_t msg;
+  fill_status(s, 1, 1.0, msg);
+  EXPECT_FALSE(msg.ego_enabled);
+  EXPECT_EQ(msg.ego_received, 0);
+  EXPECT_EQ(msg.ego_age_s, -1.0);
+  fill_ego_status(&e, msg);
+  LcmBus bus("memq://");
+  Capture capture;
+  bus.lcm().subscribe("LIDARTAG_STATUS", &Capture::handle, &capture);
+  ASSERT_TRUE(bus.publish("LIDARTAG_STATUS", msg));
+  ASSERT_EQ(bus.lcm().handleTimeout(100), 1);
+  const auto got = decode<lidartag::status_t>(capture.messages.at(0));
+  EXPECT_TRUE(got.ego_enabled);
+  EXPECT_EQ(got.ego_received, 100);
+  EXPECT_EQ(got.ego_accepted, 90);
+  EXPECT_EQ(got.ego_dropped, 10);
+  EXPECT_EQ(got.ego_out_of_order, 1);
+  EXPECT_EQ(got.ego_invalid, 2);
+  EXPECT_EQ(got.ego_unknown_kind, 3);
+  EXPECT_EQ(got.ego_undecodable, 4);
+  EXPECT_EQ(got.ego_received, got.ego_accepted + got.ego_dropped);
+  EXPECT_EQ(got.ego_gaps, 5);
+  EXPECT_TRUE(got.ego_stale);
+  EXPECT_EQ(got.ego_stale_episodes, 6);
+  EXPECT_EQ(got.ego_age_s, 0.75);
+  EXPECT_EQ(got.ego_placed, 41);
+  EXPECT_EQ(got.ego_missing, 42);
+  EXPECT_EQ(got.deskewed_ego, 43);
+  EXPECT_EQ(got.deskewed_model, 44);
+  EXPECT_EQ(got.deskew_without_motion, 45);
+}
+
 TEST(Messages, StatusStatesMatchTheLcmConstants) {
   using st = lidartag::status_t;
   EXPECT_EQ(static_cast<int>(HealthState::kHealthy), int{st::STATE_HEALTHY});

@@ -54,7 +54,7 @@ TEST(Options, TheTableNamesEverySettingOnce) {
   DetectorOptions o;
   visit_options(lister, o);
   // Every field of every stage's struct; of the top level all but the two output selections
-  // (keep_tag_points, keep_cluster_points) and the seven stage sections.
+  // (keep_tag_points, keep_cluster_points) and the eight sections (seven stages and the deskew).
   EXPECT_EQ(keys_under(keys, "features."), field_count<FeatureOptions>());
   EXPECT_EQ(keys_under(keys, "cluster."), field_count<ClusterOptions>());
   EXPECT_EQ(keys_under(keys, "validation."), field_count<ValidationOptions>());
@@ -62,9 +62,10 @@ TEST(Options, TheTableNamesEverySettingOnce) {
   EXPECT_EQ(keys_under(keys, "corners."), field_count<CornerOptions>());
   EXPECT_EQ(keys_under(keys, "pose."), field_count<PoseOptions>());
   EXPECT_EQ(keys_under(keys, "decode."), field_count<DecodeOptions>());
+  EXPECT_EQ(keys_under(keys, "deskew."), field_count<DeskewOptions>());
   size_t top = 0;
   for (const auto& [k, unit] : keys) top += k.find('.') == std::string::npos ? 1u : 0u;
-  EXPECT_EQ(top, field_count<DetectorOptions>() - 2 - 7);
+  EXPECT_EQ(top, field_count<DetectorOptions>() - 2 - 8);
   // Lengths carry their unit.
   for (const auto& [k, unit] : keys)
     if (k.size() > 2 && k.compare(k.size() - 2, 2, "_m") == 0) {

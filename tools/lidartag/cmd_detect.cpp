@@ -46,6 +46,7 @@ struct DetectArgs {
   bool partial = false;
   bool clusters = false;    // explain every cluster with enough features to be a tag
   bool no_tracker = false;  // every rotation alone
+  bool deskew = false;      // each cluster's points moved to its centre time (the tracker's motion)
   std::vector<double> tag_sizes;
   std::vector<std::string> families;
   int rings = 0;                // PCD without a ring field and no --model: beams to estimate
@@ -67,6 +68,7 @@ det::DetectorOptions detector_options(const DetectArgs& args) {
   options.cluster_diagnostics = true;
   if (!args.tag_sizes.empty()) options.tag_sizes_m = args.tag_sizes;
   if (!args.families.empty()) options.families = args.families;
+  if (args.deskew) options.deskew.enabled = true;
   return options;
 }
 
@@ -462,7 +464,11 @@ int run_detect(const DetectArgs& args) {
   if (!args.mcap.path.empty()) mcap.emplace(args.mcap, args.capture.capture);
   std::vector<det::Detection> reported;  // what the MCAP file shows: the printed detections
   auto report = [&](const Scan& scan) {
-    detector.detect(scan, result);
+    // The deskew's motion: the tracker's model of how the world moves through the sensor's frame
+    // (a capture carries no odometry).
+    det::SensorMotion motion;
+    if (tracker) motion.model = tracker->motion();
+    detector.detect(scan, result, motion);
     Reported rep{&result, nullptr};
     if (tracker) {
       tracker->update(result, scan.stamp_ns, tracked);
@@ -568,6 +574,10 @@ const Registrar kDetect(
       app.add_flag("--no-tracker", args->no_tracker,
                    "Every rotation alone: no evidence summed over rotations, no track fields "
                    "(the tracker is on by default)");
+      app.add_flag("--deskew", args->deskew,
+                   "Move each cluster's points to its centre's firing time with the motion the "
+                   "tracker has fitted before the fits (a moving sensor; detector.deskew.enabled)")
+          ->excludes("--no-tracker");
       app.add_flag("--partial", args->partial,
                    "Also detect in incomplete rotations (first, last, lossy)");
       app.add_option("--rings", args->rings,

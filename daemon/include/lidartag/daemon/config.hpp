@@ -85,6 +85,12 @@ struct SourceOptions {
   std::string channel;
 };
 
+// A LiDAR's pose on the robot's body whose motion ego_motion's messages give (sensor frame ->
+// body frame): metres, and degrees R = Rz(yaw) Ry(pitch) Rx(roll). Default: the LiDAR is the body.
+struct BodyMount {
+  double x = 0, y = 0, z = 0, roll_deg = 0, pitch_deg = 0, yaw_deg = 0;
+};
+
 struct SensorOptions {
   std::string name = "lidar";         // in messages, status and logs; unique
   std::string frame_id = "velodyne";  // coordinate frame of the published positions
@@ -103,6 +109,9 @@ struct SensorOptions {
   driver::BatcherOptions batcher;    // cut azimuth, flush timeout, jump threshold
   velodyne::DecoderOptions decoder;  // range limits
   SourceOptions source;
+  // This LiDAR's own mount on the body (sensors[].sensor_in_body); absent: the global
+  // ego_motion.sensor_in_body (mount_of()). Read only with an ego-motion channel.
+  std::optional<BodyMount> sensor_in_body;
 };
 
 struct LcmChannels {
@@ -209,9 +218,9 @@ struct EgoMotionConfig {
   // No message for longer than this (host time): the input is stale (a health note, logged).
   // Seconds, default 0.5.
   double stale_s = 0.5;
-  // The LiDAR's pose on the body frame the messages move (sensor frame -> body frame): metres,
-  // and degrees R = Rz(yaw) Ry(pitch) Rx(roll). Default: the LiDAR is the body.
-  double x = 0, y = 0, z = 0, roll_deg = 0, pitch_deg = 0, yaw_deg = 0;
+  // The LiDAR's pose on the body frame the messages move: every sensor's, unless its entry gives
+  // its own (SensorOptions::sensor_in_body). Default: the LiDAR is the body.
+  BodyMount sensor_in_body;
 };
 
 struct DaemonOptions {
@@ -259,5 +268,9 @@ std::string print_config(const DaemonOptions& options);
 
 // Channel names of a sensor: prefix + the configured channel.
 std::string channel_of(const SensorOptions& sensor, const std::string& channel);
+
+// The mount of a sensor on the body that ego_motion's messages move: its own
+// (sensors[].sensor_in_body) when its entry gives one, else ego_motion.sensor_in_body.
+const BodyMount& mount_of(const DaemonOptions& options, const SensorOptions& sensor);
 
 }  // namespace lidartag::daemon

@@ -44,6 +44,9 @@ void fill_point_cloud(const RotationResult& r, const std::string& sensor,
                       const std::string& frame_id, lidartag::point_cloud_t& out);
 
 void fill_status(const SensorStatus& s, int64_t utime, double uptime_s, lidartag::status_t& out);
+// The ego-motion input's fields of status_t (version 2); null: no input (ego_enabled false, every
+// count 0). fill_status leaves them as null gives.
+void fill_ego_status(const EgoMotionState* ego, lidartag::status_t& out);
 
 void fill_raw_packet(const driver::RawPacket& p, const std::string& sensor,
                      lidartag::raw_packet_t& out);

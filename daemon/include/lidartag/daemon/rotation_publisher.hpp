@@ -74,6 +74,16 @@ class RotationPublisher {
   // one (Detection::size_warning), and the latest of them in words (any thread).
   uint64_t size_warnings() const { return size_warnings_.load(std::memory_order_relaxed); }
   std::string size_note() const;
+  // With the ego-motion input: the tracker's candidates placed in the odometry frame, and those
+  // its poses did not cover (TrackerResult::ego_placed, ego_missing), summed (any thread).
+  uint64_t ego_placed() const { return ego_placed_.load(std::memory_order_relaxed); }
+  uint64_t ego_missing() const { return ego_missing_.load(std::memory_order_relaxed); }
+  // The tracker's model of how the static world moves through the sensor's frame after the
+  // latest rotation (detector::Tracker::motion(); unknown without a tracker): the deskew's when
+  // no odometry covers a cluster (any thread).
+  detector::Motion motion() const;
+  // This sensor's index in DaemonOptions::sensors (its ego-motion poses).
+  size_t sensor_index() const { return sensor_index_; }
 
  private:
   const SensorOptions& sensor_;
@@ -87,6 +97,10 @@ class RotationPublisher {
   lidartag::tag_points_t tag_points_message_;
   lidartag::point_cloud_t cloud_message_;
   std::optional<detector::Tracker> tracker_;  // tracker.enabled
+  size_t sensor_index_ = 0;
+  std::atomic<uint64_t> ego_placed_{0}, ego_missing_{0};
+  mutable std::mutex motion_mutex_;
+  detector::Motion motion_;  // the tracker's after the latest rotation
   // The size check's latest warning (the family's name copied: no allocation while publishing).
   struct SizeSeen {
     std::array<char, 32> family{};

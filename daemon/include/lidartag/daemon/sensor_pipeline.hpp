@@ -125,6 +125,9 @@ class SensorPipeline {
   std::unique_ptr<driver::ScanReader> reader_;  // any vendor's, by the source's content
   // One per rotation the pipeline may hold (indexed by Rotation::order modulo tokens_).
   std::vector<std::unique_ptr<detector::Detector>> detectors_;
+  // With detector.deskew and an ego-motion input: each detector's copy of the sensor's poses,
+  // taken under the input's lock before its rotation (the same index; no allocation once sized).
+  std::vector<std::unique_ptr<detector::EgoMotion>> ego_copies_;
   ScanBuffer<Rotation> buffer_;
   RotationPublisher publisher_;
   size_t tokens_;  // rotations in the pipeline at most: workers + publish_queue
@@ -134,6 +137,9 @@ class SensorPipeline {
 
   std::thread receiver_;
   std::atomic<bool> stopping_{false}, finished_{false};
+
+  // Detected rotations' deskewed clusters: by the odometry, by the tracker's model, without.
+  std::atomic<uint64_t> deskewed_ego_{0}, deskewed_model_{0}, deskew_without_motion_{0};
 
   lidartag::raw_packet_t raw_message_;  // receiver thread
   bool after_seam_ = false;             // receiver thread

@@ -62,11 +62,17 @@ class Detector {
   // sizes disagree with its storage is refused (ScanResult::refused); if memory runs out part-way,
   // what was found so far is kept and ScanResult::truncated is set.
   void detect(const Scan& scan, ScanResult& out) noexcept;
+  // The same with what is known of the sensor's motion during the scan: with
+  // DeskewOptions::enabled, each cluster's points are moved to its centre time with it before
+  // the fits (deskew.hpp); `motion.ego` is read during the call only. Without deskew, the same as
+  // detect(scan, out).
+  void detect(const Scan& scan, ScanResult& out, const SensorMotion& motion) noexcept;
 
  private:
   struct Buffers;
-  void detect_clusters(const Scan& scan, ScanResult& out);
-  void process_cluster(const Scan& scan, int cluster, double horizontal_res_rad, ScanResult& out);
+  void detect_clusters(const Scan& scan, ScanResult& out, const SensorMotion& motion);
+  void process_cluster(const Scan& scan, int cluster, double horizontal_res_rad,
+                       const SensorMotion& motion, ScanResult& out);
   int add_candidate(const ClusterDecode& decoded, const Eigen::Vector3d& center,
                     const Eigen::Matrix3d& undecoded, double t, int points, double fit_cost,
                     double coverage, ScanResult& out);

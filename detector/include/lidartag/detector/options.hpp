@@ -12,6 +12,7 @@
 #include "lidartag/detector/cluster_validation.hpp"
 #include "lidartag/detector/clustering.hpp"
 #include "lidartag/detector/corners.hpp"
+#include "lidartag/detector/deskew.hpp"
 #include "lidartag/detector/edge_features.hpp"
 #include "lidartag/detector/plane_fit.hpp"
 #include "lidartag/detector/pose_fit.hpp"
@@ -50,6 +51,7 @@ struct DetectorOptions {
   CornerOptions corners;         // Sec. V-B remark: the outline's corners
   PoseOptions pose;              // Sec. V: eqs. (7)-(10)
   DecodeOptions decode;          // Sec. VI: eqs. (18), (19), (21), (22)
+  DeskewOptions deskew;          // before the fits: the points moved to one time (deskew.hpp)
   // Record one ClusterDiagnostic per cluster in ScanResult. Default true.
   bool cluster_diagnostics = true;
   // Output selections (not thresholds: visit_options leaves them to the caller; the daemon maps
@@ -170,6 +172,7 @@ void visit_options(V& v, DetectorOptions& o) {
     s.field("min_seen_margin_cells", o.decode.min_seen_margin_cells, at_least(0.0), "cells");
     s.field("min_returns_per_cell", o.decode.min_returns_per_cell, at_least(0.0), "points");
   });
+  v.section("deskew", [&](V& s) { s.field("enabled", o.deskew.enabled, Any{}, ""); });
 }
 
 // Rules between fields (features.max_range_m above features.min_range_m). Throws OptionsError.

@@ -186,6 +186,10 @@ struct ScanResult {
   std::array<uint32_t, kRejectionCount> rejected{};  // clusters dropped, by reason
   int features = 0;
   int clusters = 0;
+  // With DeskewOptions::enabled: clusters whose points were moved to their centre time by the
+  // odometry (SensorMotion::ego), by the constant-velocity model, and by nothing (no motion known
+  // for them: fitted as fired).
+  int deskewed_ego = 0, deskewed_model = 0, deskew_without_motion = 0;
   // The scan's sizes disagree with its storage: nothing was read (a caller's bug, not data).
   bool refused = false;
   // Memory ran out part-way through the rotation: what was found before is kept, the rest of

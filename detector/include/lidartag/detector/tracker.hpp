@@ -195,6 +195,11 @@ class Tracker {
   void update(const ScanResult& result, int64_t stamp_ns, TrackerResult& out,
               const EgoMotion* ego = nullptr) noexcept;
 
+  // The apparent motion of the static world in the sensor's frame after the last update (the
+  // track with the longest window's constant-velocity model; unknown without one): what the
+  // detector's deskew uses for the next scan when no odometry covers it (SensorMotion::model).
+  const Motion& motion() const noexcept { return fleet_; }
+
   // Drops every track (ids keep increasing).
   void reset();
 

@@ -8,6 +8,8 @@
 //   template <class E> void choice(const char* key, E& value,
 //                                  const std::vector<std::pair<std::string, E>>& names);
 //   template <class F> void section(const char* key, F&& body);   // body(V&) for the section
+// and, for lidartagd's own table, list(key, vector, prototype, body) and
+// optional_section(key, std::optional<T>&, body): body(V&, T&) for a section that may be absent.
 // The daemon's YAML reader and printer are such visitors, and so is RuleChecker below, which
 // applies the rules to options built in code. A rule returns why a value is bad, or "".
 #pragma once
@@ -15,6 +17,7 @@
 #include <array>
 #include <charconv>
 #include <cstddef>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <type_traits>
@@ -178,6 +181,15 @@ class RuleChecker {
   void section(const char* key, F&& body) {
     RuleChecker sub(path_ + key + ".", fail_);
     body(sub);
+  }
+
+  // A section that may be absent (std::optional; lidartagd's sensors[].sensor_in_body): its rules
+  // when present.
+  template <class T, class F>
+  void optional_section(const char* key, std::optional<T>& value, F&& body) {
+    if (!value) return;
+    RuleChecker sub(path_ + key + ".", fail_);
+    body(sub, *value);
   }
 
   // A list of option structs, each under KEY[i] (lidartagd's sensors): not empty.
