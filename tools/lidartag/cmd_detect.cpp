@@ -520,12 +520,7 @@ int run_detect(const DetectArgs& args) {
       if (args.json) totals.print_size_warnings(stderr);
       require_rotations(reader, args.capture, n, totals.skipped, "detects in them");
     };
-    if (const auto metadata = ouster_metadata(args.capture.capture, args.ouster.metadata)) {
-      detect_all(*ouster_reader(args.capture, args.ouster, *metadata));
-    } else {
-      velodyne::CaptureReader reader(args.capture.capture, reader_options(args.capture));
-      detect_all(reader);
-    }
+    open_capture(args.capture, args.ouster).visit(detect_all);
     return 0;
   }
   if (mcap) mcap->close();
