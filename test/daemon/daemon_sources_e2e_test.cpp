@@ -18,6 +18,7 @@
 #include <nlohmann/json.hpp>
 #include <set>
 #include <thread>
+#include <tuple>
 
 #include "daemon/namespaces.hpp"
 #include "daemon/process.hpp"
@@ -479,13 +480,19 @@ TEST(BagReplay, TimeWindowsOnAPcapAndABag) {
     }
   }
   ASSERT_GT(data, 100);
-  for (const auto& [file, expected] :
-       {std::pair{pcap, data}, std::pair{kBags + "/rosbag2/vlp16_dual", int64_t{301}}}) {
+  // The pcap with the command line's options, the bag with the configuration's keys.
+  const std::vector<std::string> window_flags = {"--start", "0.15", "--duration", "0.2"};
+  const std::vector<std::string> window_keys = {"--set", "sensors[0].source.start=0.15", "--set",
+                                                "sensors[0].source.duration=0.2"};
+  for (const auto& [file, expected, window] :
+       {std::tuple{pcap, data, window_flags},
+        std::tuple{kBags + "/rosbag2/vlp16_dual", int64_t{301}, window_keys}}) {
     SCOPED_TRACE(file);
     const std::string log = temp("window.lcmlog");
+    std::vector<std::string> args = {"--replay", file};
+    args.insert(args.end(), window.begin(), window.end());
     std::string err;
-    ASSERT_EQ(replay(log, {"--replay", file, "--start", "0.15", "--duration", "0.2"}, &err), 0)
-        << err;
+    ASSERT_EQ(replay(log, args, &err), 0) << err;
     const Decoded d = read_log(log);
     ASSERT_FALSE(d.status.empty());
     EXPECT_EQ(d.status.back().packets_data, expected);

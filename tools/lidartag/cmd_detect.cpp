@@ -535,8 +535,8 @@ const Registrar kDetect(
       auto args = std::make_shared<DetectArgs>();
       add_capture_options(app, args->capture);
       app.get_option("capture")->description(
-          "pcap or pcapng file, a PCD point cloud, or a ROS bag / MCAP file of VelodyneScan "
-          "packets or PointCloud2 clouds");
+          "pcap or pcapng file, a PCD point cloud, or a ROS bag / MCAP file of VelodyneScan or "
+          "Ouster packets or PointCloud2 clouds");
       add_ouster_options(app, args->ouster, true);
       app.add_option("--config", args->config,
                      "YAML file whose `detector:` and `tracker:` sections set the detector's and "

@@ -42,8 +42,9 @@ CLI::Validator length_in_metres() {
 
 void add_capture_options(CLI::App& app, CaptureArgs& args) {
   app.add_option("capture", args.capture,
-                 "pcap or pcapng file, or a ROS 1 bag, ROS 2 bag folder or MCAP file of "
-                 "VelodyneScan packets or PointCloud2 clouds (recognised by content)")
+                 "pcap or pcapng file of Velodyne or Ouster packets, or a ROS 1 bag, ROS 2 bag "
+                 "folder or MCAP file of VelodyneScan or Ouster packets or PointCloud2 clouds "
+                 "(recognised by content)")
       ->required()
       ->check(CLI::ExistingPath);
   const std::string names = velodyne::model_names();
@@ -78,11 +79,10 @@ void add_capture_options(CLI::App& app, CaptureArgs& args) {
   app.add_option("--topic", args.topic,
                  "ROS bag / MCAP: the LiDAR topic (default: the bag's one LiDAR topic)");
   app.add_option("--start", args.start_s,
-                 "ROS bag / MCAP: skip the messages of the first SECONDS (from the bag's first "
-                 "message)")
+                 "Skip the first SECONDS (from a bag's first message or a pcap's first packet)")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--duration", args.duration_s,
-                 "ROS bag / MCAP: read the messages of SECONDS from --start only")
+                 "Read what was received in SECONDS from --start only")
       ->check(CLI::PositiveNumber);
 }
 
