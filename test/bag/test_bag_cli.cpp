@@ -158,6 +158,11 @@ TEST(BagCli, StartAndDurationCutABagAndAPcap) {
   for (const auto& e : std::filesystem::directory_iterator(dir.file("w")))
     files += e.is_regular_file();
   EXPECT_EQ(files, pcap_cut["rotations"]["total"].get<size_t>());
+  // A window past the capture's end: nothing to detect in, the message says why.
+  r = run_tool("detect --start 100 " + pcap);
+  EXPECT_EQ(r.exit_code, 1) << r.out;
+  EXPECT_NE(r.out.find(std::to_string(n) + " outside --start/--duration"), std::string::npos)
+      << r.out;
 }
 
 // A ROS 1 bag of Ouster OS0-128 packets with its metadata topic: every command decodes it as the

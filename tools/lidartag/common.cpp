@@ -114,10 +114,12 @@ void require_rotations(const velodyne::CaptureReader& reader, const CaptureArgs&
         args.capture, skipped, skipped == 1 ? "" : "s", partial_effect));
   const auto s = reader.source_stats();
   throw std::runtime_error(fmt::format(
-      "{}: no rotation: {} data packets on port {}, {} decoded, {} other packets ignored (check "
-      "--data-port, --sensor, --model)",
+      "{}: no rotation: {} data packets on port {}, {} decoded, {} other packets ignored{} (check "
+      "--data-port, --sensor, --model{})",
       args.capture, reader.counts().data_packets, args.data_port, reader.counts().decoded,
-      s.ignored));
+      s.ignored,
+      args.windowed() ? fmt::format(", {} outside --start/--duration", s.outside_window) : "",
+      args.windowed() ? ", --start/--duration" : ""));
 }
 
 bool is_pcd(const std::string& path) {
