@@ -29,8 +29,9 @@ struct CaptureArgs {
   uint16_t data_port = velodyne::kDefaultDataPort;
   uint16_t position_port = velodyne::kDefaultPositionPort;
   std::string sensor;  // sender address filter, dotted quad
-  std::string topic;   // ROS bag / MCAP: the VelodyneScan topic; empty: the bag's one LiDAR topic
-  // ROS bag / MCAP: the time window, seconds from the bag's first message (--start, --duration).
+  std::string topic;   // ROS bag / MCAP: the LiDAR topic; empty: the bag's one LiDAR topic
+  // The time window, seconds from a bag's first message or a pcap's first packet (--start,
+  // --duration; driver::ScanSourceOptions::start_s, duration_s).
   double start_s = 0;
   double duration_s = std::numeric_limits<double>::infinity();
   bool windowed() const {
