@@ -526,6 +526,8 @@ void visit_sensor(V& v, SensorOptions& o) {
     s.field("topic", src.topic, printable(true));
     s.field("rate", src.rate, replay_rate());
     s.field("loop", src.loop);
+    s.field("start", src.start, at_least(0.0), "s");
+    s.field("duration", src.duration, at_least(0.0), "s");
     s.field("channel", src.channel);
   });
   // Given: this LiDAR's own mount; absent (and not printed): ego_motion.sensor_in_body.

@@ -35,7 +35,7 @@ struct Args {
   std::vector<std::string> set;
   std::optional<std::string> lcm_url;
   std::string replay, replay_lcm, record, mcap, topic, metadata;
-  std::optional<double> rate;
+  std::optional<double> rate, start, duration;
   bool max_speed = false, loop = false;
   std::optional<int> workers;
   std::optional<std::string> log_level, log_file;
@@ -72,6 +72,8 @@ void apply(const Args& a, DaemonOptions& o) {
     if (a.max_speed) src.rate = 0.0;
     if (a.rate) src.rate = *a.rate;
     if (a.loop) src.loop = true;
+    if (a.start) src.start = *a.start;
+    if (a.duration) src.duration = *a.duration;
   }
   lidartag::daemon::validate(o);
 }
@@ -169,6 +171,12 @@ int main(int argc, char** argv) {
       "file of VelodyneScan or Ouster packet messages");
   app.add_option("--topic", a.topic,
                  "The LiDAR topic of a replayed bag (default: its one LiDAR topic)");
+  app.add_option("--start", a.start,
+                 "Replay from SECONDS after the capture's first packet (a bag: its earliest "
+                 "message); what comes before is counted and passed over")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--duration", a.duration, "Replay SECONDS from --start only (default: to the end)")
+      ->check(CLI::PositiveNumber);
   app.add_option("--metadata", a.metadata,
                  "Ouster sensor metadata JSON for every sensor (the sensor is then an Ouster; "
                  "ports 7502/7503 unless configured otherwise)");

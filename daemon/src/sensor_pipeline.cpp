@@ -79,6 +79,8 @@ driver::ScanSourceOptions scan_options(const SensorOptions& sensor) {
   o.replay.rate = s.rate > 0 ? s.rate : 1.0;
   o.replay.loop = s.loop;
   o.topic = s.topic;
+  o.start_s = s.start;
+  if (s.duration > 0) o.duration_s = s.duration;
   o.metadata = sensor.metadata;
   o.velodyne_model = sensor.model;
   o.ouster_model = sensor.ouster_model;

@@ -3,11 +3,14 @@
 // with one clear line and exit code 1.
 #include <gtest/gtest.h>
 
+#include <chrono>
+#include <cstdint>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <string>
 
 #include "bag/bag_files.hpp"
+#include "lidartag/driver/io/pcap_source.hpp"
 #include "tools/run_tool.hpp"
 
 namespace lidartag::driver::bag {
@@ -102,22 +105,108 @@ TEST(BagCli, DumpAndRenderTakeAPointCloud2Topic) {
   EXPECT_NE(r.out.find("has clouds 0-4"), std::string::npos) << r.out;
 }
 
-TEST(BagCli, StartAndDurationCutABagAndAreRefusedForAPcap) {
+TEST(BagCli, StartAndDurationCutABagAndAPcap) {
   LIDARTAG_REQUIRE_BAGS();
   const std::string b = bag("rosbag2/vlp16_dual");
   const nlohmann::json whole = info(b);
   // Four VelodyneScan messages 0.1 s apart: [0.15 s, 0.35 s) holds the third and fourth.
-  const auto r = run_tool("info --json --start 0.15 --duration 0.2 " + b, false);
+  auto r = run_tool("info --json --start 0.15 --duration 0.2 " + b, false);
   ASSERT_EQ(r.exit_code, 0) << r.out;
   const auto cut = nlohmann::json::parse(r.out);
   EXPECT_EQ(cut["packets"]["data"].get<int>(), 301) << cut.dump();  // 151 + 150 of 603
+  EXPECT_EQ(cut["outside_window"].get<int>(), 2);                   // messages
   EXPECT_EQ(whole["packets"]["data"].get<int>(), 603);
   EXPECT_LT(cut["duration_s"].get<double>(), whole["duration_s"].get<double>());
-  const auto pcap = run_tool("info --start 1 " + capture("vlp16_dual_nebula.pcap"));
-  EXPECT_EQ(pcap.exit_code, 2);
-  EXPECT_NE(pcap.out.find("take a ROS bag or MCAP file"), std::string::npos) << pcap.out;
   const auto negative = run_tool("info --start -1 " + b);
   EXPECT_NE(negative.exit_code, 0);
+
+  // A pcap: from its first packet; the packets in the window counted here from the pcap itself.
+  const std::string pcap = capture("vlp16_dual_nebula.pcap");
+  uint64_t data = 0, outside = 0, n = 0;
+  {
+    PcapSource source(pcap);
+    RawPacket p;
+    int64_t first = 0;
+    while (source.next(p, std::chrono::milliseconds(0)) == ReadStatus::kPacket) {
+      if (n++ == 0) first = p.receive_time_ns;
+      const double t = static_cast<double>(p.receive_time_ns - first) * 1e-9;
+      if (t >= 0.15 && t < 0.35)
+        data += p.destination_port == kDefaultDataPort ? 1 : 0;
+      else
+        ++outside;
+    }
+  }
+  r = run_tool("info --json --start 0.15 --duration 0.2 " + pcap, false);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto pcap_cut = nlohmann::json::parse(r.out);
+  EXPECT_EQ(pcap_cut["packets"]["data"].get<uint64_t>(), data);
+  EXPECT_EQ(pcap_cut["outside_window"].get<uint64_t>(), outside);
+  EXPECT_GT(outside, 0u);
+  const nlohmann::json pcap_whole = info(pcap);
+  EXPECT_FALSE(pcap_whole.contains("outside_window"));
+  EXPECT_LT(pcap_cut["rotations"]["total"].get<int>(), pcap_whole["rotations"]["total"].get<int>());
+  r = run_tool("info --start 0.15 --duration 0.2 " + pcap);
+  EXPECT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("(" + std::to_string(outside) + " packets outside --start/--duration)"),
+            std::string::npos)
+      << r.out;
+  // dump and detect take it too: fewer rotations than the whole pcap.
+  testing::TempDir dir;
+  r = run_tool("dump --partial --start 0.15 --duration 0.2 " + pcap + " --out " + dir.file("w"));
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  size_t files = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir.file("w")))
+    files += e.is_regular_file();
+  EXPECT_EQ(files, pcap_cut["rotations"]["total"].get<size_t>());
+  // A window past the capture's end: nothing to detect in, the message says why.
+  r = run_tool("detect --start 100 " + pcap);
+  EXPECT_EQ(r.exit_code, 1) << r.out;
+  EXPECT_NE(r.out.find(std::to_string(n) + " outside --start/--duration"), std::string::npos)
+      << r.out;
+}
+
+// A ROS 1 bag of Ouster OS0-128 packets with its metadata topic: every command decodes it as the
+// daemon does, one whole 512-column frame, the IMU topic's packets counted apart.
+TEST(BagCli, AnOusterPacketBagInEveryCommand) {
+  LIDARTAG_REQUIRE_BAGS();
+  const std::string b = bag("ros1/ouster_os0-128_512x10_packets.bag");
+  const nlohmann::json j = info(b);
+  EXPECT_EQ(j["vendor"], "ouster");
+  EXPECT_EQ(j["profile"], "RNG15_RFL8_NIR8");
+  EXPECT_EQ(j["beams"], 128);
+  EXPECT_EQ(j["lidar_mode"], "512x10");
+  EXPECT_EQ(j["packets"]["lidar"], 32);
+  EXPECT_EQ(j["packets"]["imu"], 10);
+  EXPECT_EQ(j["frames"]["total"], 1);
+  EXPECT_EQ(j["frames"]["complete"], 1);
+  EXPECT_EQ(j["frames"]["most_columns"], 512);
+  EXPECT_NE(j["metadata"].get<std::string>().find("its metadata topic"), std::string::npos);
+  for (const auto& [status, count] : j["refused"].items()) EXPECT_EQ(count, 0) << status;
+  const int points = j["frames"]["points"].get<int>();
+  EXPECT_GT(points, 10000);
+
+  testing::TempDir dir;
+  auto r = run_tool("dump " + b + " --out " + dir.file("out"));
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_EQ(pcd_files(dir.file("out")), 1u);
+  EXPECT_NE(r.out.find("wrote 1 PCD files (" + std::to_string(points) + " points)"),
+            std::string::npos)
+      << r.out;
+  r = run_tool("detect --json " + b, false);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto rotation = nlohmann::json::parse(r.out.substr(0, r.out.find('\n')));
+  EXPECT_EQ(rotation["points"].get<int>(), points);
+  EXPECT_EQ(rotation["detections"].size(), 0u);
+  r = run_tool("render -o " + dir.file("view") + " " + b);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  bool png = false;
+  for (const auto& e : std::filesystem::directory_iterator(dir.file("")))
+    png |= e.path().extension() == ".png";
+  EXPECT_TRUE(png) << r.out;
+  // Velodyne's options are refused for it, naming the option.
+  r = run_tool("detect --cut 90 " + b);
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.out.find("--cut is for Velodyne captures"), std::string::npos) << r.out;
 }
 
 TEST(BagCli, DetectRunsOnEveryPointCloudOfALuminarBag) {

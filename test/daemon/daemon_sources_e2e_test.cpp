@@ -18,6 +18,7 @@
 #include <nlohmann/json.hpp>
 #include <set>
 #include <thread>
+#include <tuple>
 
 #include "daemon/lcm_log_messages.hpp"
 #include "daemon/namespaces.hpp"
@@ -429,6 +430,49 @@ TEST(BagReplay, Ros1OusterPacketsWithTheMetadataTopic) {
   ASSERT_EQ(d.detections.size(), 1u);
   EXPECT_TRUE(d.detections[0].complete);
   EXPECT_EQ(d.detections[0].ndetections, 0);  // no tag in it
+}
+
+// --start/--duration (source.start, source.duration) on a replayed pcap and a bag: only the
+// packets of the window reach the pipeline, as `lidartag info` reads them (the pcap's window
+// counted here from its own packets); with --loop they are refused at setup.
+TEST(BagReplay, TimeWindowsOnAPcapAndABag) {
+  REQUIRE_BAGS();
+  const std::string pcap = kCaptures + "/vlp16_dual_nebula.pcap";
+  int64_t data = 0;
+  {
+    driver::PcapSource source(pcap);
+    driver::RawPacket p;
+    int64_t first = 0;
+    bool anchored = false;
+    while (source.next(p, 0ms) == driver::ReadStatus::kPacket) {
+      if (!anchored) first = p.receive_time_ns;
+      anchored = true;
+      const double t = static_cast<double>(p.receive_time_ns - first) * 1e-9;
+      if (t >= 0.15 && t < 0.35 && p.destination_port == driver::kDefaultDataPort) ++data;
+    }
+  }
+  ASSERT_GT(data, 100);
+  // The pcap with the command line's options, the bag with the configuration's keys.
+  const std::vector<std::string> window_flags = {"--start", "0.15", "--duration", "0.2"};
+  const std::vector<std::string> window_keys = {"--set", "sensors[0].source.start=0.15", "--set",
+                                                "sensors[0].source.duration=0.2"};
+  for (const auto& [file, expected, window] :
+       {std::tuple{pcap, data, window_flags},
+        std::tuple{kBags + "/rosbag2/vlp16_dual", int64_t{301}, window_keys}}) {
+    SCOPED_TRACE(file);
+    const std::string log = temp("window.lcmlog");
+    std::vector<std::string> args = {"--replay", file};
+    args.insert(args.end(), window.begin(), window.end());
+    std::string err;
+    ASSERT_EQ(replay(log, args, &err), 0) << err;
+    const Decoded d = read_log(log);
+    ASSERT_FALSE(d.status.empty());
+    EXPECT_EQ(d.status.back().packets_data, expected);
+  }
+  std::string err;
+  EXPECT_EQ(
+      replay(temp("window_loop.lcmlog"), {"--replay", pcap, "--start", "0.1", "--loop"}, &err), 1);
+  EXPECT_NE(err.find("looped replay"), std::string::npos) << err;
 }
 
 // A bag whose LiDAR topic holds point clouds, not packets, and a topic that is not there: one

@@ -12,6 +12,7 @@
 
 #include "driver/ouster_captures.hpp"
 #include "lidartag/driver/bag/message_reader.hpp"
+#include "lidartag/driver/io/pcap_source.hpp"
 #include "lidartag/driver/ouster/io/capture_reader.hpp"
 #include "lidartag/driver/ouster/models.hpp"
 #include "lidartag/driver/sources/open_reader.hpp"
@@ -199,6 +200,88 @@ TEST(OpenReader, ABagIsPacedByItsStampsLikeAPcap) {
   EXPECT_GE(wall_s, 0.9 * recorded_s / o.replay.rate);
   // The same rotations as unpaced.
   expect_same(paced, read_all(*open_capture(bag, {}).reader));
+}
+
+// A time window on a pcap (ScanSourceOptions::start_s, duration_s): exactly the packets received
+// in [first + start, first + start + duration) are read, those outside counted apart; the window
+// is the same for a replay at capture timing, which does not wait for the packets before it.
+TEST(OpenReader, ATimeWindowOnAPcapKeepsThePacketsInItAndCountsTheRest) {
+  const std::string pcap = kCaptures + "/vlp16_dual_nebula.pcap";
+  REQUIRE_PATH(pcap);
+  // The window's packets counted independently, from the pcap's own packets.
+  const double start_s = 0.15, duration_s = 0.2;
+  uint64_t inside_data = 0, outside = 0, all = 0;
+  {
+    PcapSource source(pcap);
+    RawPacket p;
+    int64_t first = 0;
+    while (source.next(p, 0ms) == ReadStatus::kPacket) {
+      if (all++ == 0) first = p.receive_time_ns;
+      const double t = static_cast<double>(p.receive_time_ns - first) * 1e-9;
+      if (t >= start_s && t < start_s + duration_s)
+        inside_data += p.destination_port == kDefaultDataPort ? 1 : 0;
+      else
+        ++outside;
+    }
+  }
+  ASSERT_GT(inside_data, 100u);
+  ASSERT_GT(outside, 100u);
+  ScanSourceOptions o;
+  o.start_s = start_s;
+  o.duration_s = duration_s;
+  OpenedReader whole = open_capture(pcap, {});
+  OpenedReader cut = open_capture(pcap, o);
+  const std::vector<Scan> all_rotations = read_all(*whole.reader);
+  const std::vector<Scan> rotations = read_all(*cut.reader);
+  EXPECT_EQ(cut.reader->reader_counts().data_packets, inside_data);
+  EXPECT_EQ(cut.reader->source_stats().outside_window, outside);
+  EXPECT_EQ(whole.reader->source_stats().outside_window, 0u);
+  ASSERT_FALSE(rotations.empty());
+  EXPECT_LT(rotations.size(), all_rotations.size());
+  // Each rotation's stamp lies inside the window of the whole capture's.
+  EXPECT_GE(rotations.front().stamp_ns, all_rotations.front().stamp_ns);
+
+  // At capture timing: a late window takes about its own duration, not the time up to its end
+  // (the packets before it are not waited for); the same packets as unpaced.
+  ScanSourceOptions late;
+  late.start_s = 0.3;
+  late.duration_s = 0.05;
+  OpenedReader fast = open_capture(pcap, late);
+  (void)read_all(*fast.reader);
+  late.replay.pacing = ReplayPacing::kCaptureTime;
+  OpenedReader paced = open_capture(pcap, late);
+  const auto t0 = std::chrono::steady_clock::now();
+  (void)read_all(*paced.reader);
+  const double wall_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_GT(fast.reader->reader_counts().data_packets, 0u);
+  EXPECT_EQ(paced.reader->reader_counts().data_packets, fast.reader->reader_counts().data_packets);
+  EXPECT_GE(wall_s, 0.8 * late.duration_s);
+  EXPECT_LT(wall_s, 0.8 * late.start_s);
+
+  // Bad windows and a window on a looped replay are refused.
+  ScanSourceOptions bad;
+  bad.start_s = -1;
+  EXPECT_THROW((void)open_capture(pcap, bad), std::invalid_argument);
+  bad.start_s = 0;
+  bad.duration_s = 0;
+  EXPECT_THROW((void)open_capture(pcap, bad), std::invalid_argument);
+  ScanSourceOptions looped = late;
+  looped.replay.loop = true;
+  EXPECT_THROW((void)open_capture(pcap, looped), std::invalid_argument);
+}
+
+// A bag of Ouster packets takes the window too (from the bag's first message).
+TEST(OpenReader, ATimeWindowOnAnOusterBagCountsTheMessagesOutsideIt) {
+  const std::string bag = kCaptures + "/bags/ros1/ouster_os0-128_512x10_packets.bag";
+  REQUIRE_PATH(bag);
+  ScanSourceOptions o;
+  o.start_s = 1000;  // past its end
+  OpenedReader opened = open_capture(bag, o);
+  EXPECT_TRUE(read_all(*opened.reader).empty());
+  EXPECT_EQ(opened.reader->reader_counts().data_packets, 0u);
+  // Every message of the bag: 32 lidar, 10 IMU and the metadata topic's one.
+  EXPECT_EQ(opened.reader->source_stats().outside_window, 43u);
 }
 
 TEST(OusterModels, NamesFromTheMetadataAndTheirChecks) {

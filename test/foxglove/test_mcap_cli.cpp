@@ -200,6 +200,43 @@ TEST(McapCli, DumpFormatMcapWritesEveryRotationsCloud) {
   fs::remove(path);
 }
 
+// `dump --format mcap` of a bag's PointCloud2 topic (a real Luminar bag, five clouds): each cloud
+// as a rotation's, with the points detect finds in it; --start/--duration choose the clouds.
+TEST(McapCli, DumpFormatMcapOfAPointCloud2Topic) {
+  const std::string luminar =
+      std::string(LIDARTAG_SHARED_DIR) + "/captures/bags/ros1/luminar_pointcloud2_lz4.bag";
+  if (!fs::exists(luminar)) GTEST_SKIP() << luminar << " not found (../shared/captures)";
+  const auto path = temp_file("clouds.mcap");
+  fs::remove(path);
+  const auto rotations = json_lines(run_tool("detect " + luminar + " --json", false).out);
+  ASSERT_EQ(rotations.size(), 5u);
+  auto r = run_tool("dump " + luminar + " --format mcap --out " + path.string());
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("wrote 5 clouds to"), std::string::npos) << r.out;
+  EXPECT_TRUE(lidartag::testing::check_mcap(path.string()).ok);
+  const Read back = read_back(path);
+  EXPECT_EQ(back.by_topic.count("/lidartag/tags"), 0u) << "a conversion detects nothing";
+  ASSERT_EQ(back.by_topic.count("/lidartag/cloud"), 1u);
+  const auto& clouds = back.by_topic.at("/lidartag/cloud");
+  ASSERT_EQ(clouds.size(), rotations.size());
+  for (size_t i = 0; i < clouds.size(); ++i) {
+    const json cloud = json::parse(clouds[i].second);
+    EXPECT_EQ(base64_decode(cloud["data"].get<std::string>()).size(),
+              rotations[i]["points"].get<size_t>() * 18);
+  }
+  // The clouds 0.1 s apart: [0.15 s, 0.35 s) holds the third and fourth; --force replaces.
+  EXPECT_NE(run_tool("dump " + luminar + " --format mcap --out " + path.string()).exit_code, 0);
+  r = run_tool("dump --start 0.15 --duration 0.2 --force " + luminar + " --format mcap --out " +
+               path.string());
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const Read cut = read_back(path);
+  ASSERT_EQ(cut.by_topic.count("/lidartag/cloud"), 1u);
+  const auto& window = cut.by_topic.at("/lidartag/cloud");
+  ASSERT_EQ(window.size(), 2u);
+  EXPECT_EQ(json::parse(window[0].second)["data"], json::parse(clouds[2].second)["data"]);
+  fs::remove(path);
+}
+
 #ifdef LIDARTAGD
 // lidartagd --mcap on a replay of the demo capture: every published rotation's cloud (every point:
 // lcm.cloud_decimation 1), tags, frames and detections, and the statuses, at the poses and point

@@ -177,10 +177,11 @@ std::vector<calib::LidarTag> lidar_tags_of(const std::string& path, const Calibr
     load_pcd_scan(capture, 0, 0.0, scan);
     take(scan);
   } else {
-    velodyne::CaptureReader reader(path, reader_options(capture));
-    while (const Scan* scan = reader.next())
-      if (scan->complete) take(*scan);
-    warn_model_mismatch(reader, capture);
+    open_capture(capture, OusterArgs{}).visit([&](auto& reader) {
+      while (const Scan* scan = reader.next())
+        if (scan->complete) take(*scan);
+      warn_model_mismatch(reader, capture);
+    });
   }
   std::vector<calib::LidarTag> out;
   if (rotations > 1) {

@@ -526,12 +526,7 @@ int run_detect(const DetectArgs& args) {
       if (args.json) totals.print_size_warnings(stderr);
       require_rotations(reader, args.capture, n, totals.skipped, "detects in them");
     };
-    if (const auto metadata = ouster_metadata(args.capture.capture, args.ouster.metadata)) {
-      detect_all(*ouster_reader(args.capture, args.ouster, *metadata));
-    } else {
-      velodyne::CaptureReader reader(args.capture.capture, reader_options(args.capture));
-      detect_all(reader);
-    }
+    open_capture(args.capture, args.ouster).visit(detect_all);
     return 0;
   }
   if (mcap) mcap->close();
@@ -546,8 +541,8 @@ const Registrar kDetect(
       auto args = std::make_shared<DetectArgs>();
       add_capture_options(app, args->capture);
       app.get_option("capture")->description(
-          "pcap or pcapng file, a PCD point cloud, or a ROS bag / MCAP file of VelodyneScan "
-          "packets or PointCloud2 clouds");
+          "pcap or pcapng file, a PCD point cloud, or a ROS bag / MCAP file of VelodyneScan or "
+          "Ouster packets or PointCloud2 clouds");
       add_ouster_options(app, args->ouster, true);
       app.add_option("--config", args->config,
                      "YAML file whose `detector:` and `tracker:` sections set the detector's and "

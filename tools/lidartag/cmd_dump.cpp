@@ -1,7 +1,7 @@
 // `lidartag dump CAPTURE --out DIR [--organized] [--force]`: one binary PCD per rotation, its
-// (`--format mcap --out FILE`: the clouds in one MCAP file for Foxglove, mcap_output.hpp)
-// stamp in the header (pcd.hpp). Ouster captures (--metadata, or NAME.json beside NAME.pcap): one
-// per frame, destaggered. A bag's PointCloud2 topic: one per cloud.
+// stamp in the header (pcd.hpp); `--format mcap --out FILE`: the clouds in one MCAP file for
+// Foxglove (mcap_output.hpp). Any capture the source seam opens (common.hpp open_capture): Ouster
+// captures one per frame, destaggered. A bag's PointCloud2 topic: one per cloud.
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
@@ -15,7 +15,6 @@
 #include "lidartag/commands.hpp"
 #include "lidartag/common.hpp"
 #include "lidartag/driver/io/errors.hpp"
-#include "lidartag/driver/velodyne/io/capture_reader.hpp"
 #include "lidartag/driver/velodyne/io/pcd.hpp"
 #include "lidartag/exit_codes.hpp"
 #include "lidartag/mcap_output.hpp"
@@ -79,16 +78,22 @@ void prepare_output(const DumpArgs& args) {
   }
 }
 
-// --format mcap: the rotations' clouds in one MCAP file (foxglove.PointCloud, docs/foxglove.md).
-template <typename Reader>
-int dump_mcap(const DumpArgs& args, Reader& reader) {
+// --format mcap: the MCAP file's options; an existing file is replaced with --force only.
+McapArgs mcap_args(const DumpArgs& args) {
   std::error_code ec;
   if (fs::exists(args.out, ec) && !args.force) {
     throw UsageError(fmt::format("output file '{}' exists; --force replaces it", args.out));
   }
   McapArgs mcap = args.mcap;
   mcap.path = args.out;
-  McapOutput out(mcap, args.capture.capture);
+  return mcap;
+}
+
+// --format mcap: the rotations' clouds in one MCAP file (foxglove.PointCloud, docs/foxglove.md).
+template <typename Reader>
+int dump_mcap(const DumpArgs& args, Reader& reader) {
+  McapOutput out(mcap_args(args), args.capture.capture);
+  std::error_code ec;
   Progress progress(fs::file_size(args.capture.capture, ec));
   size_t written = 0, skipped = 0;
   while (const Scan* scan = reader.next()) {
@@ -141,19 +146,26 @@ int dump_rotations(const DumpArgs& args, Reader& reader) {
 
 int run_dump(const DumpArgs& args) {
   if (is_point_cloud_bag(args.capture)) {  // a bag's PointCloud2 topic: one file per cloud
-    if (args.format != "pcd")
-      throw UsageError("--format " + args.format +
-                       ": a bag's PointCloud2 topic is dumped as PCD files (--format pcd)");
+    if (args.format == "mcap") {  // each cloud as a rotation's, as the packets' path writes them
+      McapOutput out(mcap_args(args), args.capture.capture);
+      const size_t written =
+          for_each_bag_cloud(args.capture, args.rings, args.resolution_deg, [&](const Scan& scan) {
+            out.rotation(scan, {}, "", false);
+            return true;
+          });
+      out.close();
+      if (written == 0)
+        throw UsageError(fmt::format("{}: no point cloud could be read{}", args.capture.capture,
+                                     args.capture.windowed() ? " in --start/--duration" : ""));
+      fmt::print("wrote {} clouds to {}\n", written, args.out);
+      return 0;
+    }
     prepare_output(args);
     dump_bag_clouds(args.capture, args.rings, args.resolution_deg, args.out, args.organized);
     return 0;
   }
-  if (const auto metadata = ouster_metadata(args.capture.capture, args.ouster.metadata)) {
-    const auto reader = ouster_reader(args.capture, args.ouster, *metadata);
-    return dump_rotations(args, *reader);
-  }
-  velodyne::CaptureReader reader(args.capture.capture, reader_options(args.capture));
-  return dump_rotations(args, reader);
+  OpenedCapture opened = open_capture(args.capture, args.ouster);
+  return opened.visit([&](auto& reader) { return dump_rotations(args, reader); });
 }
 
 const Registrar kDump(

@@ -4,8 +4,7 @@
 // PointCloud2 topic: clouds, points, stamps.
 #include <fmt/format.h>
 
-#include <array>
-#include <chrono>
+#include <algorithm>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -14,9 +13,8 @@
 #include "lidartag/bag_clouds.hpp"
 #include "lidartag/commands.hpp"
 #include "lidartag/common.hpp"
-#include "lidartag/driver/io/pcap_source.hpp"
 #include "lidartag/driver/ouster/decoder.hpp"
-#include "lidartag/driver/scan_batcher.hpp"
+#include "lidartag/driver/ouster/io/capture_reader.hpp"
 #include "lidartag/driver/velodyne/decoder.hpp"
 #include "lidartag/driver/velodyne/io/capture_reader.hpp"
 
@@ -28,54 +26,27 @@ using velodyne::DecodeStatus;
 struct InfoArgs {
   CaptureArgs capture;
   bool json = false;
-  std::string metadata;  // Ouster metadata; empty: NAME.json beside the capture, if Ouster's
+  OusterArgs ouster;  // --metadata only
 };
 
-int run_info_ouster(const InfoArgs& args, const std::string& metadata) {
+int run_info_ouster(const InfoArgs& args, OpenedCapture& opened) {
   namespace ou = driver::ouster;
-  const ou::SensorInfo info = ou::load_metadata(metadata);
-  ou::Decoder decoder(info);
-  // The Ouster ports unless others were given.
-  driver::PcapSourceOptions source_options = reader_options(args.capture).source;
-  if (args.capture.data_port == velodyne::kDefaultDataPort)
-    source_options.data_port = ou::kLidarPort;
-  if (args.capture.position_port == velodyne::kDefaultPositionPort)
-    source_options.position_port = ou::kImuPort;
-  driver::PcapSource source(args.capture.capture, source_options);
-  driver::ScanBatcher batcher(decoder.layout(),
-                              static_cast<uint8_t>(ou::kReturnModeBase + uint8_t(info.profile)),
-                              info.returns(), driver::BatcherOptions{});
-  std::array<Scan, 2> scans;
-  size_t current = 0;
-  uint64_t lidar = 0, imu = 0, imu_wrong_size = 0, frames = 0, complete = 0, points = 0;
+  ou::CaptureReader& reader = *opened.ouster;
+  const ou::SensorInfo& info = reader.info();
+  uint64_t frames = 0, complete = 0, points = 0;
   int max_columns = 0;
-  int64_t first_ns = 0, last_ns = 0;
-  auto done = [&] {
-    const Scan& s = scans[current];
+  while (const Scan* s = reader.next()) {
     ++frames;
-    complete += s.complete ? 1 : 0;
-    points += s.point_count();
-    max_columns = std::max(max_columns, s.columns);
-    current ^= 1;
-  };
-  driver::RawPacket raw;
-  ou::PacketColumns parsed;
-  while (source.next(raw, std::chrono::milliseconds(0)) == driver::ReadStatus::kPacket) {
-    if (lidar + imu + imu_wrong_size == 0) first_ns = raw.receive_time_ns;
-    last_ns = raw.receive_time_ns;
-    if (raw.destination_port != source_options.data_port) {
-      ++(raw.payload.size() == ou::kImuPacketSize ? imu : imu_wrong_size);
-      continue;
-    }
-    ++lidar;
-    if (decoder.parse(raw.payload, parsed) != ou::DecodeStatus::kOk) continue;
-    if (batcher.add(parsed, scans[current])) done();
+    complete += s->complete ? 1 : 0;
+    points += s->point_count();
+    max_columns = std::max(max_columns, s->columns);
   }
-  while (batcher.flush(scans[current])) done();
-  const auto& st = decoder.stats();
-  const auto& bs = batcher.stats();
-  const auto src = source.stats();
-  const double duration_s = static_cast<double>(last_ns - first_ns) * 1e-9;
+  const auto& counts = reader.counts();
+  const auto& st = reader.decoder_stats();
+  const auto bs = reader.batcher_stats();
+  const auto src = reader.source_stats();
+  const std::string& metadata = opened.opened.metadata;
+  const double duration_s = static_cast<double>(counts.last_time_ns - counts.first_time_ns) * 1e-9;
   const std::string mode = fmt::format("{}x{}", info.mode_columns, info.mode_rate_hz);
   if (args.json) {
     nlohmann::json j;
@@ -89,12 +60,10 @@ int run_info_ouster(const InfoArgs& args, const std::string& metadata) {
     j["profile"] = std::string(ou::profile_name(info.profile));
     j["beams"] = info.pixels_per_column;
     j["duration_s"] = duration_s;
-    j["packets"] = {{"lidar", lidar},
-                    {"imu", imu},
-                    {"other", imu_wrong_size},
-                    {"ignored", src.ignored},
-                    {"truncated", src.truncated},
-                    {"malformed", src.malformed}};
+    j["packets"] = {{"lidar", counts.lidar_packets}, {"imu", counts.imu_packets},
+                    {"other", counts.other_packets}, {"ignored", src.ignored},
+                    {"truncated", src.truncated},    {"malformed", src.malformed}};
+    if (args.capture.windowed()) j["outside_window"] = src.outside_window;
     nlohmann::json refused = nlohmann::json::object();
     for (int i = 1; i < ou::kDecodeStatusCount; ++i)
       refused[std::string(ou::decode_status_name(ou::DecodeStatus(i)))] = st.by_status[size_t(i)];
@@ -117,9 +86,10 @@ int run_info_ouster(const InfoArgs& args, const std::string& metadata) {
              info.firmware.empty() ? "unknown" : info.firmware);
   fmt::print("lidar mode:     {}, {} beams, profile {}\n", mode, info.pixels_per_column,
              ou::profile_name(info.profile));
-  fmt::print("duration:       {:.3f} s\n", duration_s);
+  fmt::print("duration:       {:.3f} s{}\n", duration_s, window_note(opened, args.capture));
   fmt::print("packets:        lidar {}, imu {}, other {}, ignored {}, truncated {}, malformed {}\n",
-             lidar, imu, imu_wrong_size, src.ignored, src.truncated, src.malformed);
+             counts.lidar_packets, counts.imu_packets, counts.other_packets, src.ignored,
+             src.truncated, src.malformed);
   std::string refused;
   for (int i = 1; i < ou::kDecodeStatusCount; ++i)
     refused += fmt::format("{}{} {}", refused.empty() ? "" : ", ",
@@ -137,10 +107,10 @@ constexpr DecodeStatus kDecodeErrors[] = {DecodeStatus::kWrongSize, DecodeStatus
                                           DecodeStatus::kBadAzimuth, DecodeStatus::kBadReturnMode};
 
 int run_info(const InfoArgs& args) {
-  if (const auto metadata = ouster_metadata(args.capture.capture, args.metadata))
-    return run_info_ouster(args, *metadata);
   if (is_point_cloud_bag(args.capture)) return info_bag_clouds(args.capture, args.json);
-  velodyne::CaptureReader reader(args.capture.capture, reader_options(args.capture));
+  OpenedCapture opened = open_capture(args.capture, args.ouster);
+  if (opened.ouster != nullptr) return run_info_ouster(args, opened);
+  velodyne::CaptureReader& reader = *opened.velodyne;
   uint64_t rotations = 0, complete = 0, points = 0, rated = 0;
   double rpm_complete = 0, rpm_any = 0;
   while (const Scan* scan = reader.next()) {
@@ -212,6 +182,7 @@ int run_info(const InfoArgs& args) {
     j["azimuth_jumps"] = batcher.azimuth_jumps;
     j["fov_gaps"] = batcher.fov_gaps;
     j["mode_changes"] = batcher.mode_changes;
+    if (args.capture.windowed()) j["outside_window"] = source.outside_window;
     j["gps"] = {{"position_ok", counts.position_ok},
                 {"position_errors", counts.position_errors},
                 {"gprmc_valid", counts.gprmc_valid},
@@ -232,7 +203,7 @@ int run_info(const InfoArgs& args) {
   fmt::print("return mode:    {}\n", mode);
   fmt::print("rotation rate:  {:.1f} rpm (mean of {} rotations)\n", rpm,
              complete > 0 ? "complete" : "partial");
-  fmt::print("duration:       {:.3f} s\n", duration_s);
+  fmt::print("duration:       {:.3f} s{}\n", duration_s, window_note(opened, args.capture));
   fmt::print("packets:        data {}, position {}, ignored {}, truncated {}, malformed {}\n",
              counts.data_packets, counts.position_packets, source.ignored, source.truncated,
              source.malformed);
@@ -261,9 +232,7 @@ const Registrar kInfo("info", "Summarise a capture: sensor, mode, rotations, los
                         auto args = std::make_shared<InfoArgs>();
                         add_capture_options(app, args->capture);
                         app.add_flag("--json", args->json, "Print JSON instead of text");
-                        app.add_option("--metadata", args->metadata,
-                                       "Ouster sensor metadata JSON (default: NAME.json beside "
-                                       "NAME.pcap when it is an Ouster sensor's)");
+                        add_ouster_options(app, args->ouster, false);
                         return [args] { return run_info(*args); };
                       });
 

@@ -222,8 +222,7 @@ int run_render(const RenderArgs& args) {
   // The rotation by its sequence number, as detect, dump, the daemon and Python number them.
   Scan pcd_scan;
   const Scan* scan = nullptr;
-  std::unique_ptr<velodyne::CaptureReader> reader;
-  std::unique_ptr<driver::ouster::CaptureReader> ouster;  // an Ouster capture's
+  std::optional<OpenedCapture> capture;  // `scan` is one of its reader's
   if (is_pcd(args.capture.capture)) {
     load_pcd_scan(args.capture, args.rings, args.resolution_deg, pcd_scan);
     if (args.rotation >= 0 && static_cast<uint64_t>(args.rotation) != pcd_scan.sequence) {
@@ -267,14 +266,8 @@ int run_render(const RenderArgs& args) {
                                      args.capture.capture, first.value_or(0), last.value_or(0)));
       }
     };
-    if (const auto metadata = ouster_metadata(args.capture.capture, args.ouster.metadata)) {
-      ouster = ouster_reader(args.capture, args.ouster, *metadata);
-      find(*ouster);
-    } else {
-      reader = std::make_unique<velodyne::CaptureReader>(args.capture.capture,
-                                                         reader_options(args.capture));
-      find(*reader);
-    }
+    capture.emplace(open_capture(args.capture, args.ouster));
+    capture->visit(find);
   }
   const uint64_t number = scan->sequence;
 

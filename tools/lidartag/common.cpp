@@ -42,8 +42,9 @@ CLI::Validator length_in_metres() {
 
 void add_capture_options(CLI::App& app, CaptureArgs& args) {
   app.add_option("capture", args.capture,
-                 "pcap or pcapng file, or a ROS 1 bag, ROS 2 bag folder or MCAP file of "
-                 "VelodyneScan packets or PointCloud2 clouds (recognised by content)")
+                 "pcap or pcapng file of Velodyne or Ouster packets, or a ROS 1 bag, ROS 2 bag "
+                 "folder or MCAP file of VelodyneScan or Ouster packets or PointCloud2 clouds "
+                 "(recognised by content)")
       ->required()
       ->check(CLI::ExistingPath);
   const std::string names = velodyne::model_names();
@@ -78,45 +79,17 @@ void add_capture_options(CLI::App& app, CaptureArgs& args) {
   app.add_option("--topic", args.topic,
                  "ROS bag / MCAP: the LiDAR topic (default: the bag's one LiDAR topic)");
   app.add_option("--start", args.start_s,
-                 "ROS bag / MCAP: skip the messages of the first SECONDS (from the bag's first "
-                 "message)")
+                 "Skip the first SECONDS (from a bag's first message or a pcap's first packet)")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--duration", args.duration_s,
-                 "ROS bag / MCAP: read the messages of SECONDS from --start only")
+                 "Read what was received in SECONDS from --start only")
       ->check(CLI::PositiveNumber);
 }
 
-void require_bag_for_window(const CaptureArgs& args) {
-  if (args.windowed() &&
-      driver::bag::detect_bag_format(args.capture) == driver::bag::BagFormat::kNone)
-    throw UsageError(fmt::format(
-        "--start/--duration take a ROS bag or MCAP file; {} is not one (cut a pcap with editcap "
-        "-A/-B)",
-        args.capture));
-}
-
-velodyne::CaptureReaderOptions reader_options(const CaptureArgs& args) {
-  velodyne::CaptureReaderOptions options;
-  options.source.data_port = args.data_port;
-  options.source.position_port = args.position_port;
-  if (!args.sensor.empty()) {
-    uint32_t address = 0;
-    if (driver::parse_ipv4_address(args.sensor, address)) options.source.sensor_ipv4 = address;
-  }
-  if (!args.model.empty()) options.model = velodyne::model_from_name(args.model);
-  options.calibration_file = args.calibration;
-  options.topic = args.topic;
-  require_bag_for_window(args);
-  options.bag_start_s = args.start_s;
-  options.bag_duration_s = args.duration_s;
-  options.batcher.cut_azimuth_deg = args.cut_deg;
-  return options;
-}
-
-uint64_t capture_bytes_read(const velodyne::CaptureReader& reader) {
+uint64_t capture_bytes_read(const driver::ScanReader& reader) {
   // Pcap records: 16 bytes of record header and 42 of Ethernet/IPv4/UDP per packet.
   const auto s = reader.source_stats();
-  return s.bytes + 58 * (s.packets + s.ignored);
+  return s.bytes + 58 * (s.packets + s.ignored + s.outside_window);
 }
 
 void warn_model_mismatch(const velodyne::CaptureReader& reader, const CaptureArgs& args) {
@@ -141,10 +114,12 @@ void require_rotations(const velodyne::CaptureReader& reader, const CaptureArgs&
         args.capture, skipped, skipped == 1 ? "" : "s", partial_effect));
   const auto s = reader.source_stats();
   throw std::runtime_error(fmt::format(
-      "{}: no rotation: {} data packets on port {}, {} decoded, {} other packets ignored (check "
-      "--data-port, --sensor, --model)",
+      "{}: no rotation: {} data packets on port {}, {} decoded, {} other packets ignored{} (check "
+      "--data-port, --sensor, --model{})",
       args.capture, reader.counts().data_packets, args.data_port, reader.counts().decoded,
-      s.ignored));
+      s.ignored,
+      args.windowed() ? fmt::format(", {} outside --start/--duration", s.outside_window) : "",
+      args.windowed() ? ", --start/--duration" : ""));
 }
 
 bool is_pcd(const std::string& path) {
@@ -159,7 +134,9 @@ bool is_pcd(const std::string& path) {
 // --model's beam table, or --rings beams estimated from the cloud). The stamp and the rotation's
 // other fields come from the header comments `lidartag dump` writes.
 void load_pcd_scan(const CaptureArgs& args, int rings, double resolution_deg, Scan& scan) {
-  require_bag_for_window(args);
+  if (args.windowed())
+    throw UsageError(fmt::format(
+        "--start/--duration take a capture or a bag; {} is a PCD file (one cloud)", args.capture));
   const std::string& path = args.capture;
   const velodyne::PcdCloud pcd = velodyne::read_pcd_points(path);
   const detector::CloudFields fields =
@@ -214,46 +191,71 @@ void add_ouster_options(CLI::App& app, OusterArgs& args, bool intensity) {
   }
 }
 
-std::optional<std::string> ouster_metadata(const std::string& capture,
-                                           const std::string& metadata) {
-  if (!metadata.empty()) return metadata;
-  return driver::ouster_metadata_beside(capture);
-}
-
-std::unique_ptr<driver::ouster::CaptureReader> ouster_reader(const CaptureArgs& args,
-                                                             const OusterArgs& ouster,
-                                                             const std::string& metadata) {
+OpenedCapture open_capture(const CaptureArgs& args, const OusterArgs& ouster) {
   namespace ou = driver::ouster;
-  // Velodyne's options have no meaning here: the metadata describes the sensor, frames end where
-  // the frame id changes.
+  driver::ScanSourceOptions o;
+  // Each vendor's own ports unless others were given.
+  if (args.data_port != velodyne::kDefaultDataPort) o.data_port = args.data_port;
+  if (args.position_port != velodyne::kDefaultPositionPort) o.aux_port = args.position_port;
+  uint32_t address = 0;
+  if (!args.sensor.empty() && driver::parse_ipv4_address(args.sensor, address))
+    o.replay.sensor_ipv4 = address;
+  o.topic = args.topic;
+  o.start_s = args.start_s;
+  o.duration_s = args.duration_s;
+  if (!args.model.empty()) o.velodyne_model = velodyne::model_from_name(args.model);
+  o.calibration_file = args.calibration;
+  o.batcher.cut_azimuth_deg = args.cut_deg;
+  if (ouster.intensity == "signal") o.ouster_decoder.intensity = ou::IntensitySource::kSignal;
+
+  OpenedCapture r;
+  r.bag = driver::bag::detect_bag_format(args.capture) != driver::bag::BagFormat::kNone;
+  // A pcap's metadata beside it is looked for whatever else was given, so that a Velodyne option
+  // for an Ouster capture is refused naming it rather than read as a Velodyne capture.
+  o.metadata = ouster.metadata;
+  if (o.metadata.empty() && !r.bag)
+    o.metadata = driver::ouster_metadata_beside(args.capture).value_or("");
+  // Velodyne's options have no meaning for Ouster: the metadata describes the sensor, frames end
+  // where the frame id changes.
   const char* velodyne_only = !args.model.empty()         ? "--model"
                               : !args.calibration.empty() ? "--calibration"
                               : args.cut_deg != driver::BatcherOptions{}.cut_azimuth_deg ? "--cut"
                                                                                          : nullptr;
-  if (velodyne_only != nullptr)
-    throw UsageError(fmt::format(
-        "{} is for Velodyne captures; {} is read as an Ouster capture with the metadata {} (the "
-        "sensor and its frames come from there)",
-        velodyne_only, args.capture, metadata));
-  const ou::SensorInfo info = ou::load_metadata(metadata);
-  ou::CaptureReaderOptions options;
-  const driver::PcapSourceOptions source = reader_options(args).source;
-  options.source.sensor_ipv4 = source.sensor_ipv4;
-  // The Ouster ports unless others were given.
-  if (args.data_port != velodyne::kDefaultDataPort) options.source.data_port = args.data_port;
-  if (args.position_port != velodyne::kDefaultPositionPort)
-    options.source.position_port = args.position_port;
-  if (ouster.intensity == "signal") options.decoder.intensity = ou::IntensitySource::kSignal;
+  auto refuse = [&](const std::string& what) {
+    return UsageError(fmt::format(
+        "{} is for Velodyne captures; {} is read as an Ouster capture ({}: the sensor and its "
+        "frames come from there)",
+        velodyne_only, args.capture, what));
+  };
+  if (velodyne_only != nullptr && !o.metadata.empty() && !r.bag)
+    throw refuse("with the metadata " + o.metadata);
   try {
-    return std::make_unique<ou::CaptureReader>(args.capture, info, options);
+    r.opened = driver::open_capture(args.capture, o);
   } catch (const std::invalid_argument& e) {
-    throw UsageError(fmt::format("--intensity {}: {}", ouster.intensity, e.what()));
+    // Options the capture's sensor cannot honour (SIGNAL in RNG15, a Velodyne model for a bag of
+    // Ouster packets, Ouster metadata for a bag of Velodyne packets).
+    const std::string text = e.what();
+    if (ouster.intensity == "signal" && text.find("SIGNAL") != std::string::npos)
+      throw UsageError(fmt::format("--intensity {}: {}", ouster.intensity, text));
+    throw UsageError(text);
   }
+  if (r.opened.vendor == driver::Vendor::kOuster) {
+    r.ouster = dynamic_cast<ou::CaptureReader*>(r.opened.reader.get());
+    if (velodyne_only != nullptr) throw refuse(r.opened.what);
+  } else {
+    r.velodyne = dynamic_cast<velodyne::CaptureReader*>(r.opened.reader.get());
+  }
+  if (r.ouster == nullptr && r.velodyne == nullptr)  // the seam opened another vendor's reader
+    throw std::logic_error(args.capture + ": opened as " + r.opened.what +
+                           " by a reader the tool does not know");
+  return r;
 }
 
-uint64_t capture_bytes_read(const driver::ouster::CaptureReader& reader) {
-  const auto s = reader.source_stats();
-  return s.bytes + 58 * (s.packets + s.ignored);
+std::string window_note(const OpenedCapture& capture, const CaptureArgs& args) {
+  if (!args.windowed()) return {};
+  return fmt::format(" ({} {} outside --start/--duration)",
+                     capture.opened.reader->source_stats().outside_window,
+                     capture.bag ? "messages" : "packets");
 }
 
 void warn_model_mismatch(const driver::ouster::CaptureReader& reader, const CaptureArgs& args) {

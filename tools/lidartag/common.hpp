@@ -13,6 +13,8 @@
 #include "lidartag/detector/result.hpp"
 #include "lidartag/driver/ouster/io/capture_reader.hpp"
 #include "lidartag/driver/scan.hpp"
+#include "lidartag/driver/scan_reader.hpp"
+#include "lidartag/driver/sources/open_reader.hpp"
 #include "lidartag/driver/velodyne/io/capture_reader.hpp"
 #include "lidartag/driver/velodyne/sensor_model.hpp"
 
@@ -27,8 +29,9 @@ struct CaptureArgs {
   uint16_t data_port = velodyne::kDefaultDataPort;
   uint16_t position_port = velodyne::kDefaultPositionPort;
   std::string sensor;  // sender address filter, dotted quad
-  std::string topic;   // ROS bag / MCAP: the VelodyneScan topic; empty: the bag's one LiDAR topic
-  // ROS bag / MCAP: the time window, seconds from the bag's first message (--start, --duration).
+  std::string topic;   // ROS bag / MCAP: the LiDAR topic; empty: the bag's one LiDAR topic
+  // The time window, seconds from a bag's first message or a pcap's first packet (--start,
+  // --duration; driver::ScanSourceOptions::start_s, duration_s).
   double start_s = 0;
   double duration_s = std::numeric_limits<double>::infinity();
   bool windowed() const {
@@ -40,16 +43,9 @@ struct CaptureArgs {
 // --start, --duration to `app`.
 void add_capture_options(CLI::App& app, CaptureArgs& args);
 
-// The reader options for `args` (names already validated by CLI11). A time window (--start,
-// --duration) on a capture that is not a bag: UsageError.
-velodyne::CaptureReaderOptions reader_options(const CaptureArgs& args);
-
-// UsageError when `args` asks for a time window and its capture is not a bag.
-void require_bag_for_window(const CaptureArgs& args);
-
 // Bytes of the capture file read so far, for a progress bar (pcap record and UDP/IP headers
 // estimated).
-uint64_t capture_bytes_read(const velodyne::CaptureReader& reader);
+uint64_t capture_bytes_read(const driver::ScanReader& reader);
 
 // Warns on stderr when the product byte contradicts the timing, or when the packets' timing
 // contradicts an explicit --model.
@@ -93,22 +89,34 @@ struct OusterArgs {
 // Adds --metadata and, with `intensity`, --intensity to `app`.
 void add_ouster_options(CLI::App& app, OusterArgs& args, bool intensity);
 
-// The Ouster metadata to read `capture` with: `metadata` (--metadata) when given, else NAME.json
-// beside NAME.pcap when it holds an Ouster sensor's beam intrinsics (another JSON there, e.g. a
-// simulator's truth, is not taken for one). Empty: not an Ouster capture (read as Velodyne's).
-std::optional<std::string> ouster_metadata(const std::string& capture, const std::string& metadata);
+// A capture (pcap, pcapng, or a bag's or MCAP file's packet topic) opened by content through the
+// driver's source seam (driver::open_capture) with the command line's options: a Velodyne or an
+// Ouster reader. Ouster: with --metadata, NAME.json beside NAME.pcap when it holds an Ouster
+// sensor's beam intrinsics (a simulator's truth JSON there is not taken for one), or a bag's
+// metadata topic. UsageError for options the capture's sensor cannot honour (--model,
+// --calibration, --cut on an Ouster capture; --intensity signal for a profile without SIGNAL);
+// driver::IoError, bag::BagError, MetadataError, CalibrationError as the seam throws them.
+struct OpenedCapture {
+  driver::OpenedReader opened;
+  velodyne::CaptureReader* velodyne = nullptr;  // exactly one of the two is set
+  driver::ouster::CaptureReader* ouster = nullptr;
+  bool bag = false;  // a ROS bag or MCAP file (its window counts messages, not packets)
 
-// The Ouster reader of `args.capture` with the metadata file `metadata` (MetadataError naming the
-// key), the Ouster ports unless --data-port/--position-port say otherwise, --sensor, the
-// intensity source (UsageError: signal for a profile without SIGNAL).
-std::unique_ptr<driver::ouster::CaptureReader> ouster_reader(const CaptureArgs& args,
-                                                             const OusterArgs& ouster,
-                                                             const std::string& metadata);
+  // `f(reader)` with the vendor's reader.
+  template <typename F>
+  decltype(auto) visit(F&& f) {
+    if (ouster != nullptr) return f(*ouster);
+    return f(*velodyne);
+  }
+};
+OpenedCapture open_capture(const CaptureArgs& args, const OusterArgs& ouster);
 
-// The Velodyne reader's helpers above, for an Ouster reader: bytes read; a warning when some
-// lidar packets contradict the metadata; MetadataMismatch (exit 2) when none fitted it, else as
+// " (N packets outside --start/--duration)" (a bag: messages) when a window was given, else "".
+std::string window_note(const OpenedCapture& capture, const CaptureArgs& args);
+
+// The Velodyne reader's helpers above, for an Ouster reader: a warning when some lidar packets
+// contradict the metadata; MetadataMismatch (exit 2) when none fitted it, else as
 // require_rotations when no whole frame was used.
-uint64_t capture_bytes_read(const driver::ouster::CaptureReader& reader);
 void warn_model_mismatch(const driver::ouster::CaptureReader& reader, const CaptureArgs& args);
 void require_rotations(const driver::ouster::CaptureReader& reader, const CaptureArgs& args,
                        size_t used, size_t skipped, const char* partial_effect);

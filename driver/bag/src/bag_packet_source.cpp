@@ -30,6 +30,12 @@ BagPacketSource::BagPacketSource(std::unique_ptr<MessageReader> reader,
   }
 }
 
+SourceStats BagPacketSource::stats() const {
+  SourceStats s = stats_;
+  s.outside_window = reader_->stats().outside_window;
+  return s;
+}
+
 ReadStatus BagPacketSource::next(RawPacket& out, std::chrono::milliseconds /*timeout*/) {
   for (;;) {
     while (next_packet_ >= packets_.size()) {

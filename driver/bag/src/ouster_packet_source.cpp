@@ -59,8 +59,17 @@ std::string read_ouster_metadata(const std::string& path, const std::string& lid
                  (reader->error().empty() ? std::string() : " (" + reader->error() + ")"));
 }
 
+namespace {
+ReaderOptions window_of(const OusterPacketSourceOptions& options) {
+  ReaderOptions r;
+  r.start_s = options.start_s;
+  r.duration_s = options.duration_s;
+  return r;
+}
+}  // namespace
+
 OusterPacketSource::OusterPacketSource(const std::string& path, OusterPacketSourceOptions options)
-    : reader_(open_bag(path)), options_(std::move(options)) {
+    : reader_(open_bag(path, window_of(options))), options_(std::move(options)) {
   const auto& connections = reader_->connections();
   options_.topic = choose_lidar_topic(connections, options_.topic, path);
   for (const Connection& c : connections) {
@@ -69,6 +78,12 @@ OusterPacketSource::OusterPacketSource(const std::string& path, OusterPacketSour
                      ", not ouster_ros/PacketMsg packets");
   }
   imu_topic_ = ouster_imu_topic(connections, options_.topic);
+}
+
+SourceStats OusterPacketSource::stats() const {
+  SourceStats s = stats_;
+  s.outside_window = reader_->stats().outside_window;
+  return s;
 }
 
 ReadStatus OusterPacketSource::next(RawPacket& out, std::chrono::milliseconds /*timeout*/) {

@@ -1,7 +1,10 @@
 #include "lidartag/driver/sources/open_reader.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <system_error>
 #include <utility>
@@ -47,6 +50,75 @@ class PacedSource final : public PacketSource {
   RawPacket held_;
   bool pending_ = false;
 };
+
+// A pcap's packets in a time window (ScanSourceOptions::start_s, duration_s) from its first
+// packet: those outside it are read and counted (SourceStats::outside_window), never delivered.
+// Under the pacing (PacedSource), so that packets before the window are not waited for.
+class WindowSource final : public PacketSource {
+ public:
+  WindowSource(std::unique_ptr<PacketSource> inner, double start_s, double duration_s)
+      : inner_(std::move(inner)), start_s_(start_s), duration_s_(duration_s) {}
+
+  ReadStatus next(RawPacket& out, std::chrono::milliseconds timeout) override {
+    for (;;) {
+      const ReadStatus status = inner_->next(out, timeout);
+      if (status != ReadStatus::kPacket) return status;
+      if (!anchored_) {
+        anchored_ = true;
+        begin_ns_ = out.receive_time_ns + to_ns(start_s_);
+        end_ns_ = std::isfinite(duration_s_) ? begin_ns_ + to_ns(duration_s_)
+                                             : std::numeric_limits<int64_t>::max();
+      }
+      if (out.receive_time_ns >= begin_ns_ && out.receive_time_ns < end_ns_)
+        return ReadStatus::kPacket;
+      ++outside_;
+    }
+  }
+  SourceStats stats() const override {
+    SourceStats s = inner_->stats();
+    s.packets -= std::min(s.packets, outside_);
+    s.outside_window += outside_;
+    return s;
+  }
+  std::string error() const override { return inner_->error(); }
+
+ private:
+  static int64_t to_ns(double s) {
+    return static_cast<int64_t>(std::min(s * 1e9, 9.0e18));  // a window beyond any capture
+  }
+
+  std::unique_ptr<PacketSource> inner_;
+  double start_s_, duration_s_;
+  bool anchored_ = false;
+  int64_t begin_ns_ = 0, end_ns_ = 0;
+  uint64_t outside_ = 0;
+};
+
+bool windowed(const ScanSourceOptions& o) {
+  return o.start_s != 0 || o.duration_s != std::numeric_limits<double>::infinity();
+}
+
+// The window's checks (std::invalid_argument naming the option).
+void check_window(const ScanSourceOptions& o) {
+  if (!windowed(o)) return;
+  const std::string problem = bag::window_problem(o.start_s, o.duration_s);
+  if (!problem.empty()) throw std::invalid_argument(problem);
+  if (o.replay.loop)
+    throw std::invalid_argument(
+        "a time window (start, duration) and a looped replay cannot go together");
+}
+
+// A pcap's packet source: windowed when asked, then paced (PcapSource paces itself otherwise).
+std::unique_ptr<PacketSource> pcap_source(const std::string& path, PcapSourceOptions po,
+                                          const ScanSourceOptions& o) {
+  if (!windowed(o)) return std::make_unique<PcapSource>(path, po);
+  const ReplayPacing pacing = po.pacing;
+  po.pacing = ReplayPacing::kAsFastAsPossible;
+  std::unique_ptr<PacketSource> source = std::make_unique<WindowSource>(
+      std::make_unique<PcapSource>(path, po), o.start_s, o.duration_s);
+  if (pacing != ReplayPacing::kCaptureTime) return source;
+  return std::make_unique<PacedSource>(std::move(source), o.replay.rate);
+}
 
 // A bag's packet source at the replay's pace (a pcap paces itself).
 std::unique_ptr<PacketSource> paced(std::unique_ptr<PacketSource> source,
@@ -128,13 +200,16 @@ OpenedReader velodyne_reader(std::unique_ptr<PacketSource> source, const ScanSou
 
 OpenedReader open_bag_capture(const std::string& path, bag::BagFormat format,
                               const ScanSourceOptions& o, const SourceWrap& wrap) {
-  std::string topic;
+  std::string topic, type;
   bag::MessageKind kind = bag::MessageKind::kOther;
   {
     const auto probe = bag::open_bag(path);
     topic = bag::choose_lidar_topic(probe->connections(), o.topic, path);
-    for (const bag::Connection& c : probe->connections())
-      if (c.topic == topic) kind = bag::message_kind(c.type);
+    for (const bag::Connection& c : probe->connections()) {
+      if (c.topic != topic) continue;
+      kind = bag::message_kind(c.type);
+      type = c.type;
+    }
   }
   const std::string what = std::string(bag::format_name(format)) + ", topic " + topic;
   if (kind == bag::MessageKind::kVelodyneScan) {
@@ -142,7 +217,8 @@ OpenedReader open_bag_capture(const std::string& path, bag::BagFormat format,
       throw std::invalid_argument("Ouster metadata or model is configured but " + path +
                                   "'s topic " + topic + " holds Velodyne packets");
     auto source = std::make_unique<bag::BagPacketSource>(
-        path, bag::BagPacketSourceOptions{topic, data_port_of(Vendor::kVelodyne, o)});
+        path, bag::BagPacketSourceOptions{topic, data_port_of(Vendor::kVelodyne, o), o.start_s,
+                                          o.duration_s});
     return velodyne_reader(wrapped(paced(std::move(source), o), wrap), o, what);
   }
   if (kind == bag::MessageKind::kOusterPacket) {
@@ -161,12 +237,19 @@ OpenedReader open_bag_capture(const std::string& path, bag::BagFormat format,
     so.topic = topic;
     so.lidar_port = data_port_of(Vendor::kOuster, o);
     so.imu_port = aux_port_of(Vendor::kOuster, o);
+    so.start_s = o.start_s;
+    so.duration_s = o.duration_s;
     auto source = std::make_unique<bag::OusterPacketSource>(path, so);
-    return ouster_reader(wrapped(paced(std::move(source), o), wrap), info, o,
-                         what + ", metadata " + origin);
+    OpenedReader r = ouster_reader(wrapped(paced(std::move(source), o), wrap), info, o,
+                                   what + ", metadata " + origin);
+    r.metadata = origin;
+    return r;
   }
-  throw bag::BagError(path + ": topic " + topic +
-                      " holds point clouds, not packets: lidartag detect reads them");
+  if (kind == bag::MessageKind::kPointCloud2)
+    throw bag::BagError(path + ": topic " + topic +
+                        " holds point clouds, not packets: lidartag detect reads them");
+  throw bag::BagError(path + ": topic " + topic + " holds " + type +
+                      ", not velodyne_msgs/VelodyneScan or ouster_ros/PacketMsg packets");
 }
 
 }  // namespace
@@ -199,6 +282,7 @@ std::optional<std::string> ouster_metadata_beside(const std::string& capture) {
 
 OpenedReader open_capture(const std::string& path, const ScanSourceOptions& o,
                           const SourceWrap& wrap) {
+  check_window(o);
   const bag::BagFormat format = bag::detect_bag_format(path);
   if (format != bag::BagFormat::kNone) return open_bag_capture(path, format, o, wrap);
   std::string metadata = o.metadata;
@@ -210,7 +294,7 @@ OpenedReader open_capture(const std::string& path, const ScanSourceOptions& o,
     PcapSourceOptions po = o.replay;
     po.data_port = data_port_of(Vendor::kVelodyne, o);
     po.position_port = aux_port_of(Vendor::kVelodyne, o);
-    return velodyne_reader(wrapped(std::make_unique<PcapSource>(path, po), wrap), o, what);
+    return velodyne_reader(wrapped(pcap_source(path, po, o), wrap), o, what);
   }
   refuse_velodyne_options(o, path);
   const ouster::SensorInfo info = ouster::load_metadata(metadata);
@@ -218,8 +302,10 @@ OpenedReader open_capture(const std::string& path, const ScanSourceOptions& o,
   PcapSourceOptions po = o.replay;
   po.data_port = data_port_of(Vendor::kOuster, o);
   po.position_port = aux_port_of(Vendor::kOuster, o);
-  return ouster_reader(wrapped(std::make_unique<PcapSource>(path, po), wrap), info, o,
-                       what + ", metadata " + metadata);
+  OpenedReader r = ouster_reader(wrapped(pcap_source(path, po, o), wrap), info, o,
+                                 what + ", metadata " + metadata);
+  r.metadata = metadata;
+  return r;
 }
 
 OpenedReader open_live(std::unique_ptr<PacketSource> source, const ScanSourceOptions& o) {
@@ -227,7 +313,9 @@ OpenedReader open_live(std::unique_ptr<PacketSource> source, const ScanSourceOpt
   refuse_velodyne_options(o, "the sensor");
   const ouster::SensorInfo info = ouster::load_metadata(o.metadata);
   check_model(info, o, o.metadata);
-  return ouster_reader(std::move(source), info, o, "live, metadata " + o.metadata);
+  OpenedReader r = ouster_reader(std::move(source), info, o, "live, metadata " + o.metadata);
+  r.metadata = o.metadata;
+  return r;
 }
 
 }  // namespace lidartag::driver

@@ -80,6 +80,11 @@ struct SourceOptions {
   // pcap, lcm: replay speed, 1 = the recorded pace, 2 = twice as fast; 0 = as fast as possible.
   double rate = 1.0;
   bool loop = false;  // pcap, lcm: start again at the end
+  // pcap (a capture or a bag): the time window replayed, seconds from the capture's first packet
+  // (a bag: its earliest message); what lies outside is read, counted and passed over
+  // (driver::ScanSourceOptions::start_s, duration_s). duration 0: to the end. Not with `loop`.
+  double start = 0;
+  double duration = 0;
   // lcm: channel of the raw packets in the log; empty: the sensor's raw channel
   // (channel_prefix + lcm.channels.raw).
   std::string channel;

@@ -39,6 +39,9 @@ struct SourceStats {
   // Packets to the sensor's ports from another sender than the configured sensor address
   // (filtered out, not in `ignored`).
   uint64_t foreign_source = 0;
+  // Packets (a bag's sources: messages of the topics read) outside the time window asked for
+  // (driver::ScanSourceOptions::start_s, duration_s), read and passed over.
+  uint64_t outside_window = 0;
 };
 
 class PacketSource {

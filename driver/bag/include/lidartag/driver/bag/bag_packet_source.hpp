@@ -45,7 +45,8 @@ class BagPacketSource final : public PacketSource {
 
   // Never waits: kPacket, or kEnd once the bag is read (or damage stopped it: error()).
   ReadStatus next(RawPacket& out, std::chrono::milliseconds timeout) override;
-  SourceStats stats() const override { return stats_; }
+  // Messages outside the time window are the reader's (MessageReader::stats()).
+  SourceStats stats() const override;
   std::string error() const override { return reader_->error(); }
 
   const std::string& topic() const { return options_.topic; }

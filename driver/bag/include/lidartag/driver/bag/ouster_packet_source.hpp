@@ -7,6 +7,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -21,6 +22,10 @@ struct OusterPacketSourceOptions {
   std::string topic;
   uint16_t lidar_port = 7502;  // where lidar packets are delivered (the sensor's own ports)
   uint16_t imu_port = 7503;    // where the IMU topic's packets are delivered
+  // Time window, seconds from the bag's first message (ReaderOptions::start_s, duration_s): only
+  // the messages received in it are delivered. Defaults: the whole bag.
+  double start_s = 0;
+  double duration_s = std::numeric_limits<double>::infinity();
 };
 
 // The IMU and metadata topics beside an Ouster lidar topic: same namespace ("/os_node0/" of
@@ -49,7 +54,8 @@ class OusterPacketSource final : public PacketSource {
 
   // Never waits: kPacket, or kEnd once the bag is read (or damage stopped it: error()).
   ReadStatus next(RawPacket& out, std::chrono::milliseconds timeout) override;
-  SourceStats stats() const override { return stats_; }
+  // Messages outside the time window are the reader's (MessageReader::stats()).
+  SourceStats stats() const override;
   std::string error() const override { return reader_->error(); }
 
   const std::string& topic() const { return options_.topic; }

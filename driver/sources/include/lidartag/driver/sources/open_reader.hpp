@@ -12,6 +12,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -37,6 +38,14 @@ struct ScanSourceOptions {
   // ROS bag or MCAP: the LiDAR topic; empty: the bag's one LiDAR topic (bag::BagError listing
   // them when there are several or none).
   std::string topic;
+  // A capture file's time window, seconds: only what was received in [start_s, start_s +
+  // duration_s) is read, counted from a bag's earliest message (bag::ReaderOptions) or a pcap's
+  // first packet to the data or auxiliary port (after the `replay.sensor_ipv4` filter). What lies
+  // outside is read and passed over, counted in SourceStats::outside_window (a bag: messages; a
+  // pcap: packets). Defaults: everything. A window on a looped pcap, a negative start or a
+  // duration that is not positive: std::invalid_argument. Live sources have no window.
+  double start_s = 0;
+  double duration_s = std::numeric_limits<double>::infinity();
   // Ouster metadata JSON file; empty: NAME.json beside NAME.pcap, or the bag's metadata topic.
   // Given, the source is read as Ouster packets.
   std::string metadata;
@@ -61,6 +70,8 @@ struct OpenedReader {
   // What was opened, for a log line: "pcap", "ROS 1 bag, topic /os_node0/lidar_packets", ...,
   // and with Ouster metadata, where it came from.
   std::string what;
+  // Ouster: where its metadata came from (the file, or "BAG (its metadata topic)"); else empty.
+  std::string metadata;
   uint16_t data_port = 0, aux_port = 0;  // the ports in use
 };
 
