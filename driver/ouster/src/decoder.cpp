@@ -1,6 +1,7 @@
 #include "lidartag/driver/ouster/decoder.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <new>
 #include <numbers>
@@ -16,6 +17,12 @@ namespace {
 
 constexpr double kDegToRad = std::numbers::pi / 180.0;
 
+// wrap360() for -360 < deg < 720 as selects the vectoriser can take: there fmod(deg, 360) is
+// deg - 360 exactly, so the result is the same bit for bit.
+inline double wrap360_near(double deg) {
+  return deg < 0 ? deg + 360.0 : (deg >= 360.0 ? deg - 360.0 : deg);
+}
+
 constexpr std::array<std::string_view, kDecodeStatusCount> kStatusNames = {"ok",
                                                                            "wrong size",
                                                                            "wrong packet type",
@@ -24,6 +31,70 @@ constexpr std::array<std::string_view, kDecodeStatusCount> kStatusNames = {"ok",
                                                                            "bad measurement id",
                                                                            "no valid column",
                                                                            "bad timestamp"};
+
+// What the kernel needs of one ring (beam).
+struct RingGeometry {
+  float ca, sa, cp, sp;  // cos/sin of the beam's azimuth and altitude
+  float n;               // lidar_origin_to_beam_origin, metres
+  std::array<float, 12> T;
+};
+
+// One ring's cells of a batch (the kernel): x, y, z, range, intensity and return type from the
+// ring's raw ranges `mm` (0: a hole) and intensities `iv`, the columns' encoder cos/sin `ce`, `se`.
+// Restrict parameters, so that the loop vectorises.
+void write_ring(int columns, const RingGeometry g, ReturnType type, const uint32_t* __restrict mm,
+                const uint32_t* __restrict iv, const float* __restrict ce,
+                const float* __restrict se, float* __restrict x, float* __restrict y,
+                float* __restrict z, float* __restrict range, uint8_t* __restrict intensity,
+                ReturnType* __restrict return_type) {
+  const auto& T = g.T;
+  const float ca = g.ca, sa = g.sa, cp = g.cp, sp = g.sp, n = g.n;
+  for (int c = 0; c < columns; ++c) {
+    const auto uc = static_cast<size_t>(c);
+    // As a mask (no branch, so that the loop vectorises): all ones where there is a return.
+    const uint32_t keep = 0u - static_cast<uint32_t>(mm[uc] != 0);
+    // Ouster's range-to-xyz (lidar frame): r the range, n the beam origin's offset, theta_e the
+    // encoder angle, theta_a the beam's azimuth, phi its altitude:
+    //   x = (r - n) cos(theta_e + theta_a) cos(phi) + n cos(theta_e)
+    //   y = (r - n) sin(theta_e + theta_a) cos(phi) + n sin(theta_e)
+    //   z = (r - n) sin(phi)
+    // then the lidar-to-sensor transform. Ranges fit 31 bits (the profiles' widest: 20 + 3).
+    const auto r = static_cast<float>(static_cast<int32_t>(mm[uc]) * 1e-3);  // one rounding
+    const float rn = r - n;
+    const float cea = ce[uc] * ca - se[uc] * sa;
+    const float sea = se[uc] * ca + ce[uc] * sa;
+    const float xl = rn * cea * cp + n * ce[uc];
+    const float yl = rn * sea * cp + n * se[uc];
+    const float zl = rn * sp;
+    const float xs = T[0] * xl + T[1] * yl + T[2] * zl + T[3];
+    const float ys = T[4] * xl + T[5] * yl + T[6] * zl + T[7];
+    const float zs = T[8] * xl + T[9] * yl + T[10] * zl + T[11];
+    x[uc] = std::bit_cast<float>(std::bit_cast<uint32_t>(xs) & keep);
+    y[uc] = std::bit_cast<float>(std::bit_cast<uint32_t>(ys) & keep);
+    z[uc] = std::bit_cast<float>(std::bit_cast<uint32_t>(zs) & keep);
+    range[uc] = std::bit_cast<float>(std::bit_cast<uint32_t>(r) & keep);
+    intensity[uc] = static_cast<uint8_t>(std::min<uint32_t>(iv[uc], 255u) & keep);
+    return_type[uc] = static_cast<ReturnType>(static_cast<uint32_t>(type) & keep);  // kNone: 0
+  }
+}
+
+// The cells' times and azimuths of one ring: the column's azimuth plus the beam's.
+void write_ring_times(int columns, const float* __restrict t, const float* __restrict az,
+                      double ring_az, bool near, float* __restrict time,
+                      float* __restrict azimuth) {
+  std::copy_n(t, columns, time);
+  if (near) {
+    for (int c = 0; c < columns; ++c) {
+      const auto uc = static_cast<size_t>(c);
+      azimuth[uc] = static_cast<float>(wrap360_near(double(az[uc]) + ring_az));
+    }
+  } else {
+    for (int c = 0; c < columns; ++c) {
+      const auto uc = static_cast<size_t>(c);
+      azimuth[uc] = static_cast<float>(wrap360(double(az[uc]) + ring_az));
+    }
+  }
+}
 
 }  // namespace
 
@@ -105,6 +176,27 @@ Decoder::Decoder(const SensorInfo& info, DecoderOptions options)
   for (size_t row = 0; row < 3; ++row)
     for (size_t col = 0; col < 4; ++col)
       transform_[row * 4 + col] = static_cast<float>(t[row * 4 + col] * (col == 3 ? 1e-3 : 1.0));
+  near_azimuths_ = std::all_of(az_deg_.begin(), az_deg_.begin() + n,
+                               [](float a) { return std::abs(a) < 360.0f; });
+  // One 32-bit load per field and pixel when every such load, up to the last pixel of the last
+  // column, stays inside the packet.
+  fast_fields_ = std::endian::native == std::endian::little;
+  const size_t last_pixel = format_.header_bytes +
+                            static_cast<size_t>(format_.columns - 1) * format_.column_bytes +
+                            format_.column_header_bytes +
+                            static_cast<size_t>(n - 1) * static_cast<size_t>(spec.pixel_bytes);
+  auto fast = [&](const FieldSpec& f, FastField& out) {
+    out.byte = f.bit / 8u;
+    out.shift = f.bit % 8u;
+    out.mask = f.bits >= 32 ? ~0u : (1u << f.bits) - 1u;
+    out.upshift = f.upshift;
+    if (out.shift + f.bits > 32 || last_pixel + out.byte + 4 > format_.packet_bytes)
+      fast_fields_ = false;
+  };
+  for (int r = 0; r < spec.returns; ++r) {
+    fast(*range_[r], fast_range_[r]);
+    fast(*intensity_[r], fast_intensity_[r]);
+  }
   yaw_deg_ = std::atan2(t[4], t[0]) / kDegToRad;
   n_m_ = static_cast<float>(info.lidar_origin_to_beam_origin_mm * 1e-3);
   const auto w = static_cast<size_t>(info.columns_per_frame);
@@ -232,7 +324,7 @@ void Decoder::write_batch(const ColumnBatch& batch, const PointSink& sink) const
   constexpr int kMax = ColumnBatch::kMaxColumns;
   std::array<const uint8_t*, kMax> col;
   std::array<float, kMax> ce, se, t, az;
-  std::array<bool, kMax> valid;
+  std::array<uint32_t, kMax> valid_mask;  // all ones for a valid column, else 0
   int k = 0;
   for (int i = 0; i < batch.runs; ++i) {
     const ColumnBatch::Run& run = batch.run[static_cast<size_t>(i)];
@@ -244,59 +336,46 @@ void Decoder::write_batch(const ColumnBatch& batch, const PointSink& sink) const
       col[uk] = format_.column(pk.payload, c) + format_.column_header_bytes;
       ce[uk] = cos_enc_[m];
       se[uk] = sin_enc_[m];
-      valid[uk] = pk.valid[uc] != 0;
+      valid_mask[uk] = pk.valid[uc] != 0 ? ~0u : 0u;
       t[uk] = run.time_offset + static_cast<float>(pk.column_time_us[uc]) * sink.time_scale;
       az[uk] = pk.column_azimuth_deg[uc];
     }
   }
   const int columns = k;
   const auto pixel_bytes = static_cast<size_t>(format_.spec->pixel_bytes);
-  const float* T = transform_.data();
   const int returns = std::min(batch.returns, format_.spec->returns);
   for (int ret = 0; ret < returns; ++ret) {
-    const FieldSpec& range_field = *range_[ret];
-    const FieldSpec& intensity_field = *intensity_[ret];
     const ReturnType type = ret == 0 ? ReturnType::kStrongest : ReturnType::kSecond;
     for (int ring = 0; ring < format_.pixels; ++ring) {
       const auto ur = static_cast<size_t>(ring);
       const size_t offset = beam_of_ring_[ur] * pixel_bytes;
       const size_t base = ur * sink.ring_stride + static_cast<size_t>(ret) * sink.return_stride;
-      const float ca = cos_az_[ur], sa = sin_az_[ur], cp = cos_alt_[ur], sp = sin_alt_[ur];
-      for (int c = 0; c < columns; ++c) {
-        const auto uc = static_cast<size_t>(c);
-        const size_t cell = base + uc;
-        const uint8_t* pixel = col[uc] + offset;
-        const uint32_t mm = valid[uc] ? field_value(pixel, range_field) : 0u;
-        sink.time[cell] = t[uc];
-        sink.azimuth_deg[cell] = static_cast<float>(wrap360(double(az[uc]) + az_deg_[ur]));
-        if (mm == 0) {
-          // No return, or a column the sensor marked invalid: a hole.
-          sink.x[cell] = sink.y[cell] = sink.z[cell] = sink.range[cell] = 0.0f;
-          sink.intensity[cell] = 0;
-          sink.return_type[cell] = ReturnType::kNone;
-          continue;
+      // The ring's raw values gathered first (one load per field and cell), so that the
+      // arithmetic below runs over contiguous arrays.
+      std::array<uint32_t, kMax> mm, iv;
+      if (fast_fields_) {
+        const FastField& rf = fast_range_[ret];
+        const FastField& inf = fast_intensity_[ret];
+        for (int c = 0; c < columns; ++c) {
+          const auto uc = static_cast<size_t>(c);
+          const uint8_t* pixel = col[uc] + offset;
+          mm[uc] = rf.read(pixel) & valid_mask[uc];
+          iv[uc] = inf.read(pixel);
         }
-        // Ouster's range-to-xyz (lidar frame): r the range, n the beam origin's offset,
-        // theta_e the encoder angle, theta_a the beam's azimuth, phi its altitude:
-        //   x = (r - n) cos(theta_e + theta_a) cos(phi) + n cos(theta_e)
-        //   y = (r - n) sin(theta_e + theta_a) cos(phi) + n sin(theta_e)
-        //   z = (r - n) sin(phi)
-        // then the lidar-to-sensor transform.
-        const auto r = static_cast<float>(mm * 1e-3);  // one rounding
-        const float rn = r - n_m_;
-        const float cea = ce[uc] * ca - se[uc] * sa;
-        const float sea = se[uc] * ca + ce[uc] * sa;
-        const float xl = rn * cea * cp + n_m_ * ce[uc];
-        const float yl = rn * sea * cp + n_m_ * se[uc];
-        const float zl = rn * sp;
-        sink.x[cell] = T[0] * xl + T[1] * yl + T[2] * zl + T[3];
-        sink.y[cell] = T[4] * xl + T[5] * yl + T[6] * zl + T[7];
-        sink.z[cell] = T[8] * xl + T[9] * yl + T[10] * zl + T[11];
-        sink.range[cell] = r;
-        const uint32_t v = field_value(pixel, intensity_field);
-        sink.intensity[cell] = static_cast<uint8_t>(std::min<uint32_t>(v, 255u));
-        sink.return_type[cell] = type;
+      } else {
+        for (int c = 0; c < columns; ++c) {
+          const auto uc = static_cast<size_t>(c);
+          const uint8_t* pixel = col[uc] + offset;
+          mm[uc] = valid_mask[uc] ? field_value(pixel, *range_[ret]) : 0u;
+          iv[uc] = field_value(pixel, *intensity_[ret]);
+        }
       }
+      const RingGeometry g{cos_az_[ur], sin_az_[ur], cos_alt_[ur], sin_alt_[ur], n_m_, transform_};
+      write_ring(columns, g, type, mm.data(), iv.data(), ce.data(), se.data(), sink.x + base,
+                 sink.y + base, sink.z + base, sink.range + base, sink.intensity + base,
+                 sink.return_type + base);
+      write_ring_times(columns, t.data(), az.data(), az_deg_[ur], near_azimuths_, sink.time + base,
+                       sink.azimuth_deg + base);
     }
   }
 }

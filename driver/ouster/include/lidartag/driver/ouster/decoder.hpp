@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cstdint>
+#include <cstring>
 #include <span>
 #include <string_view>
 #include <vector>
@@ -121,6 +122,21 @@ class Decoder final : public ColumnDecoder {
   float n_m_ = 0;  // lidar_origin_to_beam_origin, metres
   const FieldSpec* range_[2] = {nullptr, nullptr};
   const FieldSpec* intensity_[2] = {nullptr, nullptr};
+  // A field read with one unaligned 32-bit load from its first byte (field_value() reads only
+  // the bytes the field spans; the same value). Used when every pixel's load stays inside the
+  // packet and the host is little-endian (fast_fields_).
+  struct FastField {
+    uint32_t byte = 0, shift = 0, mask = 0, upshift = 0;
+    uint32_t read(const uint8_t* pixel) const {
+      uint32_t word;
+      std::memcpy(&word, pixel + byte, sizeof word);
+      return ((word >> shift) & mask) << upshift;
+    }
+  };
+  FastField fast_range_[2], fast_intensity_[2];
+  bool fast_fields_ = false;
+  // Every beam azimuth within (-360, 360) degrees: a cell's azimuth wraps without fmod.
+  bool near_azimuths_ = false;
   // cos/sin of the encoder angle of every measurement id.
   std::vector<float> cos_enc_, sin_enc_;
 };
