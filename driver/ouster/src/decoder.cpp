@@ -82,15 +82,16 @@ void write_ring(int columns, const RingGeometry g, ReturnType type, const uint32
 void write_ring_times(int columns, const float* __restrict t, const float* __restrict az,
                       double ring_az, bool near, float* __restrict time,
                       float* __restrict azimuth) {
-  std::copy_n(t, columns, time);
   if (near) {
     for (int c = 0; c < columns; ++c) {
       const auto uc = static_cast<size_t>(c);
+      time[uc] = t[uc];  // here rather than a memmove call per ring
       azimuth[uc] = static_cast<float>(wrap360_near(double(az[uc]) + ring_az));
     }
   } else {
     for (int c = 0; c < columns; ++c) {
       const auto uc = static_cast<size_t>(c);
+      time[uc] = t[uc];
       azimuth[uc] = static_cast<float>(wrap360(double(az[uc]) + ring_az));
     }
   }
