@@ -39,27 +39,36 @@ struct RingGeometry {
   std::array<float, 12> T;
 };
 
-// One ring's cells of a batch (the kernel): x, y, z, range, intensity and return type from the
-// ring's raw ranges `mm` (0: a hole) and intensities `iv`, the columns' encoder cos/sin `ce`, `se`.
-// Restrict parameters, so that the loop vectorises.
-void write_ring(int columns, const RingGeometry g, ReturnType type, const uint32_t* __restrict mm,
-                const uint32_t* __restrict iv, const float* __restrict ce,
-                const float* __restrict se, float* __restrict x, float* __restrict y,
-                float* __restrict z, float* __restrict range, uint8_t* __restrict intensity,
-                ReturnType* __restrict return_type) {
+// Where the kernel writes one ring's cells.
+struct CellOut {
+  float *x, *y, *z, *range, *time, *azimuth;
+  uint8_t* intensity;
+  ReturnType* return_type;
+};
+
+// One ring's cells of a batch (the kernel): x, y, z, range, intensity, return type, time and
+// azimuth, from `read(c)`, the ring's raw range (0: a hole) and intensity in column c, and the
+// columns' encoder cos/sin `ce`, `se`, times `t` and azimuths `az`. Inlined into the functions
+// below, whose restrict parameters let the loop vectorise; azimuths wrap with wrap360_near().
+template <class Read>
+[[gnu::always_inline]] inline void ring_cells(int columns, Read read, const RingGeometry& g,
+                                              ReturnType type, const float* ce, const float* se,
+                                              const float* t, const float* az, double ring_az,
+                                              const CellOut& out) {
   const auto& T = g.T;
   const float ca = g.ca, sa = g.sa, cp = g.cp, sp = g.sp, n = g.n;
   for (int c = 0; c < columns; ++c) {
     const auto uc = static_cast<size_t>(c);
+    const auto [mm, iv] = read(uc);
     // As a mask (no branch, so that the loop vectorises): all ones where there is a return.
-    const uint32_t keep = 0u - static_cast<uint32_t>(mm[uc] != 0);
+    const uint32_t keep = 0u - static_cast<uint32_t>(mm != 0);
     // Ouster's range-to-xyz (lidar frame): r the range, n the beam origin's offset, theta_e the
     // encoder angle, theta_a the beam's azimuth, phi its altitude:
     //   x = (r - n) cos(theta_e + theta_a) cos(phi) + n cos(theta_e)
     //   y = (r - n) sin(theta_e + theta_a) cos(phi) + n sin(theta_e)
     //   z = (r - n) sin(phi)
     // then the lidar-to-sensor transform. Ranges fit 31 bits (the profiles' widest: 20 + 3).
-    const auto r = static_cast<float>(static_cast<int32_t>(mm[uc]) * 1e-3);  // one rounding
+    const auto r = static_cast<float>(static_cast<int32_t>(mm) * 1e-3);  // one rounding
     const float rn = r - n;
     const float cea = ce[uc] * ca - se[uc] * sa;
     const float sea = se[uc] * ca + ce[uc] * sa;
@@ -69,32 +78,48 @@ void write_ring(int columns, const RingGeometry g, ReturnType type, const uint32
     const float xs = T[0] * xl + T[1] * yl + T[2] * zl + T[3];
     const float ys = T[4] * xl + T[5] * yl + T[6] * zl + T[7];
     const float zs = T[8] * xl + T[9] * yl + T[10] * zl + T[11];
-    x[uc] = std::bit_cast<float>(std::bit_cast<uint32_t>(xs) & keep);
-    y[uc] = std::bit_cast<float>(std::bit_cast<uint32_t>(ys) & keep);
-    z[uc] = std::bit_cast<float>(std::bit_cast<uint32_t>(zs) & keep);
-    range[uc] = std::bit_cast<float>(std::bit_cast<uint32_t>(r) & keep);
-    intensity[uc] = static_cast<uint8_t>(std::min<uint32_t>(iv[uc], 255u) & keep);
-    return_type[uc] = static_cast<ReturnType>(static_cast<uint32_t>(type) & keep);  // kNone: 0
+    out.x[uc] = std::bit_cast<float>(std::bit_cast<uint32_t>(xs) & keep);
+    out.y[uc] = std::bit_cast<float>(std::bit_cast<uint32_t>(ys) & keep);
+    out.z[uc] = std::bit_cast<float>(std::bit_cast<uint32_t>(zs) & keep);
+    out.range[uc] = std::bit_cast<float>(std::bit_cast<uint32_t>(r) & keep);
+    out.intensity[uc] = static_cast<uint8_t>(std::min<uint32_t>(iv, 255u) & keep);
+    out.return_type[uc] = static_cast<ReturnType>(static_cast<uint32_t>(type) & keep);  // kNone: 0
+    out.time[uc] = t[uc];
+    out.azimuth[uc] = static_cast<float>(wrap360_near(double(az[uc]) + ring_az));
   }
 }
 
-// The cells' times and azimuths of one ring: the column's azimuth plus the beam's.
-void write_ring_times(int columns, const float* __restrict t, const float* __restrict az,
-                      double ring_az, bool near, float* __restrict time,
-                      float* __restrict azimuth) {
-  if (near) {
-    for (int c = 0; c < columns; ++c) {
-      const auto uc = static_cast<size_t>(c);
-      time[uc] = t[uc];  // here rather than a memmove call per ring
-      azimuth[uc] = static_cast<float>(wrap360_near(double(az[uc]) + ring_az));
-    }
-  } else {
-    for (int c = 0; c < columns; ++c) {
-      const auto uc = static_cast<size_t>(c);
-      time[uc] = t[uc];
-      azimuth[uc] = static_cast<float>(wrap360(double(az[uc]) + ring_az));
-    }
-  }
+struct RawValues {
+  uint32_t mm, iv;
+};
+
+// The kernel reading the ring's pixels itself: column c's pixel at `pixels + off[c]`.
+[[gnu::target_clones("avx2", "default")]] void write_ring_pixels(
+    int columns, const uint8_t* __restrict pixels, const int32_t* __restrict off,
+    const FastField range_field, const FastField intensity_field,
+    const uint32_t* __restrict valid_mask, const RingGeometry& g, ReturnType type,
+    const float* __restrict ce, const float* __restrict se, const float* __restrict t,
+    const float* __restrict az, double ring_az, float* __restrict x, float* __restrict y,
+    float* __restrict z, float* __restrict range, float* __restrict time, float* __restrict azimuth,
+    uint8_t* __restrict intensity, ReturnType* __restrict return_type) {
+  auto read = [&](size_t c) {
+    const uint8_t* pixel = pixels + off[c];
+    return RawValues{range_field.read(pixel) & valid_mask[c], intensity_field.read(pixel)};
+  };
+  ring_cells(columns, read, g, type, ce, se, t, az, ring_az,
+             {x, y, z, range, time, azimuth, intensity, return_type});
+}
+
+// The kernel on raw values read beforehand (`mm`: 0 in invalid columns).
+[[gnu::target_clones("avx2", "default")]] void write_ring_values(
+    int columns, const uint32_t* __restrict mm, const uint32_t* __restrict iv,
+    const RingGeometry& g, ReturnType type, const float* __restrict ce, const float* __restrict se,
+    const float* __restrict t, const float* __restrict az, double ring_az, float* __restrict x,
+    float* __restrict y, float* __restrict z, float* __restrict range, float* __restrict time,
+    float* __restrict azimuth, uint8_t* __restrict intensity, ReturnType* __restrict return_type) {
+  auto read = [&](size_t c) { return RawValues{mm[c], iv[c]}; };
+  ring_cells(columns, read, g, type, ce, se, t, az, ring_az,
+             {x, y, z, range, time, azimuth, intensity, return_type});
 }
 
 }  // namespace
@@ -343,6 +368,17 @@ void Decoder::write_batch(const ColumnBatch& batch, const PointSink& sink) const
     }
   }
   const int columns = k;
+  // The fast path: every field read with one load, and each column's pixels addressed from the
+  // first column's (the batch's packets lie within 2 GiB of each other).
+  const uint8_t* first = columns > 0 ? col[0] : nullptr;
+  std::array<int32_t, kMax> off;
+  bool fast_path = fast_fields_ && near_azimuths_;
+  for (int c = 0; c < columns && fast_path; ++c) {
+    const auto uc = static_cast<size_t>(c);
+    const std::ptrdiff_t d = col[uc] - first;
+    fast_path = d > -(std::ptrdiff_t{1} << 30) && d < (std::ptrdiff_t{1} << 30);
+    off[uc] = static_cast<int32_t>(d);
+  }
   const auto pixel_bytes = static_cast<size_t>(format_.spec->pixel_bytes);
   const int returns = std::min(batch.returns, format_.spec->returns);
   for (int ret = 0; ret < returns; ++ret) {
@@ -351,32 +387,39 @@ void Decoder::write_batch(const ColumnBatch& batch, const PointSink& sink) const
       const auto ur = static_cast<size_t>(ring);
       const size_t offset = beam_of_ring_[ur] * pixel_bytes;
       const size_t base = ur * sink.ring_stride + static_cast<size_t>(ret) * sink.return_stride;
-      // The ring's raw values gathered first (one load per field and cell), so that the
-      // arithmetic below runs over contiguous arrays.
+      const RingGeometry g{cos_az_[ur], sin_az_[ur], cos_alt_[ur], sin_alt_[ur], n_m_, transform_};
+      float* x = sink.x + base;
+      float* y = sink.y + base;
+      float* z = sink.z + base;
+      float* range = sink.range + base;
+      float* time = sink.time + base;
+      float* azimuth = sink.azimuth_deg + base;
+      uint8_t* intensity = sink.intensity + base;
+      ReturnType* return_type = sink.return_type + base;
+      if (fast_path) {
+        write_ring_pixels(columns, first + offset, off.data(), fast_range_[ret],
+                          fast_intensity_[ret], valid_mask.data(), g, type, ce.data(), se.data(),
+                          t.data(), az.data(), az_deg_[ur], x, y, z, range, time, azimuth,
+                          intensity, return_type);
+        continue;
+      }
+      // The ring's raw values read first, field by field.
       std::array<uint32_t, kMax> mm, iv;
-      if (fast_fields_) {
-        const FastField& rf = fast_range_[ret];
-        const FastField& inf = fast_intensity_[ret];
+      for (int c = 0; c < columns; ++c) {
+        const auto uc = static_cast<size_t>(c);
+        const uint8_t* pixel = col[uc] + offset;
+        mm[uc] = valid_mask[uc] ? field_value(pixel, *range_[ret]) : 0u;
+        iv[uc] = field_value(pixel, *intensity_[ret]);
+      }
+      write_ring_values(columns, mm.data(), iv.data(), g, type, ce.data(), se.data(), t.data(),
+                        az.data(), az_deg_[ur], x, y, z, range, time, azimuth, intensity,
+                        return_type);
+      if (!near_azimuths_) {
         for (int c = 0; c < columns; ++c) {
           const auto uc = static_cast<size_t>(c);
-          const uint8_t* pixel = col[uc] + offset;
-          mm[uc] = rf.read(pixel) & valid_mask[uc];
-          iv[uc] = inf.read(pixel);
-        }
-      } else {
-        for (int c = 0; c < columns; ++c) {
-          const auto uc = static_cast<size_t>(c);
-          const uint8_t* pixel = col[uc] + offset;
-          mm[uc] = valid_mask[uc] ? field_value(pixel, *range_[ret]) : 0u;
-          iv[uc] = field_value(pixel, *intensity_[ret]);
+          azimuth[uc] = static_cast<float>(wrap360(double(az[uc]) + az_deg_[ur]));
         }
       }
-      const RingGeometry g{cos_az_[ur], sin_az_[ur], cos_alt_[ur], sin_alt_[ur], n_m_, transform_};
-      write_ring(columns, g, type, mm.data(), iv.data(), ce.data(), se.data(), sink.x + base,
-                 sink.y + base, sink.z + base, sink.range + base, sink.intensity + base,
-                 sink.return_type + base);
-      write_ring_times(columns, t.data(), az.data(), az_deg_[ur], near_azimuths_, sink.time + base,
-                       sink.azimuth_deg + base);
     }
   }
 }
