@@ -348,6 +348,7 @@ ColumnPacket* Decoder::copy_packet(const ColumnPacket& packet, std::span<std::by
 void Decoder::write_batch(const ColumnBatch& batch, const PointSink& sink) const {
   // The batch's columns gathered: their bytes, encoder angle, time and azimuth.
   constexpr int kMax = ColumnBatch::kMaxColumns;
+  constexpr int kPrefetchRings = 4;
   std::array<const uint8_t*, kMax> col;
   std::array<float, kMax> ce, se, t, az;
   std::array<uint32_t, kMax> valid_mask;  // all ones for a valid column, else 0
@@ -387,6 +388,20 @@ void Decoder::write_batch(const ColumnBatch& batch, const PointSink& sink) const
       const auto ur = static_cast<size_t>(ring);
       const size_t offset = beam_of_ring_[ur] * pixel_bytes;
       const size_t base = ur * sink.ring_stride + static_cast<size_t>(ret) * sink.return_stride;
+      if (ring + kPrefetchRings < format_.pixels) {
+        // The cells of a ring further on, for writing: they are rarely in cache (a scan is
+        // larger than it), and their misses then overlap with this ring's work.
+        const size_t ahead = base + static_cast<size_t>(kPrefetchRings) * sink.ring_stride;
+        const auto ucols = static_cast<size_t>(columns);
+        for (size_t i = 0; i < ucols; i += 16) {
+          for (float* v : {sink.x, sink.y, sink.z, sink.range, sink.time, sink.azimuth_deg})
+            __builtin_prefetch(v + ahead + i, 1);
+        }
+        for (size_t i = 0; i < ucols; i += 64) {
+          __builtin_prefetch(sink.intensity + ahead + i, 1);
+          __builtin_prefetch(sink.return_type + ahead + i, 1);
+        }
+      }
       const RingGeometry g{cos_az_[ur], sin_az_[ur], cos_alt_[ur], sin_alt_[ur], n_m_, transform_};
       float* x = sink.x + base;
       float* y = sink.y + base;
