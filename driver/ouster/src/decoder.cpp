@@ -12,6 +12,12 @@
 #include "lidartag/driver/angles.hpp"
 #include "lidartag/driver/packet_source.hpp"
 
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && defined(__linux__)
+#define LIDARTAG_OUSTER_KERNEL_CLONES [[gnu::target_clones("avx2", "default")]]
+#else
+#define LIDARTAG_OUSTER_KERNEL_CLONES
+#endif
+
 namespace lidartag::driver::ouster {
 namespace {
 
@@ -93,8 +99,10 @@ struct RawValues {
   uint32_t mm, iv;
 };
 
-// The kernel reading the ring's pixels itself: column c's pixel at `pixels + off[c]`.
-[[gnu::target_clones("avx2", "default")]] void write_ring_pixels(
+// The kernel reading the ring's pixels itself: column c's pixel at `pixels + off[c]`. On x86-64
+// an AVX2 copy beside the baseline one, chosen at load time (glibc's ifunc): same arithmetic in
+// wider registers (no FMA: the results are the same bit for bit).
+LIDARTAG_OUSTER_KERNEL_CLONES void write_ring_pixels(
     int columns, const uint8_t* __restrict pixels, const int32_t* __restrict off,
     const FastField range_field, const FastField intensity_field,
     const uint32_t* __restrict valid_mask, const RingGeometry& g, ReturnType type,
@@ -111,12 +119,13 @@ struct RawValues {
 }
 
 // The kernel on raw values read beforehand (`mm`: 0 in invalid columns).
-[[gnu::target_clones("avx2", "default")]] void write_ring_values(
-    int columns, const uint32_t* __restrict mm, const uint32_t* __restrict iv,
-    const RingGeometry& g, ReturnType type, const float* __restrict ce, const float* __restrict se,
-    const float* __restrict t, const float* __restrict az, double ring_az, float* __restrict x,
-    float* __restrict y, float* __restrict z, float* __restrict range, float* __restrict time,
-    float* __restrict azimuth, uint8_t* __restrict intensity, ReturnType* __restrict return_type) {
+void write_ring_values(int columns, const uint32_t* __restrict mm, const uint32_t* __restrict iv,
+                       const RingGeometry& g, ReturnType type, const float* __restrict ce,
+                       const float* __restrict se, const float* __restrict t,
+                       const float* __restrict az, double ring_az, float* __restrict x,
+                       float* __restrict y, float* __restrict z, float* __restrict range,
+                       float* __restrict time, float* __restrict azimuth,
+                       uint8_t* __restrict intensity, ReturnType* __restrict return_type) {
   auto read = [&](size_t c) { return RawValues{mm[c], iv[c]}; };
   ring_cells(columns, read, g, type, ce, se, t, az, ring_az,
              {x, y, z, range, time, azimuth, intensity, return_type});
