@@ -1,7 +1,12 @@
 // bench_detector: the detector's speed per rotation and per stage (the paper's Table II), on the
 // rotations of pcaps/demo.pcap (lab, VLP-32C, two tags), pcaps/outdoor.pcap (parking lot,
 // VLP-32C, three tags) and pcaps/boards.pcap (VLP-32C, 13 boards that are no tags: checkerboards,
-// boards with holes, signs; many reach the pose fit and decoding), single-threaded.
+// boards with holes, signs; many reach the pose fit and decoding), single-threaded; and on Ouster
+// OS1-128 1024x10 frames (131,072 cells, 100 ms each): os1_128, the three whole frames of
+// ../shared/captures/ouster/pcaps/OS-1-128_v2.3.0_1024x10_lb_n3.pcap (a street, no tag; skipped
+// when ../shared is absent), with the default options as `lidartag detect` uses them; os1_128_sim,
+// eight simulated frames of bench_accuracy's scene (a 1.2 m tag16h5 at 10 m, 45 deg), options as
+// bench_accuracy's.
 //
 //   bench_detector [--benchmark_min_time=2]
 //
@@ -18,6 +23,7 @@
 
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <filesystem>
 #include <map>
 #include <memory>
@@ -27,7 +33,10 @@
 #include "lidartag/detector/clustering.hpp"
 #include "lidartag/detector/detector.hpp"
 #include "lidartag/detector/edge_features.hpp"
+#include "lidartag/driver/ouster/io/capture_reader.hpp"
+#include "lidartag/driver/ouster/models.hpp"
 #include "lidartag/driver/velodyne/io/capture_reader.hpp"
+#include "sim_scans.hpp"
 
 namespace {
 
@@ -42,10 +51,47 @@ std::string pcap(const char* name) {
   return (std::filesystem::path(LIDARTAG_SOURCE_DIR) / "pcaps" / name).string();
 }
 
+// The whole frames of a real OS1-128 capture, destaggered as `lidartag detect` sees them; none when
+// ../shared is absent.
+void load_ouster_capture(Capture& c) {
+  namespace ouster = driver::ouster;
+  const auto dir = std::filesystem::path(LIDARTAG_SHARED_DIR) / "captures/ouster/pcaps";
+  const auto pcap_path = dir / "OS-1-128_v2.3.0_1024x10_lb_n3.pcap";
+  if (!std::filesystem::exists(pcap_path)) return;
+  const ouster::SensorInfo info =
+      ouster::load_metadata((dir / "OS-1-128_v2.3.0_1024x10.json").string());
+  ouster::CaptureReader reader(pcap_path.string(), info);
+  Scan scan;
+  for (driver::ReadResult r;
+       (r = reader.read(scan, std::chrono::seconds(10))) != driver::ReadResult::kEnd;)
+    if (r == driver::ReadResult::kRotation && scan.complete) c.rotations.push_back(scan);
+  c.options.cluster_diagnostics = false;
+}
+
+// Simulated OS1-128 1024x10 frames of bench_accuracy's scene: a 1.2 m tag16h5 at 10 m, 45 deg.
+void load_ouster_sim(Capture& c) {
+  sim::Scene scene = eval::accuracy_scene(velodyne::Model::kVLP32C, 10.0, 45, 0);
+  scene.sensor.ouster = sim::OusterSensorOptions{driver::ouster::Model::kOs1_128, 1024, 10,
+                                                 driver::ouster::Profile::kRng19Rfl8Sig16Nir16};
+  scene.sensor.noise = sim::NoiseOptions{};
+  const sim::Simulator simulator(std::move(scene));
+  eval::SimScans scans(simulator);
+  scans.run(8, 1, [&](const Scan& s, size_t) { c.rotations.push_back(s); });
+  c.options.tag_sizes_m = {1.2};
+  c.options.families = {"tag16h5", "tag25h9", "tag36h11"};
+  c.options.cluster_diagnostics = false;
+}
+
 const Capture& capture(const std::string& name) {
   static std::map<std::string, std::unique_ptr<Capture>> cache;
   auto& slot = cache[name];
-  if (!slot) {
+  if (!slot && name == "os1_128") {
+    slot = std::make_unique<Capture>();
+    load_ouster_capture(*slot);
+  } else if (!slot && name == "os1_128_sim") {
+    slot = std::make_unique<Capture>();
+    load_ouster_sim(*slot);
+  } else if (!slot) {
     slot = std::make_unique<Capture>();
     velodyne::CaptureReader reader(pcap((name + ".pcap").c_str()), {});
     while (const Scan* s = reader.next())
@@ -175,6 +221,12 @@ BENCHMARK_CAPTURE(BM_Detect, outdoor_no_retry, std::string("outdoor"), Variant::
     ->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Detect, boards_no_retry, std::string("boards"), Variant::kNoRetry)
     ->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Detect, os1_128, std::string("os1_128"), Variant::kDefault)
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Detect, os1_128_sim, std::string("os1_128_sim"), Variant::kDefault)
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_EdgeFeatures, os1_128, std::string("os1_128"))->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Clustering, os1_128, std::string("os1_128"))->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_EdgeFeatures, demo, std::string("demo"))->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_EdgeFeatures, outdoor, std::string("outdoor"))->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Clustering, demo, std::string("demo"))->Unit(benchmark::kMillisecond);

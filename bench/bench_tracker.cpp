@@ -487,9 +487,10 @@ int run(const Args& args) {
   // A 0.6 m tag whose upper half only the sparse upper beams cross (0.3 m above the sensor).
   for (int angle : {0, 45})
     cells.push_back(cell(velodyne::Model::kVLP32C, 4.0, angle, 95.0, 0.6, 0.3));
-  // Issue 32: the simulated OS1-64 and OS1-128 (1024x10), 95 % wherever a VLP-32C reaches it.
+  // Issue 32: the simulated OS1-64 and OS1-128 (1024x10), 95 % wherever a VLP-32C reaches it
+  // (to 28 m: the VLP-32C cells above) and beyond.
   for (auto om : {driver::ouster::Model::kOs1_64, driver::ouster::Model::kOs1_128})
-    for (double d : {5.0, 10.0, 15.0, 20.0})
+    for (double d : {5.0, 10.0, 15.0, 20.0, 24.0, 28.0})
       for (int angle : {0, 45}) {
         cells.push_back(cell(velodyne::Model::kVLP32C, d, angle, 95.0));
         cells.back().ouster = om;

@@ -50,6 +50,8 @@ if [ "${1:-}" != "--no-sanitizers" ]; then
     test_sim_ouster"
   # MCAP out: the writer, read back with the project's reader (issue 34).
   targets="$targets test_mcap_writer"
+  # Other drivers' PointCloud2 layouts through the bag cloud reader (issue 34).
+  targets="$targets test_vendor_clouds"
   # The daemon's configuration parsing, LCM URL/log/bus, recorder and setup checks.
   targets="$targets test_daemon_config test_daemon_setup test_ego_motion_input"
   # The lidartag tool's drawing (tag, render), run as a user would (they build the tool).

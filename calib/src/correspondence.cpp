@@ -120,6 +120,22 @@ void add_ring_spacing_uncertainty(LidarTag& tag, const tags::TagFamily& family,
   tag.corner_cov += pose_corner_covariance(tag, sigma * sigma * across * across.transpose(), 0.0);
 }
 
+std::vector<double> ring_elevations_rad(const Scan& scan) {
+  std::vector<double> out;
+  for (int ring = 0; ring < scan.rings; ++ring) {
+    double sum = 0;
+    int n = 0;
+    for (int col = 0; col < scan.columns; ++col) {
+      const size_t i = scan.at(0, ring, col);
+      if (scan.range[i] <= 0) continue;
+      sum += std::atan2(scan.z[i], std::hypot(scan.x[i], scan.y[i]));
+      ++n;
+    }
+    if (n > 0) out.push_back(sum / n);
+  }
+  return out;
+}
+
 std::array<Eigen::Vector2d, 4> calibration_order(const std::array<Eigen::Vector2d, 4>& apriltag_p) {
   std::array<Eigen::Vector2d, 4> out;
   for (int k = 0; k < 4; ++k)

@@ -5,13 +5,11 @@
 #include <algorithm>
 #include <array>
 
+#include "lidartag/daemon/time_units.hpp"
+
 namespace lidartag::daemon {
 
 namespace {
-
-double seconds(int64_t ns) {
-  return static_cast<double>(ns) * 1e-9;
-}
 
 // Most severe first: the state reported is the first problem's.
 constexpr std::array<HealthState, 13> kSeverity = {

@@ -7,6 +7,8 @@
 #include <chrono>
 #include <cstring>
 
+#include "lidartag/daemon/time_units.hpp"
+
 namespace lidartag::daemon {
 
 namespace {
@@ -71,7 +73,7 @@ bool LcmBus::send(const std::string& channel, size_t size) {
                    unreported_ == 1 ? "" : "s", failures_);
       failing_ = false;
       unreported_ = 0;
-      next_report_ns_ = now + static_cast<int64_t>(kReportPeriodS * 1e9);
+      next_report_ns_ = now + nanoseconds(kReportPeriodS);
     }
   }
   return true;
@@ -87,7 +89,7 @@ void LcmBus::failed(const std::string& channel, std::string why) {
                unreported_ == 1 ? "" : "s", failures_, last_error_);
   unreported_ = 0;
   failing_ = true;
-  next_report_ns_ = now + static_cast<int64_t>(kReportPeriodS * 1e9);
+  next_report_ns_ = now + nanoseconds(kReportPeriodS);
 }
 
 uint64_t LcmBus::failures() const {

@@ -10,19 +10,9 @@
 #include <vector>
 
 #include "lidartag/daemon/tap_source.hpp"
+#include "lidartag/daemon/time_units.hpp"
 
 namespace lidartag::daemon {
-namespace {
-
-int64_t to_ns(double seconds) {
-  return static_cast<int64_t>(seconds * 1e9);
-}
-
-double seconds(int64_t ns) {
-  return static_cast<double>(ns) * 1e-9;
-}
-
-}  // namespace
 
 // What the receiving thread knows, copied at every return of CaptureReader::read (each rotation,
 // and at least every 100 ms) for the status.
@@ -156,7 +146,7 @@ void SensorMonitor::after_read(const driver::ScanReader& reader, const Scan* las
     auto& e = mine.entries[i];
     if (e.seen) e.last_ns = now;
     e.seen = false;
-    if (now - e.last_ns <= to_ns(options_.health.window_s)) s.senders.push_back(e.address);
+    if (now - e.last_ns <= nanoseconds(options_.health.window_s)) s.senders.push_back(e.address);
   }
   if (last != nullptr) {
     if (last->rpm > 0) s.rpm = last->rpm;
@@ -229,7 +219,7 @@ std::string SensorMonitor::source_error() const {
 }
 
 std::string SensorMonitor::stall(int64_t now) const {
-  const int64_t limit = to_ns(options_.watchdog.stall_timeout_s);
+  const int64_t limit = nanoseconds(options_.watchdog.stall_timeout_s);
   if (!receiver_done_.load(std::memory_order_acquire) &&
       !receiver_waiting_.load(std::memory_order_relaxed)) {
     const int64_t idle = now - receiver_beat_ns_.load(std::memory_order_relaxed);
@@ -248,7 +238,7 @@ std::string SensorMonitor::stall(int64_t now) const {
 bool SensorMonitor::progressing(int64_t now, bool finished) const {
   if (finished) return error().empty();
   if (!error().empty() || !stall(now).empty()) return false;
-  const int64_t limit = to_ns(options_.watchdog.stall_timeout_s);
+  const int64_t limit = nanoseconds(options_.watchdog.stall_timeout_s);
   {
     std::lock_guard lock(counts_mutex_);
     if (now - counts_.last_assembled_ns <= limit) return true;
@@ -256,13 +246,14 @@ bool SensorMonitor::progressing(int64_t now, bool finished) const {
   std::lock_guard lock(snapshot_mutex_);
   const Snapshot& s = *snapshot_;
   // Waiting for the sensor to come up.
-  if (s.data_packets == 0 && now - started_ns_.load() <= to_ns(options_.health.startup_grace_s)) {
+  if (s.data_packets == 0 &&
+      now - started_ns_.load() <= nanoseconds(options_.health.startup_grace_s)) {
     return true;
   }
   // Silent (never a packet past the grace, or none lately): a restart reopens the sockets,
   // unless the sensor is switched off on purpose. Packets without rotations (garbage): no.
   const bool silent =
-      s.data_packets == 0 || now - s.last_data_ns > to_ns(options_.health.silence_s);
+      s.data_packets == 0 || now - s.last_data_ns > nanoseconds(options_.health.silence_s);
   return silent && options_.watchdog.while_silent;
 }
 

@@ -5,7 +5,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <initializer_list>
 #include <iterator>
+#include <utility>
 
 namespace lidartag::foxglove {
 namespace {
@@ -46,26 +48,26 @@ void append_string(std::string& out, std::string_view s) {
   out += '"';
 }
 
-void append_vector3(std::string& out, const Eigen::Vector3d& v) {
-  out += R"({"x":)";
-  append_number(out, v.x());
-  out += R"(,"y":)";
-  append_number(out, v.y());
-  out += R"(,"z":)";
-  append_number(out, v.z());
+// {"x":..,"y":..,...}: one JSON object of named numbers (Foxglove's Vector3 and Quaternion).
+void append_fields(std::string& out, std::initializer_list<std::pair<char, double>> fields) {
+  char sep = '{';
+  for (const auto& [name, value] : fields) {
+    out += sep;
+    out += '"';
+    out += name;
+    out += "\":";
+    append_number(out, value);
+    sep = ',';
+  }
   out += '}';
 }
 
+void append_vector3(std::string& out, const Eigen::Vector3d& v) {
+  append_fields(out, {{'x', v.x()}, {'y', v.y()}, {'z', v.z()}});
+}
+
 void append_quaternion(std::string& out, const Eigen::Quaterniond& q) {
-  out += R"({"x":)";
-  append_number(out, q.x());
-  out += R"(,"y":)";
-  append_number(out, q.y());
-  out += R"(,"z":)";
-  append_number(out, q.z());
-  out += R"(,"w":)";
-  append_number(out, q.w());
-  out += '}';
+  append_fields(out, {{'x', q.x()}, {'y', q.y()}, {'z', q.z()}, {'w', q.w()}});
 }
 
 void append_pose(std::string& out, const Eigen::Vector3d& p, const Eigen::Quaterniond& q) {

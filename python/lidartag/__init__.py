@@ -1,9 +1,10 @@
-"""lidartag: Velodyne captures into numpy, the LiDARTag detector, the scene simulator and
-lidartagd's LCM logs, from Python.
+"""lidartag: Velodyne and Ouster captures into numpy, the LiDARTag detector, the scene simulator
+and lidartagd's LCM logs, from Python.
 
     import lidartag
     for rotation in lidartag.read("pcaps/demo.pcap"):     # lazily, one rotation at a time
         points = rotation.points                           # numpy: x y z range azimuth time ...
+    ouster = lidartag.read("os1.pcap", metadata="os1.json")  # or os1.json beside os1.pcap
     detector = lidartag.Detector({"tag_sizes_m": [0.8, 0.6]})
     for rotation, result in lidartag.detect("pcaps/demo.pcap", detector):
         for tag in result:
@@ -37,6 +38,7 @@ from ._lidartag import (  # noqa: F401  (re-exported)
     IoError,
     LcmLog,
     LogEvent,
+    MetadataError,
     OptionsError,
     OutputError,
     Reader,
@@ -52,32 +54,55 @@ __all__ = [
     "Error", "IoError", "CalibrationError", "ConfigError", "OptionsError", "CloudError",
     "FamilyError", "SceneError", "OutputError", "CameraModel", "load_intrinsics", "calibrate",
     "CalibrationResult", "detect_image_tags", "read_image", "ExtrinsicError", "IntrinsicsError",
-    "ImageError", "ImageTagError",
+    "ImageError", "ImageTagError", "MetadataError", "ring_elevations", "ring_spacing_covariance",
+    "detection_covariance",
 ]
 
 
-def read(path, model=None, calibration=None, cut_deg=180.0, partial=False, data_port=2368,
-         position_port=8308, sensor=None, rings=0, resolution_deg=0.2, topic=None, start=0.0,
-         duration=None):
-    """The rotations of a pcap/pcapng capture (or of a PCD file: one rotation), read lazily.
+def read(path, model=None, calibration=None, cut_deg=180.0, partial=False, data_port=None,
+         position_port=None, sensor=None, rings=0, resolution_deg=0.2, topic=None, start=0.0,
+         duration=None, metadata=None, intensity="reflectivity"):
+    """The rotations of a capture, read lazily: a pcap/pcapng of Velodyne or Ouster packets, a ROS
+    bag or MCAP file, or a PCD file (one rotation).
 
-    A ROS 1 bag, ROS 2 bag folder or MCAP file (recognised by content) is read on its LiDAR
-    topic: velodyne_msgs/VelodyneScan packets as the pcap of those packets,
-    sensor_msgs/PointCloud2 clouds each as one Rotation (as Rotation.from_points makes it: the
-    cloud's ring field, or rings from `model`'s elevations or `rings` estimated; stamped with the
-    cloud's header stamp).
+    Packet captures are opened by content as lidartagd opens them (the driver's source seam):
+    - a pcap of Ouster packets with its sensor's metadata JSON: `metadata`, or NAME.json beside
+      NAME.pcap (a JSON there that holds no beam intrinsics, such as a simulator's truth file, is
+      not taken for metadata); without either, a pcap is read as Velodyne packets;
+    - a ROS 1 bag, ROS 2 bag folder or MCAP file (recognised by content) on its LiDAR topic:
+      velodyne_msgs/VelodyneScan packets as the pcap of those packets; ouster_ros/PacketMsg
+      packets with the metadata from the bag's metadata topic (or `metadata`), IMU packets counted
+      apart; sensor_msgs/PointCloud2 clouds each as one Rotation (as Rotation.from_points makes
+      it: the cloud's ring field, or rings from `model`'s elevations or `rings` estimated; stamped
+      with the cloud's header stamp).
+    An Ouster rotation is one frame of the sensor, destaggered (a column's cells point the same
+    way), ring 0 the lowest beam; its model is the metadata's ("os0-128"), its return_mode the
+    packet profile ("RNG15_RFL8_NIR8").
+
     topic: the bag's LiDAR topic; None: its one LiDAR topic.
     start, duration: a bag's time window, seconds from its first message (None: to the end).
-
-    model: decode as this model (vlp16, puck-hires, vlp32c, hdl32e, vls128); None: the packets'
-      product byte, checked against their timing (Reader.model_mismatch says when they disagree).
-    calibration: a calibration file (ros-drivers YAML or VeloView XML); None: the built-in table.
-    cut_deg: azimuth where rotations are cut, degrees.
+    model: decode as this Velodyne model (vlp16, puck-hires, vlp32c, hdl32e, vls128); None: the
+      packets' product byte, checked against their timing (Reader.model_mismatch says when they
+      disagree). An Ouster model name (os0-128, os1-64, ...): the metadata must describe it
+      (MetadataError otherwise).
+    calibration: a Velodyne calibration file (ros-drivers YAML or VeloView XML); None: the
+      built-in table.
+    metadata: an Ouster sensor's metadata JSON (either layout); the capture is then read as Ouster
+      packets. MetadataError for a file that cannot describe a sensor (naming the key), and at the
+      end of a capture none of whose packets it describes.
+    intensity: Ouster: the points' intensity, "reflectivity" (calibrated reflectivity, 0-255: what
+      the detector's thresholds assume; the default) or "signal" (signal photons clamped to 255;
+      RNG19 profiles and LEGACY only, ValueError for RNG15).
+    cut_deg: azimuth where Velodyne rotations are cut, degrees (Ouster frames end where the frame
+      id changes).
     partial: also yield incomplete rotations (the first and last, and those with lost packets).
-    data_port, position_port, sensor: which packets are the sensor's (sensor: an IPv4 address).
+    data_port, position_port: which UDP ports are the sensor's data and auxiliary packets; None:
+      the vendor's (Velodyne 2368 and 8308, Ouster lidar 7502 and IMU 7503).
+    sensor: only packets from this IPv4 address (pcaps).
     rings, resolution_deg: PCD files and PointCloud2 clouds without a ring field and no model:
       beams to regress; column width when a cloud's points are binned by azimuth.
-    Returns a Reader: iterate it (`for rotation in lidartag.read(path)`), or list() it.
+    Returns a Reader: iterate it (`for rotation in lidartag.read(path)`), or list() it; its
+    vendor, model, sensor_info (Ouster metadata) and counts say what was read.
     """
     options = _lidartag._ReaderOptions()
     options.model = model
@@ -85,13 +110,15 @@ def read(path, model=None, calibration=None, cut_deg=180.0, partial=False, data_
     options.sensor = sensor
     options.cut_deg = float(cut_deg)
     options.partial = bool(partial)
-    options.data_port = int(data_port)
-    options.position_port = int(position_port)
+    options.data_port = None if data_port is None else int(data_port)
+    options.position_port = None if position_port is None else int(position_port)
     options.rings = int(rings)
     options.resolution_deg = float(resolution_deg)
     options.topic = topic
     options.start_s = float(start)
     options.duration_s = float("inf") if duration is None else float(duration)
+    options.metadata = None if metadata is None else _os.fspath(metadata)
+    options.intensity = str(intensity)
     return Reader(_os.fspath(path), options)
 
 
@@ -125,9 +152,11 @@ def simulate(scene, out=None, rotations=None, seed=None, partial=False):
     """Simulates a scene (see docs/simulator.md): a scene file path, YAML text, or a dict.
 
     With `out` (a .pcap path): writes the capture a real sensor would record and returns the
-    ground truth (a dict, as `lidartag sim --truth` writes it).
+    ground truth (a dict, as `lidartag sim --truth` writes it); an Ouster sensor's metadata goes
+    beside it (NAME.json for NAME.pcap), as `lidartag sim` writes it, so read(out) finds it.
     Without: returns (rotations, truth): the packets decoded in memory into the complete
-    rotations (all of them with partial=True), each matching truth["rotations"][i].
+    rotations (all of them with partial=True; an Ouster sensor's frames as read() gives them),
+    each matching truth["rotations"][i].
     rotations, seed: override the scene's.
     """
     text, is_path = _scene_text(scene)
@@ -277,9 +306,81 @@ def _per_pose(value, count, name):
     return a
 
 
+def ring_elevations(rotation):
+    """The elevation of each ring of `rotation` that has returns, radians (numpy, lowest first):
+    the mean atan2(z, hypot(x, y)) of its first returns, as `lidartag calibrate` measures the
+    rings a capture's tags were cut by (see ring_spacing_covariance)."""
+    return _lidartag._ring_elevations(rotation)
+
+
+def _corner_array(lidar_corners, what):
+    """(P, 4, 3) float64 corners and whether one pose (4, 3) was given."""
+    import numpy as np
+    corners = np.asarray(lidar_corners, dtype=float)
+    single = corners.shape == (4, 3)
+    if single:
+        corners = corners[None]
+    if corners.ndim != 3 or corners.shape[1:] != (4, 3) or corners.shape[0] < 1:
+        raise ValueError("%s: lidar_corners must be shaped (P, 4, 3) or (4, 3), got %s"
+                         % (what, corners.shape))
+    return np.ascontiguousarray(corners), single
+
+
+def _elevation_lists(value, count, what):
+    """One list of ring elevations (radians) per pose from a Rotation, an array of radians (the
+    same rings for every pose), or a sequence of `count` of those."""
+    import numpy as np
+    if isinstance(value, Rotation):
+        return [list(ring_elevations(value))] * count
+    if isinstance(value, (list, tuple)) and len(value) == count and count > 0 and all(
+            isinstance(v, Rotation) or np.ndim(v) == 1 for v in value):
+        return [list(ring_elevations(v)) if isinstance(v, Rotation)
+                else [float(x) for x in np.asarray(v, dtype=float)] for v in value]
+    a = np.asarray(value, dtype=float)
+    if a.ndim != 1:
+        raise ValueError("%s: ring_elevations: a Rotation, a 1-D array of radians, or one of "
+                         "those per pose (%d)" % (what, count))
+    return [[float(x) for x in a]] * count
+
+
+def ring_spacing_covariance(lidar_corners, ring_elevations):
+    """What the LiDAR's ring spacing leaves unknown in each tag's corners (m^2), the term
+    `lidartag calibrate` adds to every LiDAR tag (calib::add_ring_spacing_uncertainty): a tag whose
+    edges run along the rings (a square mount) is cut by the same rings every rotation, so its
+    position across the rings is known only to gap / sqrt(12), which no averaging shows; zero for
+    a tag turned away from the rings (a diamond).
+
+    lidar_corners: (P, 4, 3) or (4, 3) metres, LiDAR frame, calibrate()'s corner order
+      (Detection.corners); the tag's pose and size are taken from them.
+    ring_elevations: the sensor's rings, radians: a Rotation (its rings with returns, see
+      ring_elevations()), a 1-D array, or one of those per pose.
+    Returns (P, 12, 12) (or (12, 12) for one pose), corner-major as calibrate's lidar_covariance.
+    """
+    corners, single = _corner_array(lidar_corners, "ring_spacing_covariance")
+    lists = _elevation_lists(ring_elevations, corners.shape[0], "ring_spacing_covariance")
+    out = _lidartag._ring_spacing_covariance(corners, lists)
+    return out[0] if single else out
+
+
+def detection_covariance(lidar_corners, position_sigma_m=0.003, angle_sigma_deg=0.2,
+                         floor_m=0.002):
+    """The corners' covariance (m^2) `lidartag calibrate` gives a tag seen in one rotation
+    (calib::lidar_tag_from_detection): the tag's pose known to position_sigma_m per axis and
+    angle_sigma_deg per axis, plus floor_m on every coordinate. (For captures of several rotations
+    the CLI takes the tracker's window over them instead.)
+
+    lidar_corners: (P, 4, 3) or (4, 3) metres (Detection.corners).
+    Returns (P, 12, 12) (or (12, 12)), corner-major as calibrate's lidar_covariance.
+    """
+    corners, single = _corner_array(lidar_corners, "detection_covariance")
+    out = _lidartag._detection_covariance(corners, float(position_sigma_m),
+                                          float(angle_sigma_deg), float(floor_m))
+    return out[0] if single else out
+
+
 def calibrate(camera, image_corners, lidar_corners, sigma_px=0.3, lidar_sigma_m=0.004,
               labels=None, lidar_covariance=None, held_out=True, lidar_frame="lidar",
-              camera_frame="camera_optical_frame"):
+              camera_frame="camera_optical_frame", ring_elevations=None):
     """The camera-from-LiDAR extrinsic from tag poses seen by both sensors (docs/calibration.md).
 
     camera: a CameraModel (load_intrinsics, or built from numbers).
@@ -291,6 +392,12 @@ def calibrate(camera, image_corners, lidar_corners, sigma_px=0.3, lidar_sigma_m=
     lidar_sigma_m: each LiDAR corner coordinate's 1-sigma, metres (independent, isotropic): a number
       or one per pose. Default 4 mm: one rotation's detection at 5 m (docs/calibration.md).
     lidar_covariance: instead, each pose's joint corner covariance (P, 12, 12), m^2, corner-major.
+    ring_elevations: the LiDAR's rings (a Rotation of the capture, a 1-D array of radians, or
+      one of those per pose): adds ring_spacing_covariance() to each pose's covariance, as
+      `lidartag calibrate` always does (it knows its captures' rings). None (default): the
+      covariance given (lidar_sigma_m or lidar_covariance) is used as it is. With
+      lidar_covariance=detection_covariance(corners) and the rotation's ring_elevations, one
+      rotation's detections give what `lidartag calibrate` gives on a one-rotation capture.
     labels: names of the poses in the result (default "pose 0", "pose 1", ...).
     held_out: compute each pose's leave-one-out error (one more solve per pose).
     Returns a CalibrationResult. Raises ValueError for arrays of the wrong shape, non-finite values
@@ -328,6 +435,9 @@ def calibrate(camera, image_corners, lidar_corners, sigma_px=0.3, lidar_sigma_m=
                              % (count, cov.shape))
         if not np.all(np.isfinite(cov)):
             raise ValueError("calibrate: lidar_covariance is not finite")
+    if ring_elevations is not None:
+        cov = cov + ring_spacing_covariance(lidar, _elevation_lists(ring_elevations, count,
+                                                                    "calibrate"))
     if labels is None:
         labels = ["pose %d" % i for i in range(count)]
     labels = [str(label) for label in labels]

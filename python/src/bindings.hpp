@@ -17,6 +17,9 @@ namespace py = pybind11;
 // One rotation, owned by Python: a copy of the reader's scan holding its filled columns only.
 struct Rotation {
   Scan scan;
+  // The sensor's model name when the scan's model byte does not say it (an Ouster frame: "os1-128",
+  // from its metadata); empty otherwise.
+  std::string sensor_model;
 
   // Copies the filled columns of `source` (the reader's scan is reused for the next rotation).
   static Rotation copy_of(const Scan& source);
@@ -28,8 +31,10 @@ struct Rotation {
                               int64_t stamp_ns, uint64_t sequence);
 };
 
-// Model and return-mode names of a scan ("vlp32c", "dual"); empty when unknown.
+// Model and return-mode names of a scan ("vlp32c", "dual"; an Ouster frame's return mode is its
+// packet profile, "RNG19_RFL8_SIG16_NIR16"); empty when unknown.
 std::string model_name(const Scan& scan);
+std::string model_name(const Rotation& rotation);  // sensor_model, else model_name(scan)
 std::string return_mode_name(const Scan& scan);
 
 void bind_errors(py::module_& m);

@@ -10,6 +10,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <numbers>
 #include <optional>
 #include <span>
 #include <string>
@@ -23,6 +24,7 @@
 #include "lidartag/calib/image_io.hpp"
 #include "lidartag/calib/image_tags.hpp"
 #include "lidartag/calib/intrinsics_file.hpp"
+#include "lidartag/detector/tag_family.hpp"
 
 namespace lidartag::python {
 namespace {
@@ -154,6 +156,101 @@ std::string calibrate(const CameraModel& camera, const Doubles& image, const Dou
   return calib::calibration_json(result, {lidar_frame, camera_frame}).dump();
 }
 
+// A tag known only by its four corners (P x 4 x 3 array, pose i): its centre, its frame (x the
+// normal, y right, z up: Detection::corners' convention) and its size from the corners, as the
+// LidarTag the detector's pose would give (a family is needed only to turn the black square's
+// side into a marker size; any family gives the same square).
+calib::LidarTag tag_from_corners(const Doubles& corners, py::ssize_t i) {
+  calib::LidarTag t;
+  t.family = "tag36h11";
+  const tags::TagFamily& family = tags::builtin_family(t.family);
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  for (py::ssize_t k = 0; k < 4; ++k) {
+    Eigen::Vector3d& c = t.corners[static_cast<std::size_t>(k)];
+    c = {corners.at(i, k, 0), corners.at(i, k, 1), corners.at(i, k, 2)};
+    centre += c / 4;
+  }
+  const auto& c = t.corners;
+  const Eigen::Vector3d y = ((c[1] - c[0]) + (c[2] - c[3])).normalized();
+  Eigen::Vector3d z = (c[3] - c[0]) + (c[2] - c[1]);
+  z = (z - z.dot(y) * y).normalized();
+  Eigen::Matrix3d r;
+  r << y.cross(z), y, z;
+  const double side =
+      ((c[1] - c[0]).norm() + (c[2] - c[3]).norm() + (c[3] - c[0]).norm() + (c[2] - c[1]).norm()) /
+      4;
+  if (!(side > 0) || !r.allFinite())
+    throw py::value_error("lidar_corners of pose " + std::to_string(i) +
+                          " do not make a square (corners that coincide)");
+  t.position = centre;
+  t.orientation = Eigen::Quaterniond(r);
+  t.size_m = side / 2 / calib::black_half_side(family, 1.0);
+  t.corner_cov.setZero();
+  return t;
+}
+
+py::array_t<double> covariances(const std::vector<Eigen::Matrix<double, 12, 12>>& covs) {
+  py::array_t<double> out(std::vector<py::ssize_t>{static_cast<py::ssize_t>(covs.size()), 12, 12});
+  for (std::size_t i = 0; i < covs.size(); ++i)
+    for (py::ssize_t r = 0; r < 12; ++r)
+      for (py::ssize_t col = 0; col < 12; ++col)
+        out.mutable_at(static_cast<py::ssize_t>(i), r, col) = covs[i](r, col);
+  return out;
+}
+
+void require_corners(const Doubles& corners, const std::string& what) {
+  const py::ssize_t n = corners.ndim() == 3 ? corners.shape(0) : 0;
+  if (n < 1) throw py::value_error(what + ": lidar_corners must be shaped (P, 4, 3), P >= 1");
+  bool ok = corners.shape(1) == 4 && corners.shape(2) == 3;
+  const double* d = corners.data();
+  for (py::ssize_t i = 0; ok && i < corners.size(); ++i) ok = std::isfinite(d[i]);
+  if (!ok) throw py::value_error(what + ": lidar_corners must be finite and shaped (P, 4, 3)");
+}
+
+// calib::add_ring_spacing_uncertainty's term for each pose (P x 12 x 12, m^2): the tag of pose i
+// (lidar_corners[i]) under the rings of ring_elevations[i] (radians).
+py::array_t<double> ring_spacing_covariance(const Doubles& corners,
+                                            const std::vector<std::vector<double>>& elevations) {
+  require_corners(corners, "ring_spacing_covariance");
+  const py::ssize_t n = corners.shape(0);
+  if (elevations.size() != static_cast<std::size_t>(n))
+    throw py::value_error("ring_spacing_covariance: " + std::to_string(elevations.size()) +
+                          " ring elevation lists for " + std::to_string(n) + " poses");
+  std::vector<Eigen::Matrix<double, 12, 12>> out;
+  for (py::ssize_t i = 0; i < n; ++i) {
+    const auto& el = elevations[static_cast<std::size_t>(i)];
+    for (double e : el)
+      if (!std::isfinite(e) || std::abs(e) > std::numbers::pi / 2)
+        throw py::value_error(
+            "ring_spacing_covariance: ring elevations are radians in [-pi/2, "
+            "pi/2]");
+    calib::LidarTag t = tag_from_corners(corners, i);
+    calib::add_ring_spacing_uncertainty(t, tags::builtin_family(t.family), el);
+    out.push_back(t.corner_cov);
+  }
+  return covariances(out);
+}
+
+// The corners' covariance `lidartag calibrate` gives one rotation's detection
+// (calib::lidar_tag_from_detection with LidarCornerNoise), for each pose (P x 12 x 12, m^2).
+py::array_t<double> detection_covariance(const Doubles& corners, double position_sigma_m,
+                                         double angle_sigma_deg, double floor_m) {
+  require_corners(corners, "detection_covariance");
+  for (double v : {position_sigma_m, angle_sigma_deg, floor_m})
+    if (!std::isfinite(v) || v < 0)
+      throw py::value_error("detection_covariance: sigmas must be finite and not negative");
+  std::vector<Eigen::Matrix<double, 12, 12>> out;
+  for (py::ssize_t i = 0; i < corners.shape(0); ++i) {
+    calib::LidarTag t = tag_from_corners(corners, i);
+    t.corner_cov = calib::pose_corner_covariance(
+        t, Eigen::Matrix3d::Identity() * position_sigma_m * position_sigma_m,
+        angle_sigma_deg * std::numbers::pi / 180);
+    t.corner_cov.diagonal().array() += floor_m * floor_m;
+    out.push_back(t.corner_cov);
+  }
+  return covariances(out);
+}
+
 py::dict image_tag_dict(const calib::ImageTag& t) {
   py::dict d;
   d["family"] = t.family;
@@ -265,6 +362,17 @@ void bind_calib(py::module_& m) {
   py::register_exception<calib::CalibrationError>(m, "ExtrinsicError", m.attr("Error").ptr());
   m.def("_load_intrinsics", &calib::load_intrinsics, py::arg("path"));
   m.def("_calibrate", &calibrate);
+  m.def("_ring_spacing_covariance", &ring_spacing_covariance, py::arg("lidar_corners"),
+        py::arg("ring_elevations"));
+  m.def("_detection_covariance", &detection_covariance, py::arg("lidar_corners"),
+        py::arg("position_sigma_m"), py::arg("angle_sigma_deg"), py::arg("floor_m"));
+  m.def(
+      "_ring_elevations",
+      [](const Rotation& r) {
+        const std::vector<double> el = calib::ring_elevations_rad(r.scan);
+        return py::array_t<double>(static_cast<py::ssize_t>(el.size()), el.data());
+      },
+      py::arg("rotation"));
   m.def("_detect_image_tags", &detect_image_tags);
   m.def("_read_image", &read_gray_image, py::arg("path"),
         "A PNG or JPEG file as a (H, W) uint8 grey array, row 0 the top (colour converted by "

@@ -6,6 +6,7 @@
 #include "lidartag/detector/cloud_scan.hpp"
 #include "lidartag/detector/detector.hpp"
 #include "lidartag/detector/tag_family.hpp"
+#include "lidartag/driver/ouster/metadata.hpp"
 #include "lidartag/driver/velodyne/io/calibration_file.hpp"
 #include "lidartag/sim/scene.hpp"
 #include "lidartag/sim/truth.hpp"
@@ -20,6 +21,8 @@ void bind_errors(py::module_& m) {
   m.add_object("Error", py::handle(base));
   py::register_exception<driver::IoError>(m, "IoError", base);
   py::register_exception<velodyne::CalibrationError>(m, "CalibrationError", base);
+  // Ouster metadata that cannot describe a sensor, or that the capture's packets contradict.
+  py::register_exception<driver::ouster::MetadataError>(m, "MetadataError", base);
   py::register_exception<daemon::ConfigError>(m, "ConfigError", base);
   py::register_exception<detector::OptionsError>(m, "OptionsError", base);
   py::register_exception<detector::CloudError>(m, "CloudError", base);

@@ -4,7 +4,9 @@
 #include <pybind11/stl.h>
 
 #include <algorithm>
+#include <array>
 #include <cctype>
+#include <chrono>
 #include <cstddef>
 #include <filesystem>
 #include <limits>
@@ -19,6 +21,9 @@
 #include "lidartag/driver/bag/message_reader.hpp"
 #include "lidartag/driver/io/errors.hpp"
 #include "lidartag/driver/io/udp_frame.hpp"
+#include "lidartag/driver/ouster/io/capture_reader.hpp"
+#include "lidartag/driver/ouster/models.hpp"
+#include "lidartag/driver/sources/open_reader.hpp"
 #include "lidartag/driver/velodyne/io/capture_reader.hpp"
 #include "lidartag/driver/velodyne/io/pcd.hpp"
 #include "lidartag/driver/velodyne/sensor_model.hpp"
@@ -186,42 +191,123 @@ Rotation Rotation::from_points(const py::object& points, int rings,
 
 namespace {
 
-// Reads rotations lazily; the GIL is released while packets are read and decoded.
+// The model a capture is decoded as: a Velodyne model, or an Ouster model name the metadata must
+// describe ("os1-128"); ValueError naming both vendors' names otherwise.
+void capture_model(const std::optional<std::string>& name, driver::ScanSourceOptions& o) {
+  if (!name || name->empty()) return;
+  const std::string n = lower(*name);
+  if (const auto model = velodyne::model_from_name(n)) {
+    o.velodyne_model = model;
+  } else if (driver::ouster::is_model_name(n)) {
+    o.ouster_model = n;
+  } else {
+    throw py::value_error("unknown model '" + *name + "' (" + velodyne::model_names() +
+                          "; Ouster: os0, os1, os2 with -16, -32, -64, -128)");
+  }
+}
+
+driver::ouster::IntensitySource intensity_source(const std::string& name) {
+  const std::string n = lower(name);
+  if (n == "reflectivity") return driver::ouster::IntensitySource::kReflectivity;
+  if (n == "signal") return driver::ouster::IntensitySource::kSignal;
+  throw py::value_error("intensity '" + name + "': reflectivity or signal");
+}
+
+// A bag's time window over the packets of an Ouster bag (whose packets carry their message's
+// receive time): only those received in [start_s, start_s + duration_s) from the bag's start (its
+// earliest message, as driver::bag::MessageReader counts it) pass; the others are counted.
+class WindowSource final : public driver::PacketSource {
+ public:
+  WindowSource(std::unique_ptr<driver::PacketSource> inner, std::optional<int64_t> start_ns,
+               double start_s, double duration_s, uint64_t& outside)
+      : inner_(std::move(inner)),
+        start_ns_(start_ns),
+        start_s_(start_s),
+        duration_s_(duration_s),
+        outside_(outside) {}
+
+  driver::ReadStatus next(driver::RawPacket& out, std::chrono::milliseconds timeout) override {
+    for (;;) {
+      const driver::ReadStatus status = inner_->next(out, timeout);
+      if (status != driver::ReadStatus::kPacket) return status;
+      if (!start_ns_) start_ns_ = out.receive_time_ns;  // no index: the first message read
+      const double t = static_cast<double>(out.receive_time_ns - *start_ns_) * 1e-9;
+      if (t >= start_s_ && t - start_s_ < duration_s_) return status;
+      ++outside_;
+    }
+  }
+  driver::SourceStats stats() const override { return inner_->stats(); }
+  std::string error() const override { return inner_->error(); }
+
+ private:
+  std::unique_ptr<driver::PacketSource> inner_;
+  std::optional<int64_t> start_ns_;
+  double start_s_, duration_s_;
+  uint64_t& outside_;
+};
+
+// A bag's LiDAR topic (`topic`, or its one LiDAR topic) and the kind of its messages.
+struct BagTopic {
+  std::string name;
+  driver::bag::MessageKind kind = driver::bag::MessageKind::kOther;
+};
+BagTopic bag_topic(const std::string& path, const std::string& topic) {
+  const auto probe = driver::bag::open_bag(path);
+  BagTopic t;
+  t.name = driver::bag::choose_lidar_topic(probe->connections(), topic, path);
+  for (const driver::bag::Connection& c : probe->connections())
+    if (c.topic == t.name) t.kind = driver::bag::message_kind(c.type);
+  return t;
+}
+
+// Reads rotations lazily; the GIL is released while packets are read and decoded. Packet captures
+// (pcap/pcapng of Velodyne or Ouster packets, bags of VelodyneScan or Ouster packet messages) are
+// opened by the driver's source seam (driver::open_capture) as the daemon opens them.
 class Reader {
  public:
   struct Options {
     std::optional<std::string> model, calibration, sensor;
     double cut_deg = driver::BatcherOptions{}.cut_azimuth_deg;
     bool partial = false;
-    uint16_t data_port = velodyne::kDefaultDataPort;
-    uint16_t position_port = velodyne::kDefaultPositionPort;
+    // Unset: the vendor's ports (Velodyne 2368/8308, Ouster lidar 7502 / IMU 7503).
+    std::optional<uint16_t> data_port, position_port;
     int rings = 0;
     double resolution_deg = 0.2;
     std::optional<std::string> topic;  // a bag's LiDAR topic; None: its one LiDAR topic
     double start_s = 0;                // a bag's time window, seconds from its first message
     double duration_s = std::numeric_limits<double>::infinity();
+    // Ouster: the sensor's metadata JSON; None: NAME.json beside NAME.pcap, or a bag's metadata
+    // topic.
+    std::optional<std::string> metadata;
+    std::string intensity = "reflectivity";  // Ouster: "reflectivity" or "signal"
   };
 
   Reader(const std::string& path, const Options& o) : path_(path), partial_(o.partial) {
-    const auto model = model_option(o.model);
     std::error_code ec;
     // A file, or a folder (a ROS 2 bag): the capture reader tells them apart by content.
     if (!std::filesystem::exists(path, ec)) throw driver::IoError("no such file: '" + path + "'");
+    const bool is_bag = driver::bag::detect_bag_format(path) != driver::bag::BagFormat::kNone;
+    const bool ouster_options =
+        (o.metadata && !o.metadata->empty()) ||
+        intensity_source(o.intensity) != driver::ouster::IntensitySource::kReflectivity;
     if (is_pcd(path)) {
-      pcd_ = rotation_of_pcd(path, model, o.rings, o.resolution_deg);
+      if (ouster_options)
+        throw py::value_error("metadata and intensity are for Ouster captures; '" + path +
+                              "' is a PCD file");
+      pcd_ = rotation_of_pcd(path, model_option(o.model), o.rings, o.resolution_deg);
       return;
     }
-    const bool is_bag = driver::bag::detect_bag_format(path) != driver::bag::BagFormat::kNone;
     const std::string topic = o.topic.value_or("");
-    if (!is_bag &&
-        (o.topic || o.start_s != 0 || o.duration_s != std::numeric_limits<double>::infinity()))
+    const bool windowed = o.start_s != 0 || o.duration_s != std::numeric_limits<double>::infinity();
+    if (!is_bag && (o.topic || windowed))
       throw py::value_error("topic, start and duration are for ROS bags and MCAP files; '" + path +
                             "' is not one");
     if (const std::string problem = driver::bag::window_problem(o.start_s, o.duration_s);
         !problem.empty())
       throw py::value_error(problem);
-    if (is_bag && clouds::holds_point_clouds(path, topic)) {
+    if (is_bag && !ouster_options && clouds::holds_point_clouds(path, topic)) {
       // A PointCloud2 topic: each cloud a Rotation, as Rotation.from_points makes one.
+      const auto model = model_option(o.model);
       clouds::BagCloudOptions c;
       c.topic = topic;
       c.start_s = o.start_s;
@@ -233,22 +319,61 @@ class Reader {
       cloud_model_ = model;
       return;
     }
-    velodyne::CaptureReaderOptions options;
-    options.topic = topic;
-    options.bag_start_s = o.start_s;
-    options.bag_duration_s = o.duration_s;
-    options.source.data_port = o.data_port;
-    options.source.position_port = o.position_port;
+    driver::ScanSourceOptions so;
+    vendor_ports_ = !o.data_port && !o.position_port;
+    capture_model(o.model, so);
+    so.topic = topic;
+    so.metadata = o.metadata.value_or("");
+    so.data_port = o.data_port;
+    so.aux_port = o.position_port;
     if (o.sensor && !o.sensor->empty()) {
       uint32_t address = 0;
       if (!driver::parse_ipv4_address(*o.sensor, address))
         throw py::value_error("not an IPv4 address: '" + *o.sensor + "'");
-      options.source.sensor_ipv4 = address;
+      so.replay.sensor_ipv4 = address;
     }
-    options.model = model;
-    if (o.calibration) options.calibration_file = *o.calibration;
-    options.batcher.cut_azimuth_deg = o.cut_deg;
-    reader_ = std::make_unique<velodyne::CaptureReader>(path, options);
+    if (o.calibration) so.calibration_file = *o.calibration;
+    so.batcher.cut_azimuth_deg = o.cut_deg;
+    so.ouster_decoder.intensity = intensity_source(o.intensity);
+    const BagTopic windowed_topic = windowed ? bag_topic(path, topic) : BagTopic{};
+    if (windowed_topic.kind == driver::bag::MessageKind::kVelodyneScan) {
+      // VelodyneScan messages hold many packets stamped by the driver: the window is on the
+      // messages' receive times, so the bag reader applies it (the seam has no window).
+      if (ouster_options)
+        throw py::value_error("metadata and intensity are for Ouster captures; '" + path +
+                              "' holds Velodyne packets");
+      velodyne::CaptureReaderOptions v;
+      v.source = so.replay;
+      v.source.data_port = driver::data_port_of(driver::Vendor::kVelodyne, so);
+      v.source.position_port = driver::aux_port_of(driver::Vendor::kVelodyne, so);
+      v.topic = topic;
+      v.bag_start_s = o.start_s;
+      v.bag_duration_s = o.duration_s;
+      v.model = so.velodyne_model;
+      v.calibration_file = so.calibration_file;
+      v.batcher = so.batcher;
+      opened_.reader = std::make_unique<velodyne::CaptureReader>(path, v);
+      opened_.vendor = driver::Vendor::kVelodyne;
+      opened_.what = std::string(driver::bag::format_name(driver::bag::detect_bag_format(path))) +
+                     ", topic " + windowed_topic.name;
+    } else {
+      driver::SourceWrap wrap;
+      if (windowed) {
+        const std::optional<int64_t> start_ns = driver::bag::open_bag(path)->start_time_ns();
+        wrap = [this, start_ns, start_s = o.start_s,
+                duration_s = o.duration_s](std::unique_ptr<driver::PacketSource> source) {
+          return std::make_unique<WindowSource>(std::move(source), start_ns, start_s, duration_s,
+                                                outside_window_);
+        };
+      }
+      opened_ = driver::open_capture(path, so, wrap);
+    }
+    if (opened_.vendor == driver::Vendor::kVelodyne && ouster_options)
+      throw py::value_error("metadata and intensity are for Ouster captures; '" + path +
+                            "' holds Velodyne packets");
+    velodyne_ = dynamic_cast<velodyne::CaptureReader*>(opened_.reader.get());
+    ouster_ = dynamic_cast<driver::ouster::CaptureReader*>(opened_.reader.get());
+    if (ouster_) sensor_model_ = std::string(ouster_->description().model);
   }
 
   Rotation next() {
@@ -259,16 +384,23 @@ class Reader {
       return r;
     }
     if (clouds_) return next_cloud();
-    if (!reader_) throw py::stop_iteration();
+    if (!opened_.reader) throw py::stop_iteration();
     std::optional<Rotation> out;
     {
       py::gil_scoped_release release;
-      while (const Scan* scan = reader_->next()) {
-        if (!scan->complete && !partial_) {
+      for (;;) {
+        // Two scans in turn: a rotation handed out, the next one is assembled into the other.
+        Scan& scan = scans_[next_scan_];
+        const driver::ReadResult result = opened_.reader->read(scan, std::chrono::seconds(1));
+        if (result == driver::ReadResult::kTimeout) continue;
+        if (result == driver::ReadResult::kEnd) break;
+        next_scan_ = 1 - next_scan_;
+        if (!scan.complete && !partial_) {
           ++skipped_;
           continue;
         }
-        out = Rotation::copy_of(*scan);
+        out = Rotation::copy_of(scan);
+        out->sensor_model = sensor_model_;
         break;
       }
     }
@@ -281,11 +413,12 @@ class Reader {
   }
 
   // At the end, as `lidartag` does: a capture that gave no rotation, or that was cut short by a
-  // corrupt record, is an IoError (once), not an empty or a quietly shortened iteration.
+  // corrupt record, is an IoError (once), not an empty or a quietly shortened iteration; Ouster
+  // metadata that the packets contradict is a MetadataError naming what they would fit.
   void end_of_capture() {
     if (ended_) return;
     ended_ = true;
-    const std::string cut = reader_->source_error();
+    const std::string cut = opened_.reader->source_error();
     if (!cut.empty()) throw driver::IoError(cut);
     if (rotations_ > 0) return;
     if (skipped_ > 0) {
@@ -294,11 +427,25 @@ class Reader {
                             (skipped_ == 1 ? "" : "s") +
                             " (a truncated or very short capture?); partial=True reads them");
     }
-    throw driver::IoError("'" + path_ +
-                          "': no rotation: " + std::to_string(reader_->counts().data_packets) +
-                          " data packets, " + std::to_string(reader_->counts().decoded) +
-                          " decoded, " + std::to_string(reader_->source_stats().truncated) +
-                          " truncated records (check data_port, sensor, model)");
+    const driver::ReaderCounts c = opened_.reader->reader_counts();
+    if (ouster_ && c.decoded == 0 && !ouster_->metadata_mismatch().empty())
+      throw driver::ouster::MetadataMismatch("'" + path_ +
+                                             "': the metadata does not describe this capture's "
+                                             "sensor: " +
+                                             ouster_->metadata_mismatch());
+    const driver::SourceStats s = opened_.reader->source_stats();
+    // Nothing on Velodyne's own ports but other traffic: perhaps an Ouster capture whose metadata
+    // was not found.
+    const std::string hint =
+        !ouster_ && vendor_ports_ && c.data_packets == 0 && s.ignored > 0
+            ? "; " + std::to_string(s.ignored) +
+                  " packets to other ports: an Ouster capture is read with its metadata "
+                  "(metadata=FILE.json, or NAME.json beside NAME.pcap)"
+            : "";
+    throw driver::IoError("'" + path_ + "': no rotation: " + std::to_string(c.data_packets) +
+                          " data packets, " + std::to_string(c.decoded) + " decoded, " +
+                          std::to_string(s.truncated) + " truncated records (check data_port, " +
+                          "sensor, model" + (ouster_ ? ", metadata)" : ")") + hint);
   }
 
   // The next cloud of a PointCloud2 topic; clouds that cannot become a scan are counted
@@ -350,37 +497,94 @@ class Reader {
       d["topic"] = clouds_->topic();
       return d;
     }
-    if (!reader_) return d;
-    const auto& c = reader_->counts();
-    d["data_packets"] = c.data_packets;
-    d["position_packets"] = c.position_packets;
-    d["decoded"] = c.decoded;
-    uint64_t errors = 0;
-    for (uint64_t e : c.decode_errors) errors += e;
-    d["decode_errors"] = errors;
-    d["undecodable"] = c.undecodable;
-    d["gprmc_valid"] = c.gprmc_valid;
-    const auto s = reader_->source_stats();
+    if (!opened_.reader) return d;
+    const driver::ReaderCounts rc = opened_.reader->reader_counts();
+    d["data_packets"] = rc.data_packets;
+    d["decoded"] = rc.decoded;
+    if (velodyne_) {
+      const auto& c = velodyne_->counts();
+      d["position_packets"] = c.position_packets;
+      uint64_t errors = 0;
+      for (uint64_t e : c.decode_errors) errors += e;
+      d["decode_errors"] = errors;
+      d["undecodable"] = c.undecodable;
+      d["gprmc_valid"] = c.gprmc_valid;
+    }
+    if (ouster_) {
+      // Lidar packets are the data packets: decoded, or refused (decode_errors; those that
+      // contradict the metadata also in refused_mismatch). IMU packets are counted apart.
+      d["imu_packets"] = rc.aux_packets;
+      d["decode_errors"] = ouster_->decoder_stats().rejected();
+      d["refused_mismatch"] = rc.refused_mismatch;
+      d["invalid_columns"] = ouster_->decoder_stats().invalid_columns;
+      d["outside_window"] = outside_window_;
+    }
+    const auto s = opened_.reader->source_stats();
     d["ignored"] = s.ignored;
     d["truncated"] = s.truncated;
     d["malformed"] = s.malformed;
-    const auto b = reader_->batcher_stats();
+    const auto b = opened_.reader->batcher_stats();
     d["missing_packets"] = b.missing_packets;
     return d;
   }
 
   std::optional<std::string> model() const {
-    if (!reader_ || !reader_->model()) return std::nullopt;
-    return std::string(velodyne::model_spec(*reader_->model()).name);
+    if (!opened_.reader) return std::nullopt;
+    const std::string_view m = opened_.reader->description().model;
+    if (m.empty()) return std::nullopt;
+    return std::string(m);
   }
-  std::string model_mismatch() const { return reader_ ? reader_->model_mismatch() : ""; }
+  std::optional<std::string> vendor() const {
+    if (!opened_.reader) return std::nullopt;
+    return opened_.vendor == driver::Vendor::kOuster ? "ouster" : "velodyne";
+  }
+  std::string model_mismatch() const {
+    return opened_.reader ? opened_.reader->mismatch_text() : "";
+  }
+  // What the Ouster metadata says of the sensor (None for other sources).
+  py::object sensor_info() const {
+    if (!ouster_) return py::none();
+    const driver::ouster::SensorInfo& i = ouster_->info();
+    py::dict d;
+    d["model"] = sensor_model_;
+    d["prod_line"] = i.prod_line;
+    d["serial_number"] = i.serial_number;
+    d["firmware"] = i.firmware;
+    d["init_id"] = i.init_id;
+    d["lidar_mode"] = std::to_string(i.mode_columns) + "x" + std::to_string(i.mode_rate_hz);
+    d["profile"] = std::string(driver::ouster::profile_name(i.profile));
+    d["pixels_per_column"] = i.pixels_per_column;
+    d["columns_per_packet"] = i.columns_per_packet;
+    d["columns_per_frame"] = i.columns_per_frame;
+    d["column_window"] = py::make_tuple(i.column_window[0], i.column_window[1]);
+    d["beam_altitude_deg"] = py::array_t<double>(
+        static_cast<py::ssize_t>(i.beam_altitude_deg.size()), i.beam_altitude_deg.data());
+    d["beam_azimuth_deg"] = py::array_t<double>(static_cast<py::ssize_t>(i.beam_azimuth_deg.size()),
+                                                i.beam_azimuth_deg.data());
+    d["pixel_shift_by_row"] = i.pixel_shift_by_row;
+    d["lidar_origin_to_beam_origin_mm"] = i.lidar_origin_to_beam_origin_mm;
+    py::array_t<double> transform({4, 4});
+    std::copy(i.lidar_to_sensor_transform.begin(), i.lidar_to_sensor_transform.end(),
+              transform.mutable_data());
+    d["lidar_to_sensor_transform"] = transform;
+    d["nested_layout"] = i.nested_layout;
+    return d;
+  }
+  const std::string& what() const { return opened_.what; }
   const std::string& path() const { return path_; }
 
  private:
   std::string path_;
   bool partial_ = false;
   std::optional<Rotation> pcd_;
-  std::unique_ptr<velodyne::CaptureReader> reader_;
+  driver::OpenedReader opened_;                      // a packet capture
+  velodyne::CaptureReader* velodyne_ = nullptr;      // opened_.reader when Velodyne's
+  driver::ouster::CaptureReader* ouster_ = nullptr;  // opened_.reader when Ouster's
+  std::string sensor_model_;                         // Ouster: the metadata's model name
+  std::array<Scan, 2> scans_;
+  size_t next_scan_ = 0;
+  uint64_t outside_window_ = 0;  // Ouster bag packets outside the time window
+  bool vendor_ports_ = true;     // data_port and position_port not given: the vendor's
   std::unique_ptr<clouds::BagCloudReader> clouds_;  // a bag's PointCloud2 topic
   std::optional<velodyne::Model> cloud_model_;
   Scan cloud_scan_;
@@ -460,6 +664,11 @@ Rotation Rotation::copy_of(const Scan& s) {
   return r;
 }
 
+std::string model_name(const Rotation& r) {
+  if (!r.sensor_model.empty()) return r.sensor_model;
+  return model_name(r.scan);
+}
+
 std::string model_name(const Scan& scan) {
   const auto models = velodyne::all_models();
   const auto m = static_cast<velodyne::Model>(scan.model);
@@ -469,6 +678,10 @@ std::string model_name(const Scan& scan) {
 }
 
 std::string return_mode_name(const Scan& scan) {
+  if (scan.model == driver::ouster::kScanModel &&
+      scan.return_mode >= driver::ouster::kReturnModeBase)
+    return std::string(driver::ouster::profile_name(
+        static_cast<driver::ouster::Profile>(scan.return_mode - driver::ouster::kReturnModeBase)));
   const auto mode = velodyne::return_mode_from_byte(scan.return_mode);
   return mode ? std::string(velodyne::return_mode_name(*mode)) : std::string();
 }
@@ -504,7 +717,7 @@ from above, seconds from the rotation's first firing.)")
           "Began and ended at the cut with no packet lost.")
       .def_property_readonly("model",
                              [](const Rotation& r) -> py::object {
-                               const std::string n = model_name(r.scan);
+                               const std::string n = model_name(r);
                                return n.empty() ? py::object(py::none()) : py::str(n);
                              })
       .def_property_readonly("return_mode",
@@ -533,7 +746,7 @@ columns of resolution_deg of azimuth. Raises CloudError (no intensity, sizes tha
 that cannot be told).)")
       .def("__len__", [](const Rotation& r) { return r.scan.point_count(); })
       .def("__repr__", [](const Rotation& r) {
-        const std::string model = model_name(r.scan);
+        const std::string model = model_name(r);
         return "<lidartag.Rotation " + std::to_string(r.scan.sequence) + " " +
                (model.empty() ? "?" : model) + " stamp " +
                std::to_string(static_cast<double>(r.scan.stamp_ns) * 1e-9) + " s, " +
@@ -554,7 +767,9 @@ that cannot be told).)")
       .def_readwrite("resolution_deg", &Reader::Options::resolution_deg)
       .def_readwrite("topic", &Reader::Options::topic)
       .def_readwrite("start_s", &Reader::Options::start_s)
-      .def_readwrite("duration_s", &Reader::Options::duration_s);
+      .def_readwrite("duration_s", &Reader::Options::duration_s)
+      .def_readwrite("metadata", &Reader::Options::metadata)
+      .def_readwrite("intensity", &Reader::Options::intensity);
 
   py::class_<Reader>(m, "Reader", "Rotations of a capture, read one at a time (see read()).")
       .def(py::init<const std::string&, const Reader::Options&>())
@@ -563,9 +778,22 @@ that cannot be told).)")
       .def_property_readonly("counts", &Reader::counts,
                              "What was read so far: rotations, packets, errors, ...")
       .def_property_readonly("model", &Reader::model,
-                             "The model decoded as (None until decided, and for PCD files).")
+                             "The model decoded as ('vlp32c', 'os1-128'; None until decided, and "
+                             "for PCD files and point clouds).")
+      .def_property_readonly("vendor", &Reader::vendor,
+                             "'velodyne' or 'ouster' for packet captures; None for PCD files and "
+                             "point clouds.")
       .def_property_readonly("model_mismatch", &Reader::model_mismatch,
-                             "The product byte contradicting the packets' timing ('' if not).")
+                             "What contradicts the model in use ('' if nothing): Velodyne, the "
+                             "product byte against the packets' timing; Ouster, packets the "
+                             "metadata does not describe.")
+      .def_property_readonly("sensor_info", &Reader::sensor_info,
+                             "Ouster: the metadata's description of the sensor (a dict: model, "
+                             "prod_line, serial_number, firmware, lidar_mode, profile, beam "
+                             "tables, ...); None for other sources.")
+      .def_property_readonly("source", &Reader::what,
+                             "What was opened ('pcap', 'ROS 1 bag, topic ..., metadata ...'); '' "
+                             "for PCD files and point clouds.")
       .def_property_readonly("path", &Reader::path);
 
   m.def("_read_pcd", &read_pcd_fields, py::arg("path"));

@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <filesystem>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -13,8 +14,12 @@
 
 #include "bindings.hpp"
 #include "lidartag/driver/io/pcap_writer.hpp"
+#include "lidartag/driver/ouster/io/capture_reader.hpp"
+#include "lidartag/driver/ouster/metadata.hpp"
+#include "lidartag/driver/ouster/models.hpp"
 #include "lidartag/driver/packet_source.hpp"
 #include "lidartag/driver/velodyne/io/capture_reader.hpp"
+#include "lidartag/sim/ouster_sim.hpp"
 #include "lidartag/sim/simulator.hpp"
 
 namespace lidartag::python {
@@ -64,12 +69,19 @@ SimOutput simulate(const std::string& scene_text, bool is_path, const std::strin
   const int n = rotations.value_or(scene.rotations);
   if (n < 1 || n > 100000) throw py::value_error("rotations must be within 1..100000");
   const uint64_t s = seed.value_or(scene.seed);
-  // The module reads Velodyne captures only so far (issue 32): no Ouster rotations decoded as
-  // Velodyne's.
-  if (scene.sensor.ouster)
-    throw py::value_error(
-        "Ouster scenes are not simulated from Python yet: use `lidartag sim` (it writes NAME.pcap "
-        "and its metadata NAME.json)");
+  // An Ouster sensor's metadata: written beside the capture (NAME.json, as `lidartag sim` does),
+  // or what the packets are decoded with in memory.
+  std::optional<driver::ouster::SensorInfo> info;
+  std::string metadata;
+  if (scene.sensor.ouster) {
+    info = sim::ouster_sensor_info(scene.sensor);
+    if (!out.empty()) {
+      metadata = std::filesystem::path(out).replace_extension(".json").string();
+      if (metadata == out)
+        throw py::value_error("out: '" + out +
+                              "' is where the Ouster capture's metadata goes: name it NAME.pcap");
+    }
+  }
   const auto model = scene.sensor.model;
   const double cut = scene.sensor.cut_azimuth_deg;
   sim::Simulator simulator(std::move(scene));
@@ -85,6 +97,7 @@ SimOutput simulate(const std::string& scene_text, bool is_path, const std::strin
         },
         &stats);
     writer.close();
+    if (info) driver::ouster::write_metadata(*info, metadata);
   } else {
     std::vector<MemorySource::Packet> packets;
     truth = simulator.run(
@@ -93,12 +106,24 @@ SimOutput simulate(const std::string& scene_text, bool is_path, const std::strin
           packets.push_back({{payload.begin(), payload.end()}, time_ns, port});
         },
         &stats);
-    velodyne::CaptureReaderOptions options;
-    options.model = model;
-    options.batcher.cut_azimuth_deg = cut;
-    velodyne::CaptureReader reader(std::make_unique<MemorySource>(std::move(packets)), options);
-    while (const Scan* scan = reader.next())
-      if (scan->complete || partial) result.rotations.push_back(Rotation::copy_of(*scan));
+    auto source = std::make_unique<MemorySource>(std::move(packets));
+    if (info) {
+      // Ouster: frames by frame id, destaggered, as a pcap of the packets with its metadata.
+      driver::ouster::CaptureReader reader(std::move(source), *info);
+      const std::string name = driver::ouster::model_name(*info);
+      while (const Scan* scan = reader.next())
+        if (scan->complete || partial) {
+          result.rotations.push_back(Rotation::copy_of(*scan));
+          result.rotations.back().sensor_model = name;
+        }
+    } else {
+      velodyne::CaptureReaderOptions options;
+      options.model = model;
+      options.batcher.cut_azimuth_deg = cut;
+      velodyne::CaptureReader reader(std::move(source), options);
+      while (const Scan* scan = reader.next())
+        if (scan->complete || partial) result.rotations.push_back(Rotation::copy_of(*scan));
+    }
   }
   result.truth_json = sim::truth_to_json(truth).dump();
   result.data_packets = stats.data_packets;

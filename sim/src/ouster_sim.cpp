@@ -30,6 +30,24 @@ struct Beam {
   double azimuth_rad;  // theta_a of the formula: minus the metadata's clockwise offset
 };
 
+// What an Ouster sensor reports of a beam's echoes: the strongest (out[0]); in a dual profile
+// also the second strongest (out[1]), when there is one (Ouster's dual returns: RANGE the
+// strongest echo, RANGE2 the second strongest, 0 when there is none). Returns how many.
+int ouster_returns(const BeamEchoes& echoes, bool dual, std::array<Echo, 2>& out) {
+  if (echoes.count == 0) return 0;
+  const auto count = static_cast<size_t>(echoes.count);
+  size_t first = 0;
+  for (size_t i = 1; i < count; ++i)
+    if (echoes.echo[i].strength() > echoes.echo[first].strength()) first = i;
+  out[0] = echoes.echo[first];
+  if (!dual || count == 1) return 1;
+  size_t second = first == 0 ? 1 : 0;
+  for (size_t i = 0; i < count; ++i)
+    if (i != first && echoes.echo[i].strength() > echoes.echo[second].strength()) second = i;
+  out[1] = echoes.echo[second];
+  return 2;
+}
+
 }  // namespace
 
 ouster::SensorInfo ouster_sensor_info(const SensorOptions& sensor) {
@@ -47,6 +65,7 @@ Truth run_ouster(const Scene& scene, const World& world, const std::vector<TagTa
   const ouster::ModelSpec& model = ouster::model_spec(o.model);
   const ouster::SensorInfo info = ouster_sensor_info(so);
   const ouster::PacketFormat format = ouster::PacketFormat::of(info);
+  const bool dual = info.returns() == 2;
   const NoiseOptions& noise = so.noise;
   const Trajectory trajectory(so);
 
@@ -131,17 +150,35 @@ Truth run_ouster(const Scene& scene, const World& world, const std::vector<TagTa
           form_echoes(std::span<const SubReturn>(subs.data(), static_cast<size_t>(footprint_count)),
                       noise, rng);
       std::array<Echo, 2> picked{};
-      if (select_returns(echoes, velodyne::ReturnMode::kStrongest, picked) == 0) continue;
-      const Echo e = add_noise(picked[0], noise, rng);
-      if (e.range < min_range || e.range > max_range) continue;
-      // The formula's point is beam origin + (r - n) direction: r = n + the distance along the ray.
-      col.range_mm[b] = static_cast<uint32_t>(std::max(1L, std::lround((e.range + n_m) * 1e3)));
-      col.reflectivity[b] = static_cast<uint8_t>(std::clamp(std::lround(e.reflectivity), 0L, 255L));
-      col.signal[b] = static_cast<uint16_t>(
-          std::clamp(std::lround(kSignalScale * e.reflectivity / std::max(e.range * e.range, 0.01)),
-                     0L, 65535L));
-      ++st.points;
-      if (rt != nullptr && e.tag >= 0) ++rt->tags[static_cast<size_t>(e.tag)].returns;
+      const int count = ouster_returns(echoes, dual, picked);
+      for (size_t r = 0; r < static_cast<size_t>(count); ++r) {
+        const Echo e = add_noise(picked[r], noise, rng);
+        // Out of range: no return (and no second return without a first).
+        if (e.range < min_range || e.range > max_range) break;
+        // The formula's point is beam origin + (r - n) direction: r = n + the distance along the
+        // ray.
+        const auto range_mm =
+            static_cast<uint32_t>(std::max(1L, std::lround((e.range + n_m) * 1e3)));
+        const auto reflectivity =
+            static_cast<uint8_t>(std::clamp(std::lround(e.reflectivity), 0L, 255L));
+        // SIGNAL of the echo before the noise: the returns' order (the strongest first) holds.
+        const Echo& x = picked[r];
+        const auto signal = static_cast<uint16_t>(std::clamp(
+            std::lround(kSignalScale * x.reflectivity / std::max(x.range * x.range, 0.01)), 0L,
+            65535L));
+        if (r == 0) {
+          col.range_mm[b] = range_mm;
+          col.reflectivity[b] = reflectivity;
+          col.signal[b] = signal;
+        } else {
+          col.range2_mm[b] = range_mm;
+          col.reflectivity2[b] = reflectivity;
+          col.signal2[b] = signal;
+        }
+        ++st.points;
+        // The truth counts the tag's returns of the first (strongest) echo.
+        if (r == 0 && rt != nullptr && e.tag >= 0) ++rt->tags[static_cast<size_t>(e.tag)].returns;
+      }
     }
     ++st.columns;
     if ((k + 1) % per_packet != 0) continue;

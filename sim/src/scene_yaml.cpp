@@ -223,10 +223,13 @@ void parse_ouster(const YAML::Node& node, const std::string& path, driver::ouste
     o.profile = Profile::kRng19Rfl8Sig16Nir16;
   else if (profile == "legacy" || profile == "LEGACY")
     o.profile = Profile::kLegacy;
+  else if (profile == "rng19_dual" || profile == "RNG19_RFL8_SIG16_NIR16_DUAL")
+    o.profile = Profile::kRng19Rfl8Sig16Nir16Dual;
   else if (profile == "rng15" || profile == "RNG15_RFL8_NIR8")
     o.profile = Profile::kRng15Rfl8Nir8;
   else
-    fail(join(path, "profile"), "unknown profile '" + profile + "' (rng19, legacy, rng15)");
+    fail(join(path, "profile"),
+         "unknown profile '" + profile + "' (rng19, rng19_dual, legacy, rng15)");
   s.ouster = o;
   s.noise = NoiseOptions{};
 }

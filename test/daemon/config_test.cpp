@@ -16,6 +16,8 @@
 #include <utility>
 #include <vector>
 
+#include "field_count.hpp"
+
 namespace lidartag::daemon {
 namespace {
 
@@ -46,19 +48,7 @@ TEST(Config, ShippedFileHoldsEveryKeyWithItsDefault) {
   EXPECT_EQ(shipped_keys, all_keys);
 }
 
-// Number of fields of an aggregate: the largest N for which T{x1, ..., xN} compiles.
-struct AnyField {
-  template <class T>
-  operator T() const;  // NOLINT: only used in unevaluated contexts
-};
-template <class T, class... A>
-constexpr size_t field_count() {
-  if constexpr (requires { T{A{}..., AnyField{}}; }) {
-    return field_count<T, A..., AnyField>();
-  } else {
-    return sizeof...(A);
-  }
-}
+using lidartag::test::field_count;
 
 // Counts what a rule table lists: per section (a section is one field of its parent), and the
 // settings (fields and choices) in all.
@@ -254,6 +244,23 @@ struct BadCase {
   std::string key, value, reason_part;
 };
 
+// Each case's YAML is refused by one ConfigError naming its key and value, with a one-line message
+// whose reason contains reason_part.
+void expect_refused(const std::vector<BadCase>& cases) {
+  for (const auto& c : cases) {
+    SCOPED_TRACE(c.yaml);
+    try {
+      (void)parse_config(c.yaml);
+      ADD_FAILURE() << "accepted";
+    } catch (const ConfigError& e) {
+      EXPECT_EQ(e.key(), c.key);
+      EXPECT_EQ(e.value(), c.value);
+      EXPECT_NE(e.reason().find(c.reason_part), std::string::npos) << e.reason();
+      EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos);
+    }
+  }
+}
+
 TEST(Config, EachBadKeyOrValueNamesKeyValueAndReason) {
   const std::vector<BadCase> cases = {
       {"bogus: 1", "bogus", "1", "unknown key"},
@@ -319,18 +326,7 @@ TEST(Config, EachBadKeyOrValueNamesKeyValueAndReason) {
       {"detector: {features: [1, 2]}", "detector.features", "[1, 2]", "expected a map"},
       {"[1, 2]", "config", "[1, 2]", "expected a map"},
   };
-  for (const auto& c : cases) {
-    SCOPED_TRACE(c.yaml);
-    try {
-      (void)parse_config(c.yaml);
-      ADD_FAILURE() << "accepted";
-    } catch (const ConfigError& e) {
-      EXPECT_EQ(e.key(), c.key);
-      EXPECT_EQ(e.value(), c.value);
-      EXPECT_NE(e.reason().find(c.reason_part), std::string::npos) << e.reason();
-      EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos);
-    }
-  }
+  expect_refused(cases);
 }
 
 TEST(Config, BadYamlAndBadOverridesAreConfigErrors) {
@@ -466,17 +462,7 @@ TEST(Config, TrackerBadValuesNameKeyValueAndRule) {
       {"tracker: {max_tracks: 0}", "tracker.max_tracks", "0", "must be in [1, 4096]"},
       {"tracker: {gate: 1}", "tracker.gate", "1", "unknown key"},
   };
-  for (const auto& c : cases) {
-    SCOPED_TRACE(c.yaml);
-    try {
-      (void)parse_config(c.yaml);
-      ADD_FAILURE() << "accepted";
-    } catch (const ConfigError& e) {
-      EXPECT_EQ(e.key(), c.key);
-      EXPECT_EQ(e.value(), c.value);
-      EXPECT_NE(e.reason().find(c.reason_part), std::string::npos) << e.reason();
-    }
-  }
+  expect_refused(cases);
   // Options built in code: the same table.
   DaemonOptions o;
   o.tracker.full_cell_votes = 0.5;
@@ -523,17 +509,7 @@ TEST(Config, EgoMotionIsOffByDefaultAndMappedWithItsRules) {
        "must be in [-360, 360]"},
       {"ego_motion: {channel: \"A\\tB\"}", "ego_motion.channel", "A\tB", "printable ASCII"},
   };
-  for (const auto& c : cases) {
-    SCOPED_TRACE(c.yaml);
-    try {
-      (void)parse_config(c.yaml);
-      ADD_FAILURE() << "accepted";
-    } catch (const ConfigError& e) {
-      EXPECT_EQ(e.key(), c.key);
-      EXPECT_EQ(e.value(), c.value);
-      EXPECT_NE(e.reason().find(c.reason_part), std::string::npos) << e.reason();
-    }
-  }
+  expect_refused(cases);
 }
 
 }  // namespace

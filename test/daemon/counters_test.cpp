@@ -375,8 +375,9 @@ TEST(Counters, DropsWhenDetectionFallsBehindAddUpAndAreReported) {
 }
 
 TEST(Counters, WorkerThreadsRotationsAreDetectedAtOnceNeverMore) {
-  // A replay at full speed with a detection stage that takes 20 ms: rotations wait, so every
-  // worker is busy; none more (the first stage never holds a worker waiting for the source).
+  // A replay at full speed with a detection stage that holds each rotation until every worker has
+  // one (at most 5 s: a loaded machine may assemble slowly), then 20 ms more: rotations wait, so
+  // every worker is busy; none more (the first stage never holds a worker waiting for the source).
   const auto packets = packets_of(sensor_stream(Model::kVLP32C, 1.0));
   for (int workers : {1, 2, 3}) {
     SCOPED_TRACE(workers);
@@ -387,6 +388,10 @@ TEST(Counters, WorkerThreadsRotationsAreDetectedAtOnceNeverMore) {
           const int n = now.fetch_add(1) + 1;
           int m = most.load();
           while (n > m && !most.compare_exchange_weak(m, n)) {
+          }
+          const auto until = std::chrono::steady_clock::now() + 5s;
+          while (most.load() < workers && std::chrono::steady_clock::now() < until) {
+            std::this_thread::sleep_for(1ms);
           }
           std::this_thread::sleep_for(20ms);
           now.fetch_sub(1);

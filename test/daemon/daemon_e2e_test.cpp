@@ -20,6 +20,7 @@
 #include <tuple>
 
 #include "daemon/demo_daemon.hpp"
+#include "daemon/lcm_log_messages.hpp"
 #include "daemon/namespaces.hpp"
 #include "daemon/process.hpp"
 #include "fake_notify_socket.hpp"
@@ -102,44 +103,9 @@ void expect_truthful(const std::vector<lidartag::tag_detections_t>& rotations, u
   EXPECT_GE(complete, truth.rotations - 1);
 }
 
-template <class T>
-bool decode(const void* data, size_t size, T& out) {
-  try {
-    return out.decode(data, 0, static_cast<int>(size)) == static_cast<int>(size);
-  } catch (const std::exception&) {
-    return false;
-  }
-}
-
-struct Decoded {
-  std::vector<lidartag::tag_detections_t> detections;
-  std::vector<lidartag::status_t> status;
-  std::vector<lidartag::raw_packet_t> raw;
-  std::vector<lidartag::tag_points_t> tag_points;
-  std::vector<lidartag::point_cloud_t> clouds;
-};
-
-Decoded read_log(const std::string& path, const std::string& prefix = "") {
-  Decoded d;
-  lcm::LogFile log(path, "r");
-  EXPECT_TRUE(log.good()) << path;
-  if (!log.good()) return d;
-  while (const lcm::LogEvent* e = log.readNextEvent()) {
-    const auto size = static_cast<size_t>(e->datalen);
-    if (e->channel == prefix + "LIDARTAG_DETECTIONS") {
-      EXPECT_TRUE(decode(e->data, size, d.detections.emplace_back()));
-    } else if (e->channel == prefix + "LIDARTAG_STATUS") {
-      EXPECT_TRUE(decode(e->data, size, d.status.emplace_back()));
-    } else if (e->channel == prefix + "LIDARTAG_RAW") {
-      EXPECT_TRUE(decode(e->data, size, d.raw.emplace_back()));
-    } else if (e->channel == prefix + "LIDARTAG_TAG_POINTS") {
-      EXPECT_TRUE(decode(e->data, size, d.tag_points.emplace_back()));
-    } else if (e->channel == prefix + "LIDARTAG_CLOUD") {
-      EXPECT_TRUE(decode(e->data, size, d.clouds.emplace_back()));
-    }
-  }
-  return d;
-}
+using lidartag::daemon::lcm_test::decode;
+using Decoded = lidartag::daemon::lcm_test::LoggedMessages;
+using lidartag::daemon::lcm_test::read_log;
 
 std::vector<std::string> replay_lines(const std::vector<std::string>& extra = {}) {
   std::vector<std::string> args = {kDaemon,     "--config", kDemoConfig,

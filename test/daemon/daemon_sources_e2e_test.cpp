@@ -19,6 +19,7 @@
 #include <set>
 #include <thread>
 
+#include "daemon/lcm_log_messages.hpp"
 #include "daemon/namespaces.hpp"
 #include "daemon/process.hpp"
 #include "fake_notify_socket.hpp"
@@ -98,38 +99,9 @@ std::string config(const std::string& name, const std::string& extra) {
   return path;
 }
 
-template <class T>
-bool decode(const void* data, size_t size, T& out) {
-  try {
-    return out.decode(data, 0, static_cast<int>(size)) == static_cast<int>(size);
-  } catch (const std::exception&) {
-    return false;
-  }
-}
-
-struct Decoded {
-  std::vector<lidartag::tag_detections_t> detections;
-  std::vector<lidartag::status_t> status;
-  std::vector<lidartag::point_cloud_t> clouds;
-};
-
-Decoded read_log(const std::string& path) {
-  Decoded d;
-  lcm::LogFile log(path, "r");
-  EXPECT_TRUE(log.good()) << path;
-  if (!log.good()) return d;
-  while (const lcm::LogEvent* e = log.readNextEvent()) {
-    const auto size = static_cast<size_t>(e->datalen);
-    if (e->channel == "LIDARTAG_DETECTIONS") {
-      EXPECT_TRUE(decode(e->data, size, d.detections.emplace_back()));
-    } else if (e->channel == "LIDARTAG_STATUS") {
-      EXPECT_TRUE(decode(e->data, size, d.status.emplace_back()));
-    } else if (e->channel == "LIDARTAG_CLOUD") {
-      EXPECT_TRUE(decode(e->data, size, d.clouds.emplace_back()));
-    }
-  }
-  return d;
-}
+using lidartag::daemon::lcm_test::decode;
+using Decoded = lidartag::daemon::lcm_test::LoggedMessages;
+using lidartag::daemon::lcm_test::read_log;
 
 // Runs the daemon to the end of its replay into an LCM log; returns its exit status.
 int replay(const std::string& log, const std::vector<std::string>& args,

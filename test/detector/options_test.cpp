@@ -9,24 +9,13 @@
 #include <set>
 #include <string>
 
+#include "field_count.hpp"
 #include "lidartag/detector/detector.hpp"
 
 namespace lidartag::detector {
 namespace {
 
-// Number of fields of an aggregate: the largest N for which T{x1, ..., xN} compiles.
-struct AnyField {
-  template <class T>
-  operator T() const;  // NOLINT: only used in unevaluated contexts
-};
-template <class T, class... A>
-constexpr size_t field_count() {
-  if constexpr (requires { T{A{}..., AnyField{}}; }) {
-    return field_count<T, A..., AnyField>();
-  } else {
-    return sizeof...(A);
-  }
-}
+using lidartag::test::field_count;
 
 // Records every key the table visits, per section, with its unit.
 class KeyLister {

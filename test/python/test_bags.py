@@ -68,3 +68,7 @@ def test_a_bag_time_window_and_a_wrong_topic():
     reader = lidartag.read(velodyne, start=0.15, duration=0.2, partial=True)
     list(reader)
     assert reader.counts["data_packets"] == 301  # two VelodyneScan messages of four
+    # As the whole bag is opened (driver::open_capture) and named.
+    assert reader.vendor == "velodyne"
+    assert reader.source == lidartag.read(velodyne).source == "ROS 2 bag (sqlite3), topic " \
+        "/velodyne_packets"

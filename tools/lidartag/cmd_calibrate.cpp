@@ -159,19 +159,12 @@ std::vector<calib::LidarTag> lidar_tags_of(const std::string& path, const Calibr
     tracker.update(result, scan.stamp_ns, tracked);
     last_detections = result.detections;
     points.clear();
-    ring_elevations.clear();
-    for (int ring = 0; ring < scan.rings; ++ring) {
-      double sum = 0;
-      int n = 0;
+    for (int ring = 0; ring < scan.rings; ++ring)
       for (int col = 0; col < scan.columns; ++col) {
         const size_t i = scan.at(0, ring, col);
-        if (scan.range[i] <= 0) continue;
-        points.emplace_back(scan.x[i], scan.y[i], scan.z[i]);
-        sum += std::atan2(scan.z[i], std::hypot(scan.x[i], scan.y[i]));
-        ++n;
+        if (scan.range[i] > 0) points.emplace_back(scan.x[i], scan.y[i], scan.z[i]);
       }
-      if (n > 0) ring_elevations.push_back(sum / n);
-    }
+    ring_elevations = calib::ring_elevations_rad(scan);
     for (const det::TrackedDetection& t : tracked.tags)
       if (t.track.confirmed || t.decoded) latest[t.track.track_id] = t;
     ++rotations;

@@ -36,15 +36,15 @@ class McapReader final : public MessageReader {
 
   bool next(BagMessage& out) override {
     for (;;) {
-      while (chunk_pos_ < chunk_.size()) {
-        Cursor c(std::span<const uint8_t>(chunk_).subspan(chunk_pos_));
+      while (chunk_pos_ < chunk_view_.size()) {
+        Cursor c(chunk_view_.subspan(chunk_pos_));
         const auto op = c.get<uint8_t>();
         const auto length = c.get<uint64_t>();
         const auto body = c.take(length);
         if (!c.ok()) {
           ++stats_.skipped_records;
           note(at(chunk_start_) + "chunk ends inside a record; rest of the chunk skipped");
-          chunk_pos_ = chunk_.size();
+          chunk_pos_ = chunk_view_.size();
           break;
         }
         chunk_pos_ += c.pos();
@@ -106,7 +106,7 @@ class McapReader final : public MessageReader {
  private:
   void read_chunk(uint64_t here) {
     ++stats_.chunks;
-    chunk_.clear();
+    chunk_view_ = {};
     chunk_pos_ = 0;
     chunk_start_ = here;
     Cursor c(record_);
@@ -123,13 +123,21 @@ class McapReader final : public MessageReader {
     } else if (size > options_.max_chunk_bytes) {
       problem = "chunk of " + std::to_string(size) + " bytes declared (corrupt)";
     } else {
-      problem = decompress(compression, records, size, chunk_);
-      if (problem.empty() && crc != 0 && crc32(chunk_) != crc) problem = "CRC mismatch";
+      // Stored records are read where they lie in record_ (untouched until the chunk is read);
+      // compressed ones are decompressed into chunk_ (kept at its size: no zero-filling).
+      const bool stored = compression.empty() || compression == "none";
+      if (stored && records.size() == size) {
+        chunk_view_ = records;
+      } else {
+        problem = decompress(compression, records, size, chunk_);
+        chunk_view_ = std::span<const uint8_t>(chunk_).first(problem.empty() ? size : 0);
+      }
+      if (problem.empty() && crc != 0 && crc32(chunk_view_) != crc) problem = "CRC mismatch";
     }
     if (!problem.empty()) {
       ++stats_.skipped_chunks;
       note(at(here) + "chunk skipped: " + problem);
-      chunk_.clear();
+      chunk_view_ = {};
     }
   }
 
@@ -257,6 +265,7 @@ class McapReader final : public MessageReader {
   std::map<uint16_t, std::string> schemas_;
   std::map<uint16_t, uint32_t> channels_;
   std::vector<uint8_t> record_, chunk_;
+  std::span<const uint8_t> chunk_view_;  // the chunk's records: in record_ or chunk_
   size_t chunk_pos_ = 0;
   uint64_t chunk_start_ = 0;
 };

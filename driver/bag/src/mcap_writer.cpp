@@ -10,7 +10,6 @@
 
 #include <lz4frame.h>
 #include <unistd.h>
-#include <zlib.h>
 #include <zstd.h>
 
 #include <algorithm>
@@ -18,6 +17,8 @@
 #include <cstring>
 #include <filesystem>
 #include <system_error>
+
+#include "internal.hpp"
 
 namespace lidartag::driver::bag {
 namespace {
@@ -27,12 +28,6 @@ constexpr uint8_t kHeader = 0x01, kFooter = 0x02, kSchema = 0x03, kChannel = 0x0
                   kChunk = 0x06, kMessageIndex = 0x07, kChunkIndex = 0x08, kStatistics = 0x0B,
                   kSummaryOffset = 0x0E, kDataEnd = 0x0F;
 constexpr size_t kRecordHead = 9;  // opcode + u64 length
-
-// CRC-32 (the same as detail::crc32, which the reader checks with) through zlib's, several times
-// faster than a byte table: a rotation's chunk and file bytes are checksummed as they are written.
-uint32_t crc32_of(std::span<const uint8_t> bytes, uint32_t crc = 0) {
-  return static_cast<uint32_t>(::crc32_z(crc, bytes.data(), bytes.size()));
-}
 
 template <class T, class Out>
 void put(Out& out, T value) {
@@ -234,7 +229,7 @@ void McapWriter::emit(std::span<const uint8_t> bytes) {
     fail(std::string("write failed: ") + std::strerror(errno));
     return;
   }
-  if (in_data_) data_crc_ = crc32_of(bytes, data_crc_);
+  if (in_data_) data_crc_ = detail::crc32(bytes, data_crc_);
   offset_ += bytes.size();
   stats_.bytes = offset_;
 }
@@ -247,7 +242,7 @@ void McapWriter::emit(const std::string& bytes) {
 void McapWriter::flush_chunk() {
   if (chunk_.empty() || !error_.empty()) return;
   const std::span<const uint8_t> raw(chunk_);
-  const uint32_t crc = crc32_of(raw);
+  const uint32_t crc = detail::crc32(raw);
   std::span<const uint8_t> stored = raw;
   McapCompression compression = options_.compression;
   if (compression == McapCompression::kZstd) {
@@ -399,7 +394,7 @@ void McapWriter::write_summary() {
   put(s, uint64_t{8 + 8 + 4});  // its length, fixed (and covered by the CRC)
   put(s, summary_start);
   put(s, summary_offset_start);
-  const uint32_t crc = crc32_of(bytes_of(s));
+  const uint32_t crc = detail::crc32(bytes_of(s));
   put(s, crc);
   s.append(kMagic);
   emit(s);

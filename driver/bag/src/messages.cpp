@@ -191,6 +191,10 @@ DecodeResult decode_point_cloud(std::span<const uint8_t> message, Encoding encod
 
 namespace {
 
+// No LiDAR sweep lasts this long (seconds): a floating time field spanning more in one cloud
+// counts nanoseconds.
+constexpr double kLongestSweepS = 1000.0;
+
 double field_value(const uint8_t* p, PointFieldType type, bool big_endian) {
   uint8_t b[8] = {};
   const size_t n = type_size(type);
@@ -286,7 +290,12 @@ void cloud_columns(const PointCloudView& cloud, CloudColumns& out) {
   } else if (const PointField* f =
                  find_field(cloud, {"time", "t", "time_offset", "timestamp", "time_stamp"})) {
     column(packed, *f, time);
-    if (is_integer(f->type))
+    // Integer times count ns. Floating ones are seconds, unless their span in this one cloud is
+    // beyond any sweep's (Livox's driver writes ns since the epoch in a double).
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    for (const double v : time)
+      if (std::isfinite(v)) lo = std::min(lo, v), hi = std::max(hi, v);
+    if (is_integer(f->type) || (hi > lo && hi - lo > kLongestSweepS))
       for (double& v : time) v *= 1e-9;
     source = std::string(f->name);
   }

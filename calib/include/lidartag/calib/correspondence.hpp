@@ -27,6 +27,7 @@
 #include "lidartag/detector/result.hpp"
 #include "lidartag/detector/tag_family.hpp"
 #include "lidartag/detector/tracker.hpp"
+#include "lidartag/driver/scan.hpp"
 
 namespace lidartag::calib {
 
@@ -99,6 +100,11 @@ LidarTag lidar_tag_from_track(const detector::TrackInfo& track, const tags::TagF
 // LiDAR frame.
 void add_ring_spacing_uncertainty(LidarTag& tag, const tags::TagFamily& family,
                                   std::span<const double> ring_elevations_rad);
+
+// The elevation of each ring of `scan` that has returns (first return), radians: the mean of its
+// returns' atan2(z, hypot(x, y)), rings without a return left out. What `lidartag calibrate` passes
+// to add_ring_spacing_uncertainty for a capture (its last rotation's rings).
+std::vector<double> ring_elevations_rad(const Scan& scan);
 
 // One tag as the camera saw it: AprilTag's family name, ID and p[0..3] (pixels, CameraModel's
 // convention: (0, 0) the centre of the top-left pixel), and how well its corners are known.

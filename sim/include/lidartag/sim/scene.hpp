@@ -51,7 +51,8 @@ struct NoiseOptions {
 // older electronics: 0.02 m).
 NoiseOptions noise_defaults(velodyne::Model model);
 
-// An Ouster sensor (docs/simulator.md, "Ouster sensors"): its model's nominal beam table.
+// An Ouster sensor (docs/simulator.md, "Ouster sensors"): its model's beam table
+// (driver::ouster::nominal_sensor_info: the OS1's nominal one, the OS0's and OS2's of real units).
 struct OusterSensorOptions {
   driver::ouster::Model model = driver::ouster::Model::kOs1_64;
   int columns = 1024;  // lidar mode: columns per rotation (512, 1024, 2048)
