@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cstdint>
+#include <cstring>
 #include <span>
 #include <string_view>
 #include <vector>
@@ -71,6 +72,18 @@ struct DecoderStats {
 // The SensorLayout of a sensor: its frames are the rotations.
 SensorLayout sensor_layout(const SensorInfo& info);
 
+// A field of a pixel read with one unaligned 32-bit load from its first byte: the value
+// field_value() gives (which reads only the bytes the field spans), for fields within 32 bits,
+// on a little-endian host, where the load stays inside the packet (the decoder checks).
+struct FastField {
+  uint32_t byte = 0, shift = 0, mask = 0, upshift = 0;
+  uint32_t read(const uint8_t* pixel) const {
+    uint32_t word;
+    std::memcpy(&word, pixel + byte, sizeof word);
+    return ((word >> shift) & mask) << upshift;
+  }
+};
+
 class Decoder final : public ColumnDecoder {
  public:
   // Throws std::invalid_argument when the options ask for a field the profile lacks (SIGNAL in
@@ -121,6 +134,11 @@ class Decoder final : public ColumnDecoder {
   float n_m_ = 0;  // lidar_origin_to_beam_origin, metres
   const FieldSpec* range_[2] = {nullptr, nullptr};
   const FieldSpec* intensity_[2] = {nullptr, nullptr};
+  // The range and intensity fields read with one load each (fast_fields_: possible here).
+  FastField fast_range_[2], fast_intensity_[2];
+  bool fast_fields_ = false;
+  // Every beam azimuth within (-360, 360) degrees: a cell's azimuth wraps without fmod.
+  bool near_azimuths_ = false;
   // cos/sin of the encoder angle of every measurement id.
   std::vector<float> cos_enc_, sin_enc_;
 };
