@@ -45,6 +45,7 @@ struct Cand {
   bool track_only = false;
   double size = 1.2;
   double measured = -1.0;  // the size its points measure (-1: not told)
+  int points = 500;        // of the pose fit (its expected noise)
   // Where the tag showing the fitting function really is (in `frame`); unset: at `position`. The
   // candidate's points are given in its own frame, as the detector gives them, so a tag that is
   // not where the candidate's pose says puts its points in other cells of that frame.
@@ -69,7 +70,7 @@ void add(ScanResult& r, const RkhsDictionary& dict, const Cand& c) {
   d.score = 0.95;
   d.margin = c.rejection == Rejection::kNone ? 3.0 : 0.5;
   d.other_family_score = c.other_family_score;
-  d.points = 500;
+  d.points = c.points;
   d.fit_cost = 1.0;
   d.shift_searched = c.shift_searched;
   if (c.shift_searched) d.unseen_axis = c.frame.col(2);  // the tag's z: a square mount's vertical
@@ -254,6 +255,36 @@ TEST_F(TrackerTest, MovingBeyondTheGatesStartsANewTrackWithoutTheOldEvidence) {
   step(tracker, {c});
   EXPECT_NE(out.seen[0].track_id, second);
   EXPECT_EQ(out.tracks, 3);  // the old ones live until max_age_s
+}
+
+// The gates follow the expected pose noise (TrackerOptions::pose_noise_*): a far tag's candidates
+// of 40 points (5 cm and 5 degrees RMS from one rotation to the next) stay one track 15 degrees
+// and 0.12 m off its mean, where a near tag's of 500 points start a new one; 35 degrees is beyond
+// any noise (the gates stop at 30 degrees).
+TEST_F(TrackerTest, TheGatesWidenWithTheExpectedPoseNoiseOfSparseCandidates) {
+  for (const int points : {40, 500}) {
+    SCOPED_TRACE(points);
+    Tracker tracker({}, det_opt);
+    Cand c;
+    c.position = {20.0, 20.0, 0.0};
+    c.points = points;
+    for (int k = 0; k < 3; ++k) step(tracker, {c});
+    const int first = out.seen[0].track_id;
+    Cand off = c;
+    off.frame =
+        Eigen::AngleAxisd(15 * kPi / 180, Eigen::Vector3d::UnitZ()).toRotationMatrix() * c.frame;
+    step(tracker, {off});
+    EXPECT_EQ(out.seen[0].track_id == first, points == 40);
+    if (points == 500) continue;
+    off = c;
+    off.position.z() += 0.12;
+    step(tracker, {off});
+    EXPECT_EQ(out.seen[0].track_id, first);
+    off.frame =
+        Eigen::AngleAxisd(35 * kPi / 180, Eigen::Vector3d::UnitZ()).toRotationMatrix() * c.frame;
+    step(tracker, {off});
+    EXPECT_NE(out.seen[0].track_id, first);
+  }
 }
 
 // A tag `p0` (frame `f0`) fixed in the world, seen after the sensor turned `deg` about its z.
@@ -735,6 +766,12 @@ TEST(TrackerOptionsTest, EveryRuleOfTheTableIsChecked) {
   broken([](TrackerOptions& o) { o.max_age_s = 0.0; });
   broken([](TrackerOptions& o) { o.max_age_s = 1e300; });
   broken([](TrackerOptions& o) { o.max_tracks = 0; });
+  broken([](TrackerOptions& o) { o.pose_noise_m_points = -1.0; });
+  broken([](TrackerOptions& o) { o.pose_noise_deg_points = std::nan(""); });
+  broken([](TrackerOptions& o) { o.gate_sigmas = 0.0; });
+  broken([](TrackerOptions& o) { o.fused_min_score = 0.4; });
+  broken([](TrackerOptions& o) { o.fused_min_score = 1.1; });
+  broken([](TrackerOptions& o) { o.fused_min_margin_cells = 0.0; });
   try {
     TrackerOptions o;
     o.window = 0;
