@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <limits>
 #include <numbers>
+#include <span>
 #include <string_view>
 #include <type_traits>
 
@@ -619,10 +620,15 @@ void Tracker::add_evidence(Track& t, const Candidate& c, const ScanResult& resul
   // tag16h6 shares, was never confirmed).
   const bool other_better = t.other_count > 0 && t.other_sum > t.own_sum + 1e-6 * t.other_count;
   // The score: the rotations' mean, or the fused grid's under a stricter margin (the far edge,
-  // where each rotation's own fit scores low: fused_grid_confirms).
+  // where each rotation's own fit scores low: fused_grid_confirms), on the leader's own grid (the
+  // unshifted one unless the track searches its place).
+  const auto lead_grid =
+      std::span<const float>(t.votes).subspan(static_cast<size_t>(t.shift) * cells, cells);
+  const auto lead_counts =
+      std::span<const float>(t.counts).subspan(static_cast<size_t>(t.shift) * cells, cells);
   const bool scored =
       t.mean_score >= min_score_ ||
-      fused_grid_confirms(fam.dict, lead, t.votes, t.counts, opt_.full_cell_votes, t.margin,
+      fused_grid_confirms(fam.dict, lead, lead_grid, lead_counts, opt_.full_cell_votes, t.margin,
                           min_score_, opt_.fused_min_score, opt_.fused_min_margin_cells);
   t.confirmed = t.rotations >= opt_.min_rotations && t.margin >= opt_.min_margin_cells && scored &&
                 !other_better;

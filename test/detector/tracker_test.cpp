@@ -44,8 +44,9 @@ struct Cand {
   bool shift_searched = false;
   bool track_only = false;
   double size = 1.2;
-  double measured = -1.0;  // the size its points measure (-1: not told)
-  int points = 500;        // of the pose fit (its expected noise)
+  double measured = -1.0;   // the size its points measure (-1: not told)
+  int points = 500;         // of the pose fit (its expected noise)
+  float fit_score = 0.95f;  // the fitting function's normalised score (the others 0.6)
   // Where the tag showing the fitting function really is (in `frame`); unset: at `position`. The
   // candidate's points are given in its own frame, as the detector gives them, so a tag that is
   // not where the candidate's pose says puts its points in other cells of that frame.
@@ -83,7 +84,8 @@ void add(ScanResult& r, const RkhsDictionary& dict, const Cand& c) {
   e.first = static_cast<int>(r.evidence_scores.size());
   e.functions = dict.functions();
   e.cells_per_score = 10.0f;
-  for (int g = 0; g < dict.functions(); ++g) r.evidence_scores.push_back(g == f ? 0.95f : 0.6f);
+  for (int g = 0; g < dict.functions(); ++g)
+    r.evidence_scores.push_back(g == f ? c.fit_score : 0.6f);
   const int W = dict.width();
   d.grid_width = W;
   d.first_cell = static_cast<int>(r.cell_votes.size());
@@ -285,6 +287,30 @@ TEST_F(TrackerTest, TheGatesWidenWithTheExpectedPoseNoiseOfSparseCandidates) {
     step(tracker, {off});
     EXPECT_NE(out.seen[0].track_id, first);
   }
+}
+
+// The far edge: every rotation's own fit scores 0.75 for the right code (below decode.min_score,
+// 0.8), while its points' votes, fused in the track's frame, agree with it in every cell: the
+// fused grid (its leader's own, the unshifted grid of a tag seen on every side) confirms it from
+// the 3rd rotation, unless its options ask for a margin it does not have.
+TEST_F(TrackerTest, TheFusedGridConfirmsATagWhoseRotationsScoreLow) {
+  Cand c;
+  c.fit_score = 0.75f;
+  c.position = {22.0, 22.0, 0.0};
+  c.points = 60;
+  {
+    Tracker tracker({}, det_opt);
+    for (int k = 0; k < 3; ++k) step(tracker, {c});
+    ASSERT_EQ(out.seen.size(), 1u);
+    EXPECT_LT(out.seen[0].mean_score, det_opt.decode.min_score);
+    EXPECT_TRUE(out.seen[0].confirmed);
+    EXPECT_EQ(out.seen[0].id, c.code);
+  }
+  TrackerOptions strict;
+  strict.fused_min_margin_cells = 100.0;
+  Tracker tracker(strict, det_opt);
+  for (int k = 0; k < 5; ++k) step(tracker, {c});
+  EXPECT_FALSE(out.seen[0].confirmed);
 }
 
 // A tag `p0` (frame `f0`) fixed in the world, seen after the sensor turned `deg` about its z.
