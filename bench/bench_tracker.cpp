@@ -22,7 +22,8 @@
 // wrong ID (a tag of its own, not a detection of the rotation), or anything at all on the boards or
 // the clutter; the detector's own wrong IDs are counted and shown (bench_accuracy fails on them).
 // --cell (repeatable, e.g. `--cell vlp16:10:45`) runs only those cells of the static grid and
-// nothing else, to study one cell with --trace; no report is written.
+// nothing else, to study one cell with --trace; no report is written. --motion runs only the
+// moving-sensor rows, printed (no report).
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -65,6 +66,7 @@ struct Args {
   bool fixed_height = false;      // every run's tag centre exactly at its cell's height
   std::vector<std::string> only;  // --cell: "vlp16:10:45", the static cells to run (empty: all)
   bool extras = false;  // --extras: only the square-mount and ego-motion sections, printed
+  bool motion = false;  // --motion: only the moving-sensor rows, printed
   std::string out;
   std::string command = "build/bin/bench_tracker";
 };
@@ -509,6 +511,7 @@ int run(const Args& args) {
           "(added by a track) | target |\n"
        << "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|\n";
   int never = 0;
+  if (args.motion) cells.clear();
   for (Cell& c : cells) {
     for (int r = 0; r < runs; ++r) run_cell(c, r, rotations, args.trace, args.fixed_height);
     // The tracker must add no wrong ID; the detector's own are bench_accuracy's to fail on, and
@@ -576,6 +579,8 @@ int run(const Args& args) {
              << c.wrong_tracked << " (" << c.wrong_by_track << ") |\n";
     }
   }
+
+  if (args.motion) return never == 0 ? 0 : 1;
 
   // Square mounts and the ego-motion input (issue 33).
   bool ego_met = false;
@@ -722,6 +727,8 @@ int main(int argc, char** argv) {
       args.command += " --quick";
     } else if (a == "--extras") {
       args.extras = true;
+    } else if (a == "--motion") {
+      args.motion = true;
     } else if (a == "--cell") {
       args.only.push_back(value("--cell"));
     } else if (a == "--out") {
@@ -731,7 +738,7 @@ int main(int argc, char** argv) {
       std::fprintf(
           stderr,
           "usage: bench_tracker [--runs N] [--rotations R] [--quick] [--trace] [--fixed-height] "
-          "[--cell MODEL:DISTANCE:ANGLE ...] [--extras] [--out DIR]\n");
+          "[--cell MODEL:DISTANCE:ANGLE ...] [--extras] [--motion] [--out DIR]\n");
       return 2;
     }
   }

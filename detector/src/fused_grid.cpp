@@ -23,10 +23,10 @@ double fused_grid_score(const RkhsDictionary& dict, int f, std::span<const float
 
 bool fused_grid_confirms(const RkhsDictionary& dict, int f, std::span<const float> votes,
                          std::span<const float> counts, double full_cell_votes, double margin_cells,
-                         double min_score) {
-  return margin_cells >= kFusedMinMarginCells &&
+                         double min_score, double fused_min_score, double fused_min_margin_cells) {
+  return margin_cells >= fused_min_margin_cells &&
          fused_grid_score(dict, f, votes, counts, full_cell_votes) >=
-             std::max(min_score, kFusedMinScore);
+             std::max(min_score, fused_min_score);
 }
 
 }  // namespace lidartag::detector

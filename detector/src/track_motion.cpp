@@ -103,7 +103,7 @@ TimedPose predict(const TimedPose& pose, const Motion& motion, double dt) {
 }
 
 MotionFit fit_motion(std::span<const TimedPose> window, const Motion& fallback, double static_ratio,
-                     double noise_m) {
+                     double noise_m, double angle_noise_rad) {
   MotionFit out;
   if (window.empty()) return out;
   const TimedPose& newest = window.back();
@@ -151,7 +151,23 @@ MotionFit fit_motion(std::span<const TimedPose> window, const Motion& fallback, 
     if (det > 1e-12) {
       a = (n * std_ - st * sd) / det;
       const Vector3d c = (sd - a * st) / n;
-      frame_now = Eigen::Quaterniond(turn(c, 1.0) * anchor).normalized();
+      // The turn rate is taken only when it stands 4 standard errors (of a line's slope: the
+      // scatter over sqrt(sum (tau - mean tau)^2) = sqrt(det / n)) from zero; the scatter per
+      // axis is the larger of the line's residuals' and the expected noise's (a far tag's
+      // orientations scatter by degrees from one rotation to the next: a turn fitted to three of
+      // them would carry its track away).
+      double rss = 0.0;
+      for (const TimedPose& p : window) {
+        const double tau = p.t_s - t_now;
+        rss += (rotation_vector(p.frame.toRotationMatrix() * anchor.transpose()) - c - a * tau)
+                   .squaredNorm();
+      }
+      const double scatter2 =
+          std::max(n > 2 ? rss / (3.0 * (n - 2)) : 0.0, angle_noise_rad * angle_noise_rad / 3.0);
+      if (a.squaredNorm() * det / n > 16.0 * scatter2)
+        frame_now = Eigen::Quaterniond(turn(c, 1.0) * anchor).normalized();
+      else
+        a.setZero();
     }
   } else if (fallback.known) {
     a = fallback.turn;
@@ -166,8 +182,10 @@ MotionFit fit_motion(std::span<const TimedPose> window, const Motion& fallback, 
     }
   }
   // Two poses fit any motion exactly: only a step well beyond a single pose's scatter (4-12 mm
-  // at 10 m on a VLP-16) is taken for motion; a slower one is followed by the gates anyway.
-  const double floor_m = window.size() == 2 ? 10.0 * noise_m : noise_m;
+  // at 10 m on a VLP-16, 2-3 cm at 28 m on a VLP-32C) is taken for motion, 3 noise_m and at
+  // least 2 cm; a slower one is followed by the gates anyway.
+  const double floor_m = window.size() == 2 ? std::max(0.02, 3.0 * noise_m) : noise_m;
+  if (a.squaredNorm() == 0.0) frame_now = out.pose.frame;  // no turn: the mean orientation
   if (best.ok && rss_static > static_ratio * best.rss + n * floor_m * floor_m) {
     out.moving = true;
     out.pose.position = best.position;

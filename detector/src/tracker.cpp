@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <limits>
 #include <numbers>
+#include <span>
 #include <string_view>
 #include <type_traits>
 
@@ -60,6 +61,13 @@ Eigen::Matrix3d quarter_turn(int q) {
 constexpr int kShifts = 9;
 constexpr int kCentre = kShifts / 2;
 
+// The least position scatter the motion fit assumes, metres (a near tag's: 1-3 mm at 6 m on a
+// VLP-16).
+constexpr double kMinNoiseM = 0.002;
+
+// The widest angle gate that the pose noise opens (quarter turns, 90 degrees apart, stay apart).
+constexpr double kMaxGateDeg = 30.0;
+
 }  // namespace
 
 namespace {
@@ -103,7 +111,11 @@ struct Tracker::Track {
   // The window: the candidates' poses at their times, frames turned into the track's frame
   // (quarter turns taken out); a ring of opt_.window.
   std::vector<TimedPose> window;
+  std::vector<int> window_points;  // the candidates' pose-fit points (their expected noise)
   int window_count = 0, window_next = 0;
+  // The expected scatter of one candidate's pose over the window (TrackerOptions::pose_noise_*,
+  // RMS over its candidates): metres and degrees.
+  double noise_m = 0.0, noise_deg = 0.0;
   // The window's model: the pose at the newest candidate's time, and how it moves from there.
   double ref_t_s = 0.0;
   Eigen::Vector3d ref_position = Eigen::Vector3d::Zero();
@@ -162,6 +174,7 @@ Tracker::Tracker(TrackerOptions options, const DetectorOptions& detector)
     t.votes.assign(static_cast<size_t>(kShifts * cells), 0.0f);
     t.counts.assign(static_cast<size_t>(kShifts * cells), 0.0f);
     t.window.resize(static_cast<size_t>(opt_.window));
+    t.window_points.assign(static_cast<size_t>(opt_.window), 0);
     t.odometry.resize(static_cast<size_t>(opt_.window));
     t.placed.assign(static_cast<size_t>(opt_.window), 0);
     t.segment.assign(static_cast<size_t>(opt_.window), 0);
@@ -270,16 +283,17 @@ void Tracker::track(const ScanResult& result, int64_t stamp_ns, TrackerResult& o
       const Track& t = tracks_[k];
       if (!t.live || t.family != cand.family_index || std::abs(t.size_m - cand.size_m) > 1e-9)
         continue;
+      const Gates g = gates(t, cand);
       if (pl.ok && t.odom_valid && t.ego_now.segment == pl.ego.segment) {
         // Both in one odometry frame: the track's model there (a static tag stands still).
         const TimedPose at = predict(t.odom_ref, t.odom_motion, t_c - t.odom_ref.t_s);
         const double d = (pl.position - at.position).norm();
-        if (d > opt_.max_distance_m) continue;
+        if (d > g.distance_m) continue;
         int delta = 0;
         const double angle = aligned_angle(at.frame.toRotationMatrix(), pl.frame, delta);
-        if (angle > opt_.max_angle_deg * kDeg) continue;
-        pairs_.push_back({d / opt_.max_distance_m + angle / (opt_.max_angle_deg * kDeg),
-                          static_cast<int>(c), static_cast<int>(k), delta});
+        if (angle > g.angle_rad) continue;
+        pairs_.push_back({d / g.distance_m + angle / g.angle_rad, static_cast<int>(c),
+                          static_cast<int>(k), delta});
         continue;
       }
       // A track seen once has no motion of its own: the other tags' when they show it, else
@@ -287,7 +301,7 @@ void Tracker::track(const ScanResult& result, int64_t stamp_ns, TrackerResult& o
       const Motion& m = t.window_count == 1 && fleet_.known ? fleet_ : t.motion;
       const double dt = t_c - t.ref_t_s;
       const TimedPose at = predict({t.ref_t_s, t.ref_position, t.ref_frame}, m, dt);
-      double max_distance = opt_.max_distance_m, max_angle = opt_.max_angle_deg * kDeg;
+      double max_distance = g.distance_m, max_angle = g.angle_rad;
       if (opt_.follow_motion && !m.known) {
         const double turned = opt_.max_turn_deg_s * kDeg * std::abs(dt);
         max_distance +=
@@ -336,6 +350,27 @@ void Tracker::track(const ScanResult& result, int64_t stamp_ns, TrackerResult& o
     add(t, cands[static_cast<size_t>(t.candidate)], result, stamp_ns);
   }
   report(result, out);
+}
+
+Tracker::Gates Tracker::gates(const Track& t, const Candidate& c) const {
+  // The difference between a candidate and its track's prediction: the candidate's own scatter
+  // and the track's, which averages its window's (both at least what the window showed about its
+  // model).
+  const double points = std::max(c.points, 1);
+  const double spread_m = t.position_std.norm(), spread_deg = t.angle_std_deg;
+  const double n = std::max(t.window_count, 1);
+  const double own_m = std::max(opt_.pose_noise_m_points / points, spread_m);
+  const double own_deg = std::max(opt_.pose_noise_deg_points / points, spread_deg);
+  const double track_m = std::max(t.noise_m, spread_m),
+               track_deg = std::max(t.noise_deg, spread_deg);
+  const double sigma_m = std::sqrt(own_m * own_m + track_m * track_m / n);
+  const double sigma_deg = std::sqrt(own_deg * own_deg + track_deg * track_deg / n);
+  Gates g;
+  g.distance_m = std::min(std::max(opt_.max_distance_m, opt_.gate_sigmas * sigma_m),
+                          std::max(opt_.max_distance_m, t.size_m / 2));
+  g.angle_rad = kDeg * std::min(std::max(opt_.max_angle_deg, opt_.gate_sigmas * sigma_deg),
+                                std::max(opt_.max_angle_deg, kMaxGateDeg));
+  return g;
 }
 
 double Tracker::time_of(const Candidate& c, int64_t stamp_ns) const {
@@ -424,16 +459,28 @@ void Tracker::add(Track& t, const Candidate& c, const ScanResult& result, int64_
     t.segment[w] = pl.ego.segment;
     t.ego_now = pl.ego;
   }
+  t.window_points[w] = std::max(c.points, 1);
   t.window_next = (t.window_next + 1) % opt_.window;
   t.window_count = std::min(t.window_count + 1, opt_.window);
+  double inverse2 = 0.0;  // mean of 1 / points^2 over the window
+  for (int i = 0; i < t.window_count; ++i) {
+    const double p = t.window_points[static_cast<size_t>(i)];
+    inverse2 += 1.0 / (p * p);
+  }
+  inverse2 = std::sqrt(inverse2 / t.window_count);
+  t.noise_m = opt_.pose_noise_m_points * inverse2;
+  t.noise_deg = opt_.pose_noise_deg_points * inverse2;
   ordered_.clear();
   for (int i = t.window_count; i > 0; --i)
     ordered_.push_back(
         t.window[static_cast<size_t>((t.window_next - i + opt_.window) % opt_.window)]);
   // Its model: the mean, or a constant motion when that explains it clearly better.
+  // Motion is followed only once it is significant against the poses' noise: a turn rate 4
+  // standard errors from zero, a drift beyond the scatter (fit_motion); the static world first.
   const MotionFit fit =
-      opt_.follow_motion ? fit_motion(ordered_, fleet_)
-                         : fit_motion(ordered_, Motion{}, std::numeric_limits<double>::infinity());
+      opt_.follow_motion
+          ? fit_motion(ordered_, fleet_, 4.0, std::max(kMinNoiseM, t.noise_m), t.noise_deg * kDeg)
+          : fit_motion(ordered_, Motion{}, std::numeric_limits<double>::infinity());
   t.ref_t_s = fit.pose.t_s;
   t.ref_position = fit.pose.position;
   t.ref_frame = fit.pose.frame;
@@ -573,10 +620,16 @@ void Tracker::add_evidence(Track& t, const Candidate& c, const ScanResult& resul
   // tag16h6 shares, was never confirmed).
   const bool other_better = t.other_count > 0 && t.other_sum > t.own_sum + 1e-6 * t.other_count;
   // The score: the rotations' mean, or the fused grid's under a stricter margin (the far edge,
-  // where each rotation's own fit scores low: fused_grid_confirms).
+  // where each rotation's own fit scores low: fused_grid_confirms), on the leader's own grid (the
+  // unshifted one unless the track searches its place).
+  const auto lead_grid =
+      std::span<const float>(t.votes).subspan(static_cast<size_t>(t.shift) * cells, cells);
+  const auto lead_counts =
+      std::span<const float>(t.counts).subspan(static_cast<size_t>(t.shift) * cells, cells);
   const bool scored =
-      t.mean_score >= min_score_ || fused_grid_confirms(fam.dict, lead, t.votes, t.counts,
-                                                        opt_.full_cell_votes, t.margin, min_score_);
+      t.mean_score >= min_score_ ||
+      fused_grid_confirms(fam.dict, lead, lead_grid, lead_counts, opt_.full_cell_votes, t.margin,
+                          min_score_, opt_.fused_min_score, opt_.fused_min_margin_cells);
   t.confirmed = t.rotations >= opt_.min_rotations && t.margin >= opt_.min_margin_cells && scored &&
                 !other_better;
 }

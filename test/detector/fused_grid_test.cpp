@@ -5,9 +5,11 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <vector>
 
 #include "lidartag/detector/tag_family.hpp"
+#include "lidartag/detector/tracker.hpp"
 
 namespace lidartag::detector {
 namespace {
@@ -59,31 +61,41 @@ TEST(FusedGrid, CellsSeenLessCountLessAndNoEvidenceIsNoScore) {
   EXPECT_EQ(fused_grid_score(dict, f, g.votes, g.counts, 0.0), -1.0);
 }
 
-// The confirmation: the fused score at max(min_score, kFusedMinScore) and the strict margin.
-// A grid of another code (a wrong-code tag) leading with a margin below kFusedMinMarginCells, or
-// a grid of blank board (every cell white), never confirms.
+// The confirmation: the fused score at max(min_score, fused_min_score) and the strict margin
+// (TrackerOptions' defaults, 0.9 and 1 cell, and other values). A grid of another code (a
+// wrong-code tag) leading with a margin below fused_min_margin_cells, or a grid of blank board
+// (every cell white), never confirms.
 TEST(FusedGrid, ConfirmationNeedsTheScoreAndTheStrictMargin) {
   const RkhsDictionary dict(tags::builtin_family("tag16h5"));
   const int f = 4 * 11 + 2;
   const Grid g = grid_of(dict, f, 8.0f);
-  EXPECT_TRUE(fused_grid_confirms(dict, f, g.votes, g.counts, 4.0, kFusedMinMarginCells, 0.8));
-  EXPECT_FALSE(fused_grid_confirms(dict, f, g.votes, g.counts, 4.0, 0.99, 0.8));
-  EXPECT_FALSE(fused_grid_confirms(dict, f, g.votes, g.counts, 4.0, 5.0, 1.01));
-  // Another code's grid: the score of f falls below kFusedMinScore wherever the codes differ in
+  const TrackerOptions o;
+  const double score = o.fused_min_score, margin = o.fused_min_margin_cells;
+  EXPECT_TRUE(fused_grid_confirms(dict, f, g.votes, g.counts, 4.0, margin, 0.8, score, margin));
+  EXPECT_FALSE(fused_grid_confirms(dict, f, g.votes, g.counts, 4.0, 0.99, 0.8, score, margin));
+  EXPECT_FALSE(fused_grid_confirms(dict, f, g.votes, g.counts, 4.0, 5.0, 1.01, score, margin));
+  // The thresholds are the caller's: a margin of 0.99 cells passes a gate of 0.9 cells, and a
+  // fused score gate above the grid's own score refuses it.
+  EXPECT_TRUE(fused_grid_confirms(dict, f, g.votes, g.counts, 4.0, 0.99, 0.8, score, 0.9));
+  const double own = fused_grid_score(dict, f, g.votes, g.counts, 4.0);
+  EXPECT_FALSE(fused_grid_confirms(dict, f, g.votes, g.counts, 4.0, 5.0, 0.8,
+                                   std::nextafter(own, 2.0), margin));
+  // Another code's grid: the score of f falls below fused_min_score wherever the codes differ in
   // enough cells; with a small margin it never confirms.
   int below = 0;
   for (int code = 0; code < 30; ++code) {
     if (code == 11) continue;
     const Grid other = grid_of(dict, 4 * code + 2, 8.0f);
-    below += fused_grid_score(dict, f, other.votes, other.counts, 4.0) < kFusedMinScore ? 1 : 0;
-    EXPECT_FALSE(fused_grid_confirms(dict, f, other.votes, other.counts, 4.0, 0.74, 0.8));
+    below += fused_grid_score(dict, f, other.votes, other.counts, 4.0) < score ? 1 : 0;
+    EXPECT_FALSE(
+        fused_grid_confirms(dict, f, other.votes, other.counts, 4.0, 0.74, 0.8, score, margin));
   }
   EXPECT_GT(below, 0);
   // A blank board: every cell white, so that the black border disagrees with every code.
   const auto cells = g.votes.size();
   const std::vector<float> white(cells, 8.0f);
   for (int h = 0; h < dict.functions(); ++h)
-    EXPECT_FALSE(fused_grid_confirms(dict, h, white, white, 4.0, 5.0, 0.8)) << h;
+    EXPECT_FALSE(fused_grid_confirms(dict, h, white, white, 4.0, 5.0, 0.8, score, margin)) << h;
 }
 
 }  // namespace

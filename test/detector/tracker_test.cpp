@@ -44,7 +44,9 @@ struct Cand {
   bool shift_searched = false;
   bool track_only = false;
   double size = 1.2;
-  double measured = -1.0;  // the size its points measure (-1: not told)
+  double measured = -1.0;   // the size its points measure (-1: not told)
+  int points = 500;         // of the pose fit (its expected noise)
+  float fit_score = 0.95f;  // the fitting function's normalised score (the others 0.6)
   // Where the tag showing the fitting function really is (in `frame`); unset: at `position`. The
   // candidate's points are given in its own frame, as the detector gives them, so a tag that is
   // not where the candidate's pose says puts its points in other cells of that frame.
@@ -69,7 +71,7 @@ void add(ScanResult& r, const RkhsDictionary& dict, const Cand& c) {
   d.score = 0.95;
   d.margin = c.rejection == Rejection::kNone ? 3.0 : 0.5;
   d.other_family_score = c.other_family_score;
-  d.points = 500;
+  d.points = c.points;
   d.fit_cost = 1.0;
   d.shift_searched = c.shift_searched;
   if (c.shift_searched) d.unseen_axis = c.frame.col(2);  // the tag's z: a square mount's vertical
@@ -82,7 +84,8 @@ void add(ScanResult& r, const RkhsDictionary& dict, const Cand& c) {
   e.first = static_cast<int>(r.evidence_scores.size());
   e.functions = dict.functions();
   e.cells_per_score = 10.0f;
-  for (int g = 0; g < dict.functions(); ++g) r.evidence_scores.push_back(g == f ? 0.95f : 0.6f);
+  for (int g = 0; g < dict.functions(); ++g)
+    r.evidence_scores.push_back(g == f ? c.fit_score : 0.6f);
   const int W = dict.width();
   d.grid_width = W;
   d.first_cell = static_cast<int>(r.cell_votes.size());
@@ -254,6 +257,60 @@ TEST_F(TrackerTest, MovingBeyondTheGatesStartsANewTrackWithoutTheOldEvidence) {
   step(tracker, {c});
   EXPECT_NE(out.seen[0].track_id, second);
   EXPECT_EQ(out.tracks, 3);  // the old ones live until max_age_s
+}
+
+// The gates follow the expected pose noise (TrackerOptions::pose_noise_*): a far tag's candidates
+// of 40 points (5 cm and 5 degrees RMS from one rotation to the next) stay one track 15 degrees
+// and 0.12 m off its mean, where a near tag's of 500 points start a new one; 35 degrees is beyond
+// any noise (the gates stop at 30 degrees).
+TEST_F(TrackerTest, TheGatesWidenWithTheExpectedPoseNoiseOfSparseCandidates) {
+  for (const int points : {40, 500}) {
+    SCOPED_TRACE(points);
+    Tracker tracker({}, det_opt);
+    Cand c;
+    c.position = {20.0, 20.0, 0.0};
+    c.points = points;
+    for (int k = 0; k < 3; ++k) step(tracker, {c});
+    const int first = out.seen[0].track_id;
+    Cand off = c;
+    off.frame =
+        Eigen::AngleAxisd(15 * kPi / 180, Eigen::Vector3d::UnitZ()).toRotationMatrix() * c.frame;
+    step(tracker, {off});
+    EXPECT_EQ(out.seen[0].track_id == first, points == 40);
+    if (points == 500) continue;
+    off = c;
+    off.position.z() += 0.12;
+    step(tracker, {off});
+    EXPECT_EQ(out.seen[0].track_id, first);
+    off.frame =
+        Eigen::AngleAxisd(35 * kPi / 180, Eigen::Vector3d::UnitZ()).toRotationMatrix() * c.frame;
+    step(tracker, {off});
+    EXPECT_NE(out.seen[0].track_id, first);
+  }
+}
+
+// The far edge: every rotation's own fit scores 0.75 for the right code (below decode.min_score,
+// 0.8), while its points' votes, fused in the track's frame, agree with it in every cell: the
+// fused grid (its leader's own, the unshifted grid of a tag seen on every side) confirms it from
+// the 3rd rotation, unless its options ask for a margin it does not have.
+TEST_F(TrackerTest, TheFusedGridConfirmsATagWhoseRotationsScoreLow) {
+  Cand c;
+  c.fit_score = 0.75f;
+  c.position = {22.0, 22.0, 0.0};
+  c.points = 60;
+  {
+    Tracker tracker({}, det_opt);
+    for (int k = 0; k < 3; ++k) step(tracker, {c});
+    ASSERT_EQ(out.seen.size(), 1u);
+    EXPECT_LT(out.seen[0].mean_score, det_opt.decode.min_score);
+    EXPECT_TRUE(out.seen[0].confirmed);
+    EXPECT_EQ(out.seen[0].id, c.code);
+  }
+  TrackerOptions strict;
+  strict.fused_min_margin_cells = 100.0;
+  Tracker tracker(strict, det_opt);
+  for (int k = 0; k < 5; ++k) step(tracker, {c});
+  EXPECT_FALSE(out.seen[0].confirmed);
 }
 
 // A tag `p0` (frame `f0`) fixed in the world, seen after the sensor turned `deg` about its z.
@@ -735,6 +792,12 @@ TEST(TrackerOptionsTest, EveryRuleOfTheTableIsChecked) {
   broken([](TrackerOptions& o) { o.max_age_s = 0.0; });
   broken([](TrackerOptions& o) { o.max_age_s = 1e300; });
   broken([](TrackerOptions& o) { o.max_tracks = 0; });
+  broken([](TrackerOptions& o) { o.pose_noise_m_points = -1.0; });
+  broken([](TrackerOptions& o) { o.pose_noise_deg_points = std::nan(""); });
+  broken([](TrackerOptions& o) { o.gate_sigmas = 0.0; });
+  broken([](TrackerOptions& o) { o.fused_min_score = 0.4; });
+  broken([](TrackerOptions& o) { o.fused_min_score = 1.1; });
+  broken([](TrackerOptions& o) { o.fused_min_margin_cells = 0.0; });
   try {
     TrackerOptions o;
     o.window = 0;

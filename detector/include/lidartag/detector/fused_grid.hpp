@@ -24,14 +24,11 @@ double fused_grid_score(const RkhsDictionary& dict, int f, std::span<const float
 // score stays below the detector's min_score (a VLP-32C's 1.2 m tag at 32 m and 45 degrees: each
 // rotation's 35-50 points fit and decode at 0.73-0.80 for the right code, while their votes,
 // fused, agree with it at 0.87-0.94): the fused grid's score of the leading function f must reach
-// max(min_score, kFusedMinScore) and the leader's margin over every other function, in cells,
-// kFusedMinMarginCells, stricter than the tracker's min_margin_cells (0.75): on the far tags of
-// another family and the boards and clutter of the tests, leaders reached a fused score of
-// 0.85-0.97 only with margins below 0.75, and margins up to 0.73 only with fused scores below 0.85.
-inline constexpr double kFusedMinScore = 0.9;
-inline constexpr double kFusedMinMarginCells = 1.0;
+// max(min_score, fused_min_score) and the leader's margin over every other function, in cells,
+// fused_min_margin_cells (the tracker's options TrackerOptions::fused_min_score and
+// fused_min_margin_cells, where their defaults are argued).
 bool fused_grid_confirms(const RkhsDictionary& dict, int f, std::span<const float> votes,
                          std::span<const float> counts, double full_cell_votes, double margin_cells,
-                         double min_score);
+                         double min_score, double fused_min_score, double fused_min_margin_cells);
 
 }  // namespace lidartag::detector

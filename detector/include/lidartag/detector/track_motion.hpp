@@ -51,12 +51,16 @@ struct MotionFit {
 // The pose now and the motion from a window of poses of one tag, oldest first (any order works),
 // the newest last. The static model (the window's mean) unless a moving one explains the
 // positions clearly better: its residual sum of squares times `static_ratio`, plus
-// `noise_m`^2 per pose (ten times noise_m with 2 poses, which any motion fits exactly), still
-// below the static one's. With 2 poses only a translation is fitted (one orientation step is too
-// noisy to give a turn rate), from 3 on the turn rate too.
-// `fallback` (the motion of other tags, when known) is used for the turn rate of a window too
-// short for its own.
+// `noise_m`^2 per pose (the RMS scatter of one pose's position, metres; with 2 poses, which any
+// motion fits exactly, 3 noise_m and at least 2 cm), still below the static one's. With 2 poses
+// only a translation is fitted (one orientation step is too noisy to give a turn rate), from 3 on
+// the turn rate too. `fallback` (the motion of other tags, when known) is used for the turn rate of
+// a window too short for its own. A fitted turn rate is kept only when it stands 4 standard errors
+// from zero, the orientations' scatter being the larger of the fit's residuals and
+// `angle_noise_rad` (RMS angle of one pose, radians); else the window turns at no rate (its mean
+// orientation).
 MotionFit fit_motion(std::span<const TimedPose> window, const Motion& fallback,
-                     double static_ratio = 4.0, double noise_m = 0.002);
+                     double static_ratio = 4.0, double noise_m = 0.002,
+                     double angle_noise_rad = 0.0);
 
 }  // namespace lidartag::detector

@@ -32,18 +32,35 @@ struct TrackerOptions {
   bool enabled = true;
   // Association gates, against a track's pose predicted to the candidate's time (the window's
   // model: its mean while the tag stands still in the sensor's frame, else a constant turn rate
-  // and velocity fitted to it): a candidate joins a track when its centre is within
-  // max_distance_m and its orientation within max_angle_deg of it (up to quarter turns about the
-  // normal, which the code decides). Defaults 0.1 m and 10 degrees: single-rotation poses of a
-  // 1.2 m tag scatter by a few millimetres and well below a degree (1-3 mm and 0.4 deg at 6 m on
-  // a VLP-16), and two tags cannot be closer than their size. A tag that leaves its predicted
-  // path by more than this (moved by hand, or another tag) starts a new track. A track-only
-  // candidate (Candidate::track_only: fewer boundary points than eq. (6) asks for a detection of
-  // one rotation) is evidence like any other: it joins or starts a track and adds its votes, and
-  // the confirmation gates below decide (a VLP-16 at 10 m sees a 1.2 m tag at 45 degrees with 9-11
-  // boundary points in most rotations of some heights: docs/detector.md).
+  // and velocity fitted to it): a candidate joins a track when its centre is within the distance
+  // gate and its orientation within the angle gate of it (up to quarter turns about the normal,
+  // which the code decides). Each gate is the larger of its floor here and gate_sigmas standard
+  // deviations of the difference that the pose noise explains (pose_noise_* below, and the
+  // window's own spread about its model when larger), at most half the tag's size (two tags
+  // cannot be closer than their size) and 30 degrees (quarter turns must stay apart). Floors
+  // 0.1 m and 10 degrees: single-rotation poses of a 1.2 m tag scatter by a few millimetres and
+  // well below a degree near the sensor (1-3 mm and 0.4 deg at 6 m on a VLP-16), where the floors
+  // decide. A tag that leaves its predicted path by more than this (moved by hand, or another tag)
+  // starts a new track. A track-only candidate (Candidate::track_only: fewer boundary points than
+  // eq. (6) asks for a detection of one rotation) is evidence like any other: it joins or starts a
+  // track and adds its votes, and the confirmation gates below decide (a VLP-16 at 10 m sees a
+  // 1.2 m tag at 45 degrees with 9-11 boundary points in most rotations of some heights:
+  // docs/detector.md).
   double max_distance_m = 0.1;
   double max_angle_deg = 10.0;
+  // The pose noise of one rotation: its centre scatters by about pose_noise_m_points and its
+  // orientation by pose_noise_deg_points over the number of points of the pose fit (RMS of the
+  // 3-D offset and of the angle; metres x points, degrees x points). Defaults 1.5 and 200, an upper
+  // envelope of the simulator's 1.2 m tag16h5 at 0 and 45 degrees (RMS offset x points 0.6-0.9 on
+  // a VLP-16 at 5-10 m with 96-530 points, 1.1-1.4 on a VLP-32C at 24-32 m with 42-73 points;
+  // RMS angle x points 60-130 and 130-190): a far tag at 45 degrees (a VLP-32C at 28 m, 45-70
+  // points) scatters by 2-3 cm and 3 degrees RMS, up to 9 degrees, from one rotation to the next.
+  // The same noise decides when a track moves (follow_motion): only a turn rate 4 standard errors
+  // from zero and a drift beyond it are taken for motion.
+  double pose_noise_m_points = 1.5;
+  double pose_noise_deg_points = 200.0;
+  // Standard deviations of the expected pose difference inside the gates. Default 3.
+  double gate_sigmas = 3.0;
   // Follow a moving sensor (or tag): each track's window is fitted with a constant turn rate and
   // velocity when that explains its poses better than standing still, and predicted to each new
   // rotation. Default true. Off: tracks are the window's mean, and a sensor that moves more than
@@ -74,6 +91,17 @@ struct TrackerOptions {
   double min_margin_cells = 0.75;
   double full_cell_votes = 4.0;
   int min_rotations = 3;
+  // The far edge's confirmation (fused_grid.hpp), for a track whose rotations' mean score stays
+  // below decode.min_score: the fused grid's score of the leading function (the votes of every
+  // rotation against its code, every cell of the marker, on the leader's grid) must reach
+  // max(decode.min_score, fused_min_score), normalised score, and its margin
+  // fused_min_margin_cells, cells (stricter than min_margin_cells). Defaults 0.88 and 1.0: the
+  // right leaders of a VLP-32C's 1.2 m tag at 28-32 m and 45 degrees end at 0.88-0.94 after 20
+  // rotations; the wrong leaders of a far tag of another family (tracker_e2e_test) reached 0.855
+  // with a margin of 0.92 cells and up to 0.94 only with margins below 0.75, and the boards and
+  // clutter of the tests stay below 0.66. Raising either trades far tags for caution.
+  double fused_min_score = 0.88;
+  double fused_min_margin_cells = 1.0;
   // Rotations (the latest) in the smoothed pose and its spread. Default 10 (1 s at 600 rpm).
   int window = 10;
   // A track not seen for longer than this is dropped, seconds of scan time (at most 1e6). Default
@@ -94,12 +122,17 @@ void visit_tracker_options(V& v, TrackerOptions& o) {
   v.field("max_distance_m", o.max_distance_m, above(0.0), "m");
   // Below 45 degrees: quarter turns about the normal must stay apart.
   v.field("max_angle_deg", o.max_angle_deg, open(0.0, 45.0), "deg");
+  v.field("pose_noise_m_points", o.pose_noise_m_points, at_least(0.0), "m*points");
+  v.field("pose_noise_deg_points", o.pose_noise_deg_points, at_least(0.0), "deg*points");
+  v.field("gate_sigmas", o.gate_sigmas, open_closed(0.0, 100.0), "");
   v.field("follow_motion", o.follow_motion, Any{}, "");
   v.field("max_speed_mps", o.max_speed_mps, closed(0.0, 100.0), "m/s");
   v.field("max_turn_deg_s", o.max_turn_deg_s, closed(0.0, 3600.0), "deg/s");
   v.field("min_margin_cells", o.min_margin_cells, above(0.0), "cells");
   v.field("full_cell_votes", o.full_cell_votes, at_least(1.0), "votes");
   v.field("min_rotations", o.min_rotations, at_least(1), "rotations");
+  v.field("fused_min_score", o.fused_min_score, closed(0.5, 1.0), "");
+  v.field("fused_min_margin_cells", o.fused_min_margin_cells, above(0.0), "cells");
   v.field("window", o.window, closed(1, 1000), "rotations");
   v.field("max_age_s", o.max_age_s, open_closed(0.0, 1e6), "s");
   v.field("max_tracks", o.max_tracks, closed(1, 4096), "tracks");
@@ -214,6 +247,10 @@ class Tracker {
     int functions = 0;              // 4 x codes
     double black_half_ratio = 0.0;  // (width_at_border / total_width) / 2
   };
+  // A track's association gates for one candidate (TrackerOptions, "Association gates").
+  struct Gates {
+    double distance_m = 0.0, angle_rad = 0.0;
+  };
   struct Pair {
     double cost;  // distance and angle, each in units of its gate
     int candidate, track, delta;
@@ -228,6 +265,7 @@ class Tracker {
   void track(const ScanResult& result, int64_t stamp_ns, TrackerResult& out, const EgoMotion* ego);
   // The candidate's time on the tracker's clock (its centre's firing time), seconds.
   double time_of(const Candidate& c, int64_t stamp_ns) const;
+  Gates gates(const Track& t, const Candidate& c) const;
   void update_fleet();
   // The candidate's evidence for its family, when it is complete and consistent; else null.
   const FamilyEvidence* evidence(const Candidate& c, const ScanResult& result) const;
