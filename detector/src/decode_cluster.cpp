@@ -155,9 +155,12 @@ ClusterDecode decode_cluster(std::span<const ClusterPoint> points, const RigidPo
   out.family = h.family;
   out.shift = h.shift;
   out.best.margin_bits = rival > -1e29 ? (h.result.score - rival) * h.result.cells_per_score : 1e9;
-  out.best.rejection = out.best.score < opt.min_score               ? Rejection::kLowScore
-                       : out.best.margin_bits < opt.min_margin_bits ? Rejection::kAmbiguous
-                                                                    : Rejection::kNone;
+  const double min_margin = search && square_mount_axis(unseen_axis, axis)
+                                ? opt.min_margin_bits_searched
+                                : opt.min_margin_bits;
+  out.best.rejection = out.best.score < opt.min_score      ? Rejection::kLowScore
+                       : out.best.margin_bits < min_margin ? Rejection::kAmbiguous
+                                                           : Rejection::kNone;
 
   // A tag of a family that is not configured still has a best code in the configured ones (the
   // margin only compares codes of one family): the built-in families left out are decoded at the

@@ -5,10 +5,9 @@
 // X(t_c) = exp([a] tau) X_i + B(tau) u, tau = t_c - t_i.
 #include "lidartag/detector/deskew.hpp"
 
-#include <algorithm>
 #include <cmath>
-#include <limits>
 
+#include "lidartag/detector/detection.hpp"
 #include "lidartag/detector/ego_motion.hpp"
 
 namespace lidartag::detector {
@@ -23,30 +22,12 @@ int64_t stamp_at(const Scan& scan, double t_s) {
   return scan.stamp_ns + static_cast<int64_t>(std::llround(t_s * 1e9));
 }
 
-// The firing time of the point nearest the points' centroid (firing_times' centre, before the
-// fit has placed the tag), and the earliest and latest firing times.
-struct ClusterTimes {
-  double center_s = 0.0, first_s = 0.0, last_s = 0.0;
-};
-ClusterTimes cluster_times(std::span<const ClusterPoint> points, const Scan& scan) {
+// The firing times of the cluster (detection.hpp's firing_times), its centre time that of the
+// point nearest the points' centroid: the fit has not placed the tag yet.
+FiringTimes cluster_times(std::span<const ClusterPoint> points, const Scan& scan) {
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
   for (const ClusterPoint& p : points) centroid += Eigen::Vector3d(p.x, p.y, p.z);
-  centroid /= static_cast<double>(points.size());
-  ClusterTimes t;
-  t.first_s = std::numeric_limits<double>::max();
-  t.last_s = std::numeric_limits<double>::lowest();
-  double nearest = std::numeric_limits<double>::max();
-  for (const ClusterPoint& p : points) {
-    const double time = time_of(scan, p);
-    t.first_s = std::min(t.first_s, time);
-    t.last_s = std::max(t.last_s, time);
-    const double d = (Eigen::Vector3d(p.x, p.y, p.z) - centroid).squaredNorm();
-    if (d < nearest) {
-      nearest = d;
-      t.center_s = time;
-    }
-  }
-  return t;
+  return firing_times(points, scan, centroid / static_cast<double>(points.size()));
 }
 
 void set(ClusterPoint& p, const Eigen::Vector3d& x) {
@@ -58,7 +39,7 @@ void set(ClusterPoint& p, const Eigen::Vector3d& x) {
 // With the odometry: every time of the cluster covered (its first, centre and last firing in one
 // odometry frame), else false and nothing moved.
 bool deskew_ego(std::span<ClusterPoint> points, const Scan& scan, const EgoMotion& ego,
-                const ClusterTimes& t) {
+                const FiringTimes& t) {
   EgoPose center, first, last;
   if (ego.at(stamp_at(scan, t.center_s), center) != EgoLookup::kOk ||
       ego.at(stamp_at(scan, t.first_s), first) != EgoLookup::kOk ||
@@ -82,7 +63,7 @@ bool deskew_ego(std::span<ClusterPoint> points, const Scan& scan, const EgoMotio
 Deskewed deskew_cluster(std::span<ClusterPoint> points, const Scan& scan,
                         const SensorMotion& motion) noexcept {
   if (points.empty() || (motion.ego == nullptr && !motion.model.known)) return {};
-  const ClusterTimes t = cluster_times(points, scan);
+  const FiringTimes t = cluster_times(points, scan);
   if (motion.ego != nullptr && deskew_ego(points, scan, *motion.ego, t))
     return {DeskewSource::kEgo, t.center_s};
   if (!motion.model.known) return {};

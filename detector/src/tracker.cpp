@@ -13,6 +13,7 @@
 #include <string_view>
 #include <type_traits>
 
+#include "lidartag/detector/decode_cluster.hpp"
 #include "lidartag/detector/fused_grid.hpp"
 #include "lidartag/detector/tag_family.hpp"
 
@@ -102,6 +103,7 @@ struct Tracker::Track {
   // every side seen), from its first candidate whose shift decoding searched; the extent of the
   // voted points along it (track frame, metres), and the grid that leads.
   int axis = 0;
+  bool square = false;  // the axis lies along or across the rings (square_mount_axis)
   double lo = 0.0, hi = 0.0;
   int shift = kCentre;
   // Over the rotations in which the families not configured were decoded: their best score and
@@ -423,6 +425,7 @@ void Tracker::start(Track& t, const Candidate& c) {
   std::fill(t.votes.begin(), t.votes.end(), 0.0f);
   std::fill(t.counts.begin(), t.counts.end(), 0.0f);
   t.axis = 0;
+  t.square = false;
   t.lo = t.hi = 0.0;
   t.shift = kCentre;
   t.other_sum = t.own_sum = 0.0;
@@ -553,6 +556,7 @@ void Tracker::add_evidence(Track& t, const Candidate& c, const ScanResult& resul
     const Eigen::Vector3d a =
         m * c.undecoded_orientation.normalized().toRotationMatrix().transpose() * c.unseen_axis;
     t.axis = std::abs(a.y()) >= std::abs(a.z()) ? 1 : 2;
+    t.square = square_mount_axis(c.unseen_axis, a);
     t.lo = std::numeric_limits<double>::infinity();
     t.hi = -t.lo;
   }
@@ -630,8 +634,9 @@ void Tracker::add_evidence(Track& t, const Candidate& c, const ScanResult& resul
       t.mean_score >= min_score_ ||
       fused_grid_confirms(fam.dict, lead, lead_grid, lead_counts, opt_.full_cell_votes, t.margin,
                           min_score_, opt_.fused_min_score, opt_.fused_min_margin_cells);
-  t.confirmed = t.rotations >= opt_.min_rotations && t.margin >= opt_.min_margin_cells && scored &&
-                !other_better;
+  const double min_margin = t.square ? opt_.min_margin_cells_searched : opt_.min_margin_cells;
+  t.confirmed =
+      t.rotations >= opt_.min_rotations && t.margin >= min_margin && scored && !other_better;
 }
 
 void Tracker::fill_info(const Track& t, TrackInfo& info) const {

@@ -122,12 +122,24 @@ TEST(DecodeCluster, ShiftSearchPlacesATagAlongTheAxisTheOutlineMissed) {
   Placed tag = place(marker_points(fam, 12, 0, 1.2, 3, -0.3, 0.3), R, c);
   const Eigen::Vector3d up = R.col(2);  // the tag's z in the sensor frame
   tag.pull_back.p = -R.transpose() * (c - 0.1 * up);
+  // The search itself, with a diamond's margin (the default for a searched place is stricter,
+  // below).
+  DecodeOptions loose;
+  loose.min_margin_bits_searched = loose.min_margin_bits;
   ClusterDecodeWorkspace ws;
-  const ClusterDecode d =
-      decode_cluster(tag.points, tag.pull_back, up, 1.2, dicts, {}, DecodeOptions{}, ws);
+  const ClusterDecode d = decode_cluster(tag.points, tag.pull_back, up, 1.2, dicts, {}, loose, ws);
   EXPECT_EQ(d.best.rejection, Rejection::kNone);
   EXPECT_EQ(d.best.code_index, 12);
   EXPECT_NEAR(d.shift, 0.1, 0.02);
+  // By default a square mount's searched place needs min_margin_bits_searched: this one rotation,
+  // two rows unvoted, leads by less and is ambiguous (the tracker sums rotations), never another
+  // code.
+  ClusterDecodeWorkspace strict_ws;
+  const ClusterDecode strict =
+      decode_cluster(tag.points, tag.pull_back, up, 1.2, dicts, {}, DecodeOptions{}, strict_ws);
+  EXPECT_EQ(strict.best.code_index, 12);
+  EXPECT_LT(strict.best.margin_bits, DecodeOptions{}.min_margin_bits_searched);
+  EXPECT_EQ(strict.best.rejection, Rejection::kAmbiguous);
   EXPECT_GT(ws.shifts.size(), 3u);
   EXPECT_NEAR(ws.families[0].shift, d.shift, 1e-12);
   EXPECT_TRUE(d.shift_searched);

@@ -6,6 +6,8 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
 #include <span>
 #include <vector>
 
@@ -75,6 +77,23 @@ struct ClusterDecode {
 // than 16 are inside. `inside` is scratch.
 IntensityLevels board_levels(std::span<const ClusterPoint> points, const RigidPose& pose, double t,
                              std::vector<ClusterPoint>& inside, DecodeWorkspace& ws);
+
+// Whether a tag whose place along an unseen axis is searched is square-mounted: the axis is one
+// of the tag's edges (`in_tag`: the axis in the tag's frame, whose plane is y-z) and lies along or
+// across the rings (`in_sensor`: within 22.5 degrees of level or vertical). Such a tag's rows that
+// no ring crosses never vote and its place is searched over several cells; a sparse
+// diamond-mounted tag's unseen axis is a diagonal of the tag (the square fitted to ring ends) or
+// an edge at 45 degrees to the rings, searched over a short span. The stricter margins
+// (DecodeOptions::min_margin_bits_searched, TrackerOptions::min_margin_cells_searched) are for
+// the first.
+inline bool square_mount_axis(const Eigen::Vector3d& in_sensor, const Eigen::Vector3d& in_tag) {
+  constexpr double kCos22 = 0.9239, kSin22 = 0.3827;  // cos and sin of 22.5 degrees
+  const double ns = in_sensor.norm(), nt = in_tag.norm();
+  if (!(ns > 0.0) || !(nt > 0.0)) return false;
+  const double vertical = std::abs(in_sensor.z()) / ns;
+  const double edge = std::max(std::abs(in_tag.y()), std::abs(in_tag.z())) / nt;
+  return (vertical < kSin22 || vertical > kCos22) && edge > kCos22;
+}
 
 ClusterDecode decode_cluster(std::span<const ClusterPoint> points, const RigidPose& pose,
                              const Eigen::Vector3d& unseen_axis, double t,

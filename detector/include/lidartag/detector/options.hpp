@@ -164,6 +164,7 @@ void visit_options(V& v, DetectorOptions& o) {
     s.field("min_contrast", o.decode.min_contrast, at_least(0.0), "intensity");
     s.field("min_score", o.decode.min_score, closed(0.0, 1.0), "");
     s.field("min_margin_bits", o.decode.min_margin_bits, at_least(0.0), "cells");
+    s.field("min_margin_bits_searched", o.decode.min_margin_bits_searched, at_least(0.0), "cells");
     s.field("parallel_min_functions", o.decode.parallel_min_functions, at_least(1), "functions");
     s.field("max_points", o.decode.max_points, at_least(16), "points");
     s.field("reject_other_families", o.decode.reject_other_families, Any{}, "");

@@ -40,6 +40,13 @@ struct DecodeOptions {
   // 5-bit distance one wrong cell still decodes.
   double min_score = 0.8;
   double min_margin_bits = 1.25;
+  // The margin a decode needs when the tag's place along one axis was searched (a square mount:
+  // no ring crosses its top or bottom edge, decode_cluster tries it at shifts a half cell apart),
+  // cells. Default 3.0: every shift adds hypotheses; over 31 runs of 20 rotations of a
+  // square-mounted VLP-16 1.2 m tag16h5 at 5-7 m, wrong codes at a shifted place led with margins
+  // of 1.6-2.5 (15 rotations at 1.25, 1 at 2.5), none at 3.0 (61 runs). Only for a square mount
+  // (square_mount_axis in decode_cluster.hpp), not a sparse diamond's short search.
+  double min_margin_bits_searched = 3.0;
   // Score the dictionary with TBB when it holds at least this many functions. Default 4096.
   int parallel_min_functions = 4096;
   // Most points decoded (evenly spaced over the cluster): about 8 per cell of a 16-bit family.

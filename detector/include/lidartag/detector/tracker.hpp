@@ -89,6 +89,11 @@ struct TrackerOptions {
   // 0.25; at 10 m on a VLP-16, with the tag's height spread over a beam spacing, one reached 0.33
   // in 30 runs), 4 votes, 3 rotations.
   double min_margin_cells = 0.75;
+  // The margin for a track that searches its tag's place along an unseen axis (a square mount,
+  // Candidate::shift_searched, square_mount_axis), cells. Default 1.5: such a track compares
+  // codes at 9 shifts; over 61 runs of a square-mounted VLP-16 1.2 m tag16h5 at 5-7 m a wrong
+  // leader held 0.97-0.99 cells for whole runs, none reached 1.5.
+  double min_margin_cells_searched = 1.5;
   double full_cell_votes = 4.0;
   int min_rotations = 3;
   // The far edge's confirmation (fused_grid.hpp), for a track whose rotations' mean score stays
@@ -129,6 +134,7 @@ void visit_tracker_options(V& v, TrackerOptions& o) {
   v.field("max_speed_mps", o.max_speed_mps, closed(0.0, 100.0), "m/s");
   v.field("max_turn_deg_s", o.max_turn_deg_s, closed(0.0, 3600.0), "deg/s");
   v.field("min_margin_cells", o.min_margin_cells, above(0.0), "cells");
+  v.field("min_margin_cells_searched", o.min_margin_cells_searched, above(0.0), "cells");
   v.field("full_cell_votes", o.full_cell_votes, at_least(1.0), "votes");
   v.field("min_rotations", o.min_rotations, at_least(1), "rotations");
   v.field("fused_min_score", o.fused_min_score, closed(0.5, 1.0), "");
