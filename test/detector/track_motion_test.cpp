@@ -132,7 +132,7 @@ TEST(TrackMotion, AFarTagsScatterIsNotTakenForMotion) {
     const MotionFit fit = fit_motion(yawing, Motion{}, 4.0, noise_m, noise_rad);
     yaw_missed += fit.moving && std::abs(fit.motion.turn.z() + 30.0 * kDeg) < 10.0 * kDeg ? 0 : 1;
   }
-  EXPECT_LE(still_moving, 2);  // of 1,800 windows
+  EXPECT_LE(still_moving, 2);           // of 1,800 windows
   EXPECT_GT(moving_without_noise, 50);  // 117 of 1,800 with this seed
   EXPECT_LE(yaw_missed, 2);
 }
