@@ -53,7 +53,9 @@ if [ "${1:-}" != "--no-sanitizers" ]; then
   # Other drivers' PointCloud2 layouts through the bag cloud reader (issue 34).
   targets="$targets test_vendor_clouds"
   # The daemon's configuration parsing, LCM URL/log/bus, recorder and setup checks.
-  targets="$targets test_daemon_config test_daemon_setup test_ego_motion_input test_daemon_odometry"
+  # (test_daemon_odometry runs the detection flow graph: as test_daemon_pipeline, it is left out,
+  # TBB's graph_task destroys its task through a base pointer that UBSan's vptr check rejects.)
+  targets="$targets test_daemon_config test_daemon_setup test_ego_motion_input"
   # The lidartag tool's drawing (tag, render), run as a user would (they build the tool).
   targets="$targets test_cli_tag test_cli_render"
   # Calibration: intrinsics files and the result's forms (issue 30).
