@@ -80,7 +80,8 @@ def read(path, model=None, calibration=None, cut_deg=180.0, partial=False, data_
     packet profile ("RNG15_RFL8_NIR8").
 
     topic: the bag's LiDAR topic; None: its one LiDAR topic.
-    start, duration: a bag's time window, seconds from its first message (None: to the end).
+    start, duration: a time window, seconds from a bag's first message or a pcap's first packet
+      (None: to the end); what falls outside is counted in counts["outside_window"].
     model: decode as this Velodyne model (vlp16, puck-hires, vlp32c, hdl32e, vls128); None: the
       packets' product byte, checked against their timing (Reader.model_mismatch says when they
       disagree). An Ouster model name (os0-128, os1-64, ...): the metadata must describe it

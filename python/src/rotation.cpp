@@ -213,53 +213,6 @@ driver::ouster::IntensitySource intensity_source(const std::string& name) {
   throw py::value_error("intensity '" + name + "': reflectivity or signal");
 }
 
-// A bag's time window over the packets of an Ouster bag (whose packets carry their message's
-// receive time): only those received in [start_s, start_s + duration_s) from the bag's start (its
-// earliest message, as driver::bag::MessageReader counts it) pass; the others are counted.
-class WindowSource final : public driver::PacketSource {
- public:
-  WindowSource(std::unique_ptr<driver::PacketSource> inner, std::optional<int64_t> start_ns,
-               double start_s, double duration_s, uint64_t& outside)
-      : inner_(std::move(inner)),
-        start_ns_(start_ns),
-        start_s_(start_s),
-        duration_s_(duration_s),
-        outside_(outside) {}
-
-  driver::ReadStatus next(driver::RawPacket& out, std::chrono::milliseconds timeout) override {
-    for (;;) {
-      const driver::ReadStatus status = inner_->next(out, timeout);
-      if (status != driver::ReadStatus::kPacket) return status;
-      if (!start_ns_) start_ns_ = out.receive_time_ns;  // no index: the first message read
-      const double t = static_cast<double>(out.receive_time_ns - *start_ns_) * 1e-9;
-      if (t >= start_s_ && t - start_s_ < duration_s_) return status;
-      ++outside_;
-    }
-  }
-  driver::SourceStats stats() const override { return inner_->stats(); }
-  std::string error() const override { return inner_->error(); }
-
- private:
-  std::unique_ptr<driver::PacketSource> inner_;
-  std::optional<int64_t> start_ns_;
-  double start_s_, duration_s_;
-  uint64_t& outside_;
-};
-
-// A bag's LiDAR topic (`topic`, or its one LiDAR topic) and the kind of its messages.
-struct BagTopic {
-  std::string name;
-  driver::bag::MessageKind kind = driver::bag::MessageKind::kOther;
-};
-BagTopic bag_topic(const std::string& path, const std::string& topic) {
-  const auto probe = driver::bag::open_bag(path);
-  BagTopic t;
-  t.name = driver::bag::choose_lidar_topic(probe->connections(), topic, path);
-  for (const driver::bag::Connection& c : probe->connections())
-    if (c.topic == t.name) t.kind = driver::bag::message_kind(c.type);
-  return t;
-}
-
 // Reads rotations lazily; the GIL is released while packets are read and decoded. Packet captures
 // (pcap/pcapng of Velodyne or Ouster packets, bags of VelodyneScan or Ouster packet messages) are
 // opened by the driver's source seam (driver::open_capture) as the daemon opens them.
@@ -294,14 +247,15 @@ class Reader {
       if (ouster_options)
         throw py::value_error("metadata and intensity are for Ouster captures; '" + path +
                               "' is a PCD file");
+      if (o.start_s != 0 || o.duration_s != std::numeric_limits<double>::infinity())
+        throw py::value_error("start and duration are for recordings; '" + path +
+                              "' is a PCD file (one rotation)");
       pcd_ = rotation_of_pcd(path, model_option(o.model), o.rings, o.resolution_deg);
       return;
     }
     const std::string topic = o.topic.value_or("");
-    const bool windowed = o.start_s != 0 || o.duration_s != std::numeric_limits<double>::infinity();
-    if (!is_bag && (o.topic || windowed))
-      throw py::value_error("topic, start and duration are for ROS bags and MCAP files; '" + path +
-                            "' is not one");
+    if (!is_bag && o.topic)
+      throw py::value_error("topic is for ROS bags and MCAP files; '" + path + "' is not one");
     if (const std::string problem = driver::bag::window_problem(o.start_s, o.duration_s);
         !problem.empty())
       throw py::value_error(problem);
@@ -335,39 +289,10 @@ class Reader {
     if (o.calibration) so.calibration_file = *o.calibration;
     so.batcher.cut_azimuth_deg = o.cut_deg;
     so.ouster_decoder.intensity = intensity_source(o.intensity);
-    const BagTopic windowed_topic = windowed ? bag_topic(path, topic) : BagTopic{};
-    if (windowed_topic.kind == driver::bag::MessageKind::kVelodyneScan) {
-      // VelodyneScan messages hold many packets stamped by the driver: the window is on the
-      // messages' receive times, so the bag reader applies it (the seam has no window).
-      if (ouster_options)
-        throw py::value_error("metadata and intensity are for Ouster captures; '" + path +
-                              "' holds Velodyne packets");
-      velodyne::CaptureReaderOptions v;
-      v.source = so.replay;
-      v.source.data_port = driver::data_port_of(driver::Vendor::kVelodyne, so);
-      v.source.position_port = driver::aux_port_of(driver::Vendor::kVelodyne, so);
-      v.topic = topic;
-      v.bag_start_s = o.start_s;
-      v.bag_duration_s = o.duration_s;
-      v.model = so.velodyne_model;
-      v.calibration_file = so.calibration_file;
-      v.batcher = so.batcher;
-      opened_.reader = std::make_unique<velodyne::CaptureReader>(path, v);
-      opened_.vendor = driver::Vendor::kVelodyne;
-      opened_.what = std::string(driver::bag::format_name(driver::bag::detect_bag_format(path))) +
-                     ", topic " + windowed_topic.name;
-    } else {
-      driver::SourceWrap wrap;
-      if (windowed) {
-        const std::optional<int64_t> start_ns = driver::bag::open_bag(path)->start_time_ns();
-        wrap = [this, start_ns, start_s = o.start_s,
-                duration_s = o.duration_s](std::unique_ptr<driver::PacketSource> source) {
-          return std::make_unique<WindowSource>(std::move(source), start_ns, start_s, duration_s,
-                                                outside_window_);
-        };
-      }
-      opened_ = driver::open_capture(path, so, wrap);
-    }
+    // A time window: a bag's from its first message, a pcap's from its first packet.
+    so.start_s = o.start_s;
+    so.duration_s = o.duration_s;
+    opened_ = driver::open_capture(path, so);
     if (opened_.vendor == driver::Vendor::kVelodyne && ouster_options)
       throw py::value_error("metadata and intensity are for Ouster captures; '" + path +
                             "' holds Velodyne packets");
@@ -517,12 +442,12 @@ class Reader {
       d["decode_errors"] = ouster_->decoder_stats().rejected();
       d["refused_mismatch"] = rc.refused_mismatch;
       d["invalid_columns"] = ouster_->decoder_stats().invalid_columns;
-      d["outside_window"] = outside_window_;
     }
     const auto s = opened_.reader->source_stats();
     d["ignored"] = s.ignored;
     d["truncated"] = s.truncated;
     d["malformed"] = s.malformed;
+    d["outside_window"] = s.outside_window;
     const auto b = opened_.reader->batcher_stats();
     d["missing_packets"] = b.missing_packets;
     return d;
@@ -583,8 +508,7 @@ class Reader {
   std::string sensor_model_;                         // Ouster: the metadata's model name
   std::array<Scan, 2> scans_;
   size_t next_scan_ = 0;
-  uint64_t outside_window_ = 0;  // Ouster bag packets outside the time window
-  bool vendor_ports_ = true;     // data_port and position_port not given: the vendor's
+  bool vendor_ports_ = true;  // data_port and position_port not given: the vendor's
   std::unique_ptr<clouds::BagCloudReader> clouds_;  // a bag's PointCloud2 topic
   std::optional<velodyne::Model> cloud_model_;
   Scan cloud_scan_;

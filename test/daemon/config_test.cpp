@@ -16,6 +16,7 @@
 #include <utility>
 #include <vector>
 
+#include "config_cases.hpp"
 #include "field_count.hpp"
 
 namespace lidartag::daemon {
@@ -240,27 +241,8 @@ TEST(Config, OverridesApplyBeforeChecking) {
   EXPECT_EQ(o.sensors[1].name, "b");
 }
 
-struct BadCase {
-  std::string yaml;
-  std::string key, value, reason_part;
-};
-
-// Each case's YAML is refused by one ConfigError naming its key and value, with a one-line message
-// whose reason contains reason_part.
-void expect_refused(const std::vector<BadCase>& cases) {
-  for (const auto& c : cases) {
-    SCOPED_TRACE(c.yaml);
-    try {
-      (void)parse_config(c.yaml);
-      ADD_FAILURE() << "accepted";
-    } catch (const ConfigError& e) {
-      EXPECT_EQ(e.key(), c.key);
-      EXPECT_EQ(e.value(), c.value);
-      EXPECT_NE(e.reason().find(c.reason_part), std::string::npos) << e.reason();
-      EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos);
-    }
-  }
-}
+using test::BadCase;
+using test::expect_refused;
 
 TEST(Config, EachBadKeyOrValueNamesKeyValueAndReason) {
   const std::vector<BadCase> cases = {

@@ -77,6 +77,19 @@ std::vector<json> json_lines(const std::string& out) {
   return lines;
 }
 
+// Each foxglove.PointCloud message holds the points of the rotation `detect --json` printed at
+// its place (18 bytes a point: x, y, z float32, intensity float32, ring uint16).
+void expect_clouds_hold_the_rotations(const std::vector<std::pair<int64_t, std::string>>& clouds,
+                                      const std::vector<json>& rotations) {
+  ASSERT_EQ(clouds.size(), rotations.size());
+  for (size_t i = 0; i < clouds.size(); ++i) {
+    const json cloud = json::parse(clouds[i].second);
+    EXPECT_EQ(base64_decode(cloud["data"].get<std::string>()).size(),
+              rotations[i]["points"].get<size_t>() * 18)
+        << "cloud " << i;
+  }
+}
+
 int64_t stamp_ns(const json& time) {
   return time["sec"].get<int64_t>() * 1000000000 + time["nsec"].get<int64_t>();
 }
@@ -185,12 +198,7 @@ TEST(McapCli, DumpFormatMcapWritesEveryRotationsCloud) {
   const Read back = read_back(path);
   EXPECT_EQ(back.by_topic.count("/lidartag/tags"), 0u) << "a conversion detects nothing";
   const auto& clouds = back.by_topic.at("/lidartag/cloud");
-  ASSERT_EQ(clouds.size(), rotations.size());
-  for (size_t i = 0; i < clouds.size(); ++i) {
-    const json cloud = json::parse(clouds[i].second);
-    EXPECT_EQ(base64_decode(cloud["data"].get<std::string>()).size(),
-              rotations[i]["points"].get<size_t>() * 18);
-  }
+  expect_clouds_hold_the_rotations(clouds, rotations);
   // An existing output is replaced only with --force; the capture itself never.
   EXPECT_NE(run_tool("dump " + kDemo + " --format mcap --out " + path.string()).exit_code, 0);
   EXPECT_EQ(run_tool("dump " + kDemo + " --format mcap --force --out " + path.string()).exit_code,
@@ -218,12 +226,7 @@ TEST(McapCli, DumpFormatMcapOfAPointCloud2Topic) {
   EXPECT_EQ(back.by_topic.count("/lidartag/tags"), 0u) << "a conversion detects nothing";
   ASSERT_EQ(back.by_topic.count("/lidartag/cloud"), 1u);
   const auto& clouds = back.by_topic.at("/lidartag/cloud");
-  ASSERT_EQ(clouds.size(), rotations.size());
-  for (size_t i = 0; i < clouds.size(); ++i) {
-    const json cloud = json::parse(clouds[i].second);
-    EXPECT_EQ(base64_decode(cloud["data"].get<std::string>()).size(),
-              rotations[i]["points"].get<size_t>() * 18);
-  }
+  expect_clouds_hold_the_rotations(clouds, rotations);
   // The clouds 0.1 s apart: [0.15 s, 0.35 s) holds the third and fourth; --force replaces.
   EXPECT_NE(run_tool("dump " + luminar + " --format mcap --out " + path.string()).exit_code, 0);
   r = run_tool("dump --start 0.15 --duration 0.2 --force " + luminar + " --format mcap --out " +

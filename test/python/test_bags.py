@@ -63,7 +63,7 @@ def test_a_bag_time_window_and_a_wrong_topic():
     with pytest.raises(ValueError, match="--duration"):
         lidartag.read(luminar(), duration=0)
     with pytest.raises(ValueError, match="for ROS bags"):
-        lidartag.read(CAPTURES / "vlp16_dual_nebula.pcap", start=1.0)
+        lidartag.read(CAPTURES / "vlp16_dual_nebula.pcap", topic="/velodyne_packets")
     velodyne = CAPTURES / "bags" / "rosbag2" / "vlp16_dual"
     reader = lidartag.read(velodyne, start=0.15, duration=0.2, partial=True)
     list(reader)
@@ -72,3 +72,20 @@ def test_a_bag_time_window_and_a_wrong_topic():
     assert reader.vendor == "velodyne"
     assert reader.source == lidartag.read(velodyne).source == "ROS 2 bag (sqlite3), topic " \
         "/velodyne_packets"
+
+
+def test_a_pcap_time_window_keeps_its_rotations(demo, demo_rotations, tmp_path):
+    # A pcap's window counts from its first packet, as `lidartag ... --start/--duration` does: the
+    # packets outside are counted, each whole rotation inside is the one the whole file gives.
+    period = (demo_rotations[-1].stamp_ns - demo_rotations[0].stamp_ns) / (len(demo_rotations) - 1)
+    reader = lidartag.read(demo, start=2.5 * period * 1e-9, duration=3 * period * 1e-9)
+    window = list(reader)
+    assert 2 <= len(window) <= 3
+    assert reader.counts["outside_window"] > 0
+    whole = {r.stamp_ns: r for r in demo_rotations}
+    for r in window:
+        assert np.array_equal(r.points, whole[r.stamp_ns].points)
+    pcd = tmp_path / "one.pcd"
+    lidartag.write_pcd(demo_rotations[0], pcd, "binary", False)
+    with pytest.raises(ValueError, match="PCD file"):
+        lidartag.read(pcd, start=1.0)

@@ -159,13 +159,14 @@ def test_an_ouster_ros1_bag_reads_its_frame_with_the_metadata_topic():
     expect_rings_by_elevation(r, reader.sensor_info["beam_altitude_deg"])
     assert len(lidartag.Detector().detect(r)) == 0
     # A time window over the bag's messages: one that holds them all gives the same frame; one
-    # after the bag's end none, its 32 lidar and 10 IMU packets counted outside it.
+    # after the bag's end none, its 43 messages (32 lidar, 10 IMU, the metadata) counted outside
+    # it, as `lidartag info --start 1000` counts them.
     whole = list(lidartag.read(bag, start=0.0, duration=1000.0))
     assert len(whole) == 1 and np.array_equal(whole[0].points, r.points)
     window = lidartag.read(bag, start=1000.0, partial=True)
     with pytest.raises(lidartag.IoError, match="no rotation"):
         list(window)
-    assert window.counts["outside_window"] == 42
+    assert window.counts["outside_window"] == 43
 
 
 def test_velodyne_reads_keep_their_counts_and_refuse_ouster_options(demo):

@@ -4,17 +4,9 @@ namespace lidartag::driver::bag {
 
 // One open: the topic is chosen from the reader's connections (the constructor below) and the
 // other topics' messages are passed over by connection.
-namespace {
-ReaderOptions window_of(const BagPacketSourceOptions& options) {
-  ReaderOptions r;
-  r.start_s = options.start_s;
-  r.duration_s = options.duration_s;
-  return r;
-}
-}  // namespace
-
 BagPacketSource::BagPacketSource(const std::string& path, BagPacketSourceOptions options)
-    : BagPacketSource(open_bag(path, window_of(options)), std::move(options), path) {}
+    : BagPacketSource(open_bag(path, ReaderOptions::window(options.start_s, options.duration_s)),
+                      std::move(options), path) {}
 
 BagPacketSource::BagPacketSource(std::unique_ptr<MessageReader> reader,
                                  BagPacketSourceOptions options, const std::string& path)

@@ -59,17 +59,9 @@ std::string read_ouster_metadata(const std::string& path, const std::string& lid
                  (reader->error().empty() ? std::string() : " (" + reader->error() + ")"));
 }
 
-namespace {
-ReaderOptions window_of(const OusterPacketSourceOptions& options) {
-  ReaderOptions r;
-  r.start_s = options.start_s;
-  r.duration_s = options.duration_s;
-  return r;
-}
-}  // namespace
-
 OusterPacketSource::OusterPacketSource(const std::string& path, OusterPacketSourceOptions options)
-    : reader_(open_bag(path, window_of(options))), options_(std::move(options)) {
+    : reader_(open_bag(path, ReaderOptions::window(options.start_s, options.duration_s))),
+      options_(std::move(options)) {
   const auto& connections = reader_->connections();
   options_.topic = choose_lidar_topic(connections, options_.topic, path);
   for (const Connection& c : connections) {

@@ -82,6 +82,14 @@ struct ReaderOptions {
   // (window_problem() says so); the readers treat them as 0 and as no limit.
   double start_s = 0;
   double duration_s = std::numeric_limits<double>::infinity();
+
+  // Every topic, the default chunk bound, the window [start_s, start_s + duration_s).
+  static ReaderOptions window(double start, double duration) {
+    ReaderOptions r;
+    r.start_s = start;
+    r.duration_s = duration;
+    return r;
+  }
 };
 
 // Empty when `start_s` and `duration_s` make a window (start >= 0, duration > 0, neither NaN),
