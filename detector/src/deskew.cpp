@@ -60,6 +60,18 @@ bool deskew_ego(std::span<ClusterPoint> points, const Scan& scan, const EgoMotio
 
 }  // namespace
 
+std::string_view deskew_source_name(DeskewSource s) {
+  switch (s) {
+    case DeskewSource::kEgo:
+      return "ego";
+    case DeskewSource::kModel:
+      return "model";
+    case DeskewSource::kNone:
+      break;
+  }
+  return "none";
+}
+
 Deskewed deskew_cluster(std::span<ClusterPoint> points, const Scan& scan,
                         const SensorMotion& motion) noexcept {
   if (points.empty() || (motion.ego == nullptr && !motion.model.known)) return {};

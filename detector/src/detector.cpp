@@ -407,6 +407,7 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, const Senso
   candidate.time_center_s = times.center_s;
   candidate.time_last_s = times.last_s;
   candidate.measured_size_m = measured_size_m;
+  candidate.deskew = deskewed.source;
   if (dec.best.rejection != Rejection::kNone || track_only)
     return finish(Stage::kDecode, dec.best.rejection);
 
@@ -418,6 +419,7 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, const Senso
   det.time_center_s = times.center_s;
   det.time_last_s = times.last_s;
   det.measured_size_m = measured_size_m;
+  det.deskew = deskewed.source;
   det.size_warning = size_contradicts(measured_size_m, t, opt_.pose.size_warning_ratio);
   if (opt_.keep_tag_points) {
     det.first_point = static_cast<int>(out.tag_points.size());

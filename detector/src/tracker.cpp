@@ -725,6 +725,7 @@ void Tracker::report(const ScanResult& result, TrackerResult& out) const {
     d.time_center_s = c.time_center_s;
     d.time_last_s = c.time_last_s;
     d.measured_size_m = c.measured_size_m;
+    d.deskew = c.deskew;
     d.size_warning = size_contradicts(c.measured_size_m, c.size_m, size_warning_ratio_);
     // The track's function in the candidate's frame: quarter turns q - delta.
     const int q = ((t.leader & 3) - t.delta) & 3;

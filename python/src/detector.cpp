@@ -96,11 +96,13 @@ struct PyDetection {
   double time_first_s = 0, time_center_s = 0, time_last_s = 0;
   double measured_size_m = -1;
   bool size_warning = false;
+  std::string deskew = "none";
 };
 
 struct PyResult {
   std::vector<PyDetection> detections;
   int features = 0, clusters = 0;
+  int deskewed_ego = 0, deskewed_model = 0, deskew_without_motion = 0;
   std::map<std::string, double> timing_ms;
   std::map<std::string, uint32_t> rejected;
   double total_ms = 0;
@@ -132,6 +134,7 @@ PyDetection convert(const det::Detection& d) {
   p.time_last_s = d.time_last_s;
   p.measured_size_m = d.measured_size_m;
   p.size_warning = d.size_warning;
+  p.deskew = std::string(det::deskew_source_name(d.deskew));
   return p;
 }
 
@@ -150,6 +153,9 @@ class PyDetector {
     for (const auto& d : result_.detections) out.detections.push_back(convert(d));
     out.features = result_.features;
     out.clusters = result_.clusters;
+    out.deskewed_ego = result_.deskewed_ego;
+    out.deskewed_model = result_.deskewed_model;
+    out.deskew_without_motion = result_.deskew_without_motion;
     for (int s = 0; s < det::kStageCount; ++s)
       out.timing_ms[std::string(det::stage_name(static_cast<det::Stage>(s)))] =
           result_.timing_ms[static_cast<size_t>(s)];
@@ -229,6 +235,10 @@ marker, white ring included).)")
       .def_readonly("size_warning", &PyDetection::size_warning,
                     "measured_size_m differs from size_m (the configured size) by more than "
                     "pose.size_warning_ratio: the configured size is wrong and the pose biased.")
+      .def_readonly("deskew", &PyDetection::deskew,
+                    "What moved its points to time_center_s before the fits (detector.deskew): "
+                    "'none' (fitted as fired), 'ego' (odometry) or 'model' (a tracker's motion "
+                    "model); the CLI's JSON key of the same name.")
       .def("__repr__", [](const PyDetection& d) {
         return "<lidartag.Detection " + d.family + " id " + std::to_string(d.id) + " at [" +
                std::to_string(d.position.x()) + ", " + std::to_string(d.position.y()) + ", " +
@@ -244,6 +254,15 @@ marker, white ring included).)")
       .def_readonly("detections", &PyResult::detections)
       .def_readonly("features", &PyResult::features)
       .def_readonly("clusters", &PyResult::clusters)
+      .def_readonly("deskewed_ego", &PyResult::deskewed_ego,
+                    "With detector.deskew.enabled: validated clusters whose points were moved to "
+                    "their centre time by odometry (never here: Detector.detect takes no motion).")
+      .def_readonly("deskewed_model", &PyResult::deskewed_model,
+                    "... by a tracker's motion model (never here: Detector.detect takes no "
+                    "motion).")
+      .def_readonly("deskew_without_motion", &PyResult::deskew_without_motion,
+                    "... fitted as fired, no motion known for them (every validated cluster with "
+                    "the deskew on: Detector.detect takes no motion). The CLI's JSON 'deskew'.")
       .def_readonly("timing_ms", &PyResult::timing_ms)
       .def_readonly("rejected", &PyResult::rejected)
       .def_readonly("total_ms", &PyResult::total_ms)

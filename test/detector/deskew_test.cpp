@@ -125,6 +125,9 @@ struct PoseErrors {
   // Deskewed with the tracker's constant-velocity model (no odometry), from the 4th rotation on.
   std::vector<double> model_mm, model_deg, model_size;
   int deskewed_clusters = 0, model_clusters = 0;
+  // Detections whose Detection::deskew names the source that moved their points: as fired
+  // (kNone) from the plain detector, kEgo from the odometry's; those that do not.
+  int marked = 0, mismarked = 0;
 };
 PoseErrors turning_sensor(double distance, int angle, double deg_s, int runs, int rotations) {
   PoseErrors e;
@@ -163,6 +166,10 @@ PoseErrors turning_sensor(double distance, int angle, double deg_s, int runs, in
           c.push_back(rc.detections);
           e.deskewed_clusters += rb.deskewed_ego;
           e.model_clusters += rc.deskewed_model;
+          for (const Detection& d : ra.detections)
+            ++(d.deskew == DeskewSource::kNone ? e.marked : e.mismarked);
+          for (const Detection& d : rb.detections)
+            ++(d.deskew == DeskewSource::kEgo ? e.marked : e.mismarked);
         });
     for (size_t k = 0; k < truth.rotations.size() && k < a.size(); ++k) {
       const sim::TagTruth& tag = truth.rotations[k].tags.front();
@@ -207,6 +214,8 @@ TEST(DeskewTest, ATurningSensorsTagIsMeasuredAtItsPrintedSizeDeskewed) {
     const PoseErrors e = turning_sensor(distance, 0, 30.0, 4, 8);
     print("face-on", distance, 0, 30.0, e);
     EXPECT_GT(e.deskewed_clusters, 0);
+    EXPECT_GT(e.marked, 0);
+    EXPECT_EQ(e.mismarked, 0);
     ASSERT_GE(e.deskewed_mm.size(), 16u);
     ASSERT_GE(e.plain_mm.size(), 16u);
     EXPECT_LE(median(e.deskewed_mm), median(e.plain_mm) + 0.5);

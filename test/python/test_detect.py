@@ -214,3 +214,34 @@ def test_a_size_the_points_contradict_is_warned_about(demo_rotations):
             assert not d.size_warning
             assert d.measured_size_m == pytest.approx(d.size_m, rel=0.02)
     assert warned == 10
+
+
+def test_the_deskew_counts_are_the_clis(demo, demo_rotations, lidartag_cli, tmp_path):
+    # detector.deskew: each rotation counts its validated clusters by what moved their points
+    # (ScanResult's deskewed_ego, deskewed_model, deskew_without_motion) and each detection says
+    # what moved its own, under the CLI's JSON names and with the CLI's values. Detector.detect is
+    # given no motion (nor is the CLI without its tracker), so with the deskew on every validated
+    # cluster is fitted as fired and counted so; off, none is counted.
+    import subprocess
+    config = tmp_path / "deskew.yaml"
+    config.write_text("detector:\n  tag_sizes_m: [0.8, 0.6]\n  families: [tag16h5]\n"
+                      "  deskew: {enabled: true}\n")
+    on = lidartag.Detector(str(config))
+    off = lidartag.Detector(DEMO_SIZES)
+    complete = [r for r in demo_rotations if r.complete]
+    out = subprocess.run([lidartag_cli, "detect", str(demo), "--json", "--no-tracker",
+                          "--config", str(config)],
+                         check=True, capture_output=True, text=True).stdout
+    cli = [json.loads(line) for line in out.splitlines()]
+    assert len(cli) == len(complete)
+    for rotation, c in zip(complete, cli):
+        r = on.detect(rotation)
+        assert len(r) == 2 and r.deskew_without_motion >= len(r)
+        assert r.deskewed_ego == 0 and r.deskewed_model == 0
+        assert c["deskew"] == {"enabled": True, "ego": r.deskewed_ego, "model": r.deskewed_model,
+                               "without_motion": r.deskew_without_motion}
+        assert all(d.deskew == "none" for d in r)
+        assert [d["deskew"] for d in c["detections"]] == ["none"] * len(r)
+        r = off.detect(rotation)
+        assert (r.deskewed_ego, r.deskewed_model, r.deskew_without_motion) == (0, 0, 0)
+        assert all(d.deskew == "none" for d in r)

@@ -78,6 +78,13 @@ void expect_matches_truth(const nlohmann::json& detections, const nlohmann::json
   }
 }
 
+// The summary's deskew line (cmd_detect.cpp's Totals::print_deskew).
+std::string fmt_summary(int model, int without, int deskewed, int detections) {
+  return "deskew: " + std::to_string(model) + " clusters moved by the tracker's motion model, 0 " +
+         "by odometry, " + std::to_string(without) + " fitted as fired (no motion known yet); " +
+         std::to_string(deskewed) + " of " + std::to_string(detections) + " detections deskewed";
+}
+
 nlohmann::json demo_truth() {
   std::ifstream in(kDemoTruth);
   return nlohmann::json::parse(in);
@@ -191,6 +198,75 @@ TEST(CliDetect, ClustersSaysWhatATagTooFarLacked) {
   }
   EXPECT_EQ(lacked, 2);
   fs::remove_all(dir);
+}
+
+// The deskew (issue 33): a simulated VLP-16 yawing at 30 deg/s past a 1.2 m tag. With --deskew
+// the JSON counts, per rotation, the clusters whose points the tracker's motion model moved (once
+// a track knows the motion) and those fitted as fired before that, each detection says what moved
+// its points, and the summary (stderr with --json) adds them up; without it every count is 0 and
+// every detection "none".
+TEST(CliDetect, JsonCountsTheDeskewedClustersOfATurningSensor) {
+  TempDir dir;
+  {
+    std::ofstream scene(dir / "turning.yaml");
+    scene << "rotations: 12\nseed: 5\nsensor: {model: vlp16, rpm: 600, height: 1.0, "
+             "angular_velocity: [0, 0, 30]}\n"
+             "tags:\n  - {family: tag16h5, id: 3, size: 1.2, center: [5.0, 0, 1.0], "
+             "rotation: diamond, stand: {width: 0.05}}\n";
+  }
+  const std::string pcap = (dir / "turning.pcap").string();
+  ASSERT_EQ(run_tool("sim " + (dir / "turning.yaml").string() + " --out " + pcap).exit_code, 0);
+  struct Counts {
+    int rotations = 0, model = 0, ego = 0, without = 0, detections = 0, deskewed = 0;
+    bool enabled = false;
+  };
+  auto count = [](const std::string& out) {
+    Counts c;
+    std::istringstream lines(out);
+    for (std::string line; std::getline(lines, line);) {
+      const nlohmann::json rotation = nlohmann::json::parse(line);
+      const nlohmann::json& d = rotation.at("deskew");
+      ++c.rotations;
+      c.enabled = d.at("enabled").get<bool>();
+      c.model += d.at("model").get<int>();
+      c.ego += d.at("ego").get<int>();
+      c.without += d.at("without_motion").get<int>();
+      for (const auto& det : rotation["detections"]) {
+        ++c.detections;
+        const std::string source = det.at("deskew").get<std::string>();
+        EXPECT_TRUE(source == "none" || source == "model") << source;
+        c.deskewed += source == "model" ? 1 : 0;
+      }
+    }
+    return c;
+  };
+  const Result on = lidartag::testing::run_split(std::string(LIDARTAG_CLI) + " detect " + pcap +
+                                                 " --tag-size 1.2 --deskew --json");
+  ASSERT_EQ(on.exit_code, 0) << on.err;
+  const Counts a = count(on.out);
+  EXPECT_GE(a.rotations, 10);
+  EXPECT_TRUE(a.enabled);
+  EXPECT_GT(a.model, 0) << on.out;
+  EXPECT_GT(a.without, 0);  // the first rotations, before a track knows the motion
+  EXPECT_EQ(a.ego, 0);      // a capture has no odometry
+  EXPECT_GT(a.deskewed, 0);
+  EXPECT_GE(a.detections, a.rotations - 3);
+  EXPECT_NE(on.err.find(fmt_summary(a.model, a.without, a.deskewed, a.detections)),
+            std::string::npos)
+      << on.err;
+  const Result off = run_tool("detect " + pcap + " --tag-size 1.2 --json", false);
+  ASSERT_EQ(off.exit_code, 0) << off.out;
+  const Counts b = count(off.out);
+  EXPECT_EQ(b.rotations, a.rotations);
+  EXPECT_FALSE(b.enabled);
+  EXPECT_EQ(b.model + b.ego + b.without + b.deskewed, 0);
+  EXPECT_GT(b.detections, 0);
+  const Result table = run_tool("detect " + pcap + " --tag-size 1.2 --deskew", false);
+  EXPECT_NE(table.out.find(fmt_summary(a.model, a.without, a.deskewed, a.detections)),
+            std::string::npos)
+      << table.out;
+  EXPECT_EQ(run_tool("detect " + pcap + " --tag-size 1.2", false).out.find("deskew:"),
+            std::string::npos);
 }
 
 TEST(CliDetect, ConfigFileSetsTheDetector) {

@@ -189,6 +189,17 @@ struct Reported {
   const det::TrackerResult* tracked = nullptr;  // null: tracker off
 };
 
+// The deskew's counts of a rotation's validated clusters (ScanResult): moved by the odometry,
+// by the tracker's model, and left as fired for want of a motion (all 0 with the deskew off).
+nlohmann::json deskew_json(const det::ScanResult& r, bool enabled) {
+  nlohmann::json o;
+  o["enabled"] = enabled;
+  o["ego"] = r.deskewed_ego;
+  o["model"] = r.deskewed_model;
+  o["without_motion"] = r.deskew_without_motion;
+  return o;
+}
+
 nlohmann::json rotation_json(const Scan& scan, const Reported& rep, const det::Detector& detector,
                              bool clusters) {
   const det::ScanResult& r = *rep.result;
@@ -198,6 +209,7 @@ nlohmann::json rotation_json(const Scan& scan, const Reported& rep, const det::D
   j["points"] = scan.point_count();
   j["features"] = r.features;
   j["clusters"] = r.clusters;
+  j["deskew"] = deskew_json(r, detector.options().deskew.enabled);
   nlohmann::json dets = nlohmann::json::array();
   auto add = [&](const det::Detection& d, const det::TrackedDetection* t) {
     nlohmann::json o;
@@ -221,6 +233,8 @@ nlohmann::json rotation_json(const Scan& scan, const Reported& rep, const det::D
     o["measured_size_m"] =
         d.measured_size_m > 0 ? nlohmann::json(d.measured_size_m) : nlohmann::json(nullptr);
     o["size_warning"] = d.size_warning;
+    // What moved its points to time_center_s before the fits: "none" (as fired), "ego", "model".
+    o["deskew"] = std::string(det::deskew_source_name(d.deskew));
     if (t != nullptr) {
       o["decoded"] = t->decoded;
       if (t->track.track_id >= 0) o["track"] = track_json(t->track);
@@ -338,6 +352,9 @@ struct Totals {
   std::array<uint64_t, det::kRejectionCount> rejected{};
   double worst_ms = 0.0;
   double tracker_ms = 0.0;
+  bool deskew = false;  // --deskew: the summary says what moved the clusters
+  uint64_t deskewed_ego = 0, deskewed_model = 0, deskew_without_motion = 0;
+  size_t detections_deskewed = 0, detections = 0;
   bool tracker = false;
   std::map<long, size_t> wrong_size_cm;  // sides measured of clusters rejected for their size
   std::vector<double> sizes_m;           // the sizes asked for
@@ -356,6 +373,22 @@ struct Totals {
     ++c.warned;
   }
 
+  void count_deskew(const det::Detection& d) {
+    ++detections;
+    detections_deskewed += d.deskew != det::DeskewSource::kNone ? 1 : 0;
+  }
+
+  // With --deskew: what moved the validated clusters' points, and how many detections were fitted
+  // deskewed (on stderr with --json, as the size warnings).
+  void print_deskew(std::FILE* out) const {
+    if (!deskew) return;
+    fmt::print(out,
+               "deskew: {} clusters moved by the tracker's motion model, {} by odometry, {} "
+               "fitted as fired (no motion known yet); {} of {} detections deskewed\n",
+               deskewed_model, deskewed_ego, deskew_without_motion, detections_deskewed,
+               detections);
+  }
+
   void add(const Reported& rep) {
     const det::ScanResult& r = *rep.result;
     ++rotations;
@@ -364,15 +397,20 @@ struct Totals {
       tracker_ms += rep.tracked->time_ms;
       for (const auto& t : rep.tracked->tags) {
         check_size(t.detection);
+        count_deskew(t.detection);
         ++found[{std::string(t.detection.family), t.detection.id}];
         if (!t.decoded) ++tracked_only[{std::string(t.detection.family), t.detection.id}];
       }
     } else {
       for (const auto& d : r.detections) {
         check_size(d);
+        count_deskew(d);
         ++found[{std::string(d.family), d.id}];
       }
     }
+    deskewed_ego += static_cast<uint64_t>(r.deskewed_ego);
+    deskewed_model += static_cast<uint64_t>(r.deskewed_model);
+    deskew_without_motion += static_cast<uint64_t>(r.deskew_without_motion);
     for (size_t s = 0; s < ms.size(); ++s) ms[s] += r.timing_ms[s];
     for (size_t k = 0; k < rejected.size(); ++k) rejected[k] += r.rejected[k];
     for (const auto& d : r.diagnostics)
@@ -406,6 +444,7 @@ struct Totals {
     }
     if (!found.empty()) fmt::print(" rotations\n");
     print_size_warnings(stdout);
+    print_deskew(stdout);
     if (skipped > 0)
       fmt::print("skipped {} incomplete rotation{} (--partial detects in them)\n", skipped,
                  skipped == 1 ? "" : "s");
@@ -460,6 +499,7 @@ int run_detect(const DetectArgs& args) {
   det::TrackerResult tracked;
   Totals totals;
   totals.sizes_m = detector.options().tag_sizes_m;
+  totals.deskew = detector.options().deskew.enabled;
   std::optional<McapOutput> mcap;
   if (!args.mcap.path.empty()) mcap.emplace(args.mcap, args.capture.capture);
   std::vector<det::Detection> reported;  // what the MCAP file shows: the printed detections
@@ -523,7 +563,10 @@ int run_detect(const DetectArgs& args) {
       warn_model_mismatch(reader, args.capture);
       if (mcap) mcap->close();
       if (!args.json) totals.print();
-      if (args.json) totals.print_size_warnings(stderr);
+      if (args.json) {
+        totals.print_size_warnings(stderr);
+        totals.print_deskew(stderr);
+      }
       require_rotations(reader, args.capture, n, totals.skipped, "detects in them");
     };
     open_capture(args.capture, args.ouster).visit(detect_all);
@@ -531,7 +574,10 @@ int run_detect(const DetectArgs& args) {
   }
   if (mcap) mcap->close();
   if (!args.json) totals.print();
-  if (args.json) totals.print_size_warnings(stderr);
+  if (args.json) {
+    totals.print_size_warnings(stderr);
+    totals.print_deskew(stderr);
+  }
   return 0;
 }
 

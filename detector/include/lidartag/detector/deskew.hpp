@@ -38,13 +38,6 @@ struct SensorMotion {
   Motion model;
 };
 
-// What moved a cluster's points.
-enum class DeskewSource : unsigned char {
-  kNone,   // nothing known: the points as fired
-  kEgo,    // the odometry's interpolated poses
-  kModel,  // the constant-velocity model
-};
-
 struct Deskewed {
   DeskewSource source = DeskewSource::kNone;
   double center_s = 0.0;  // the time the points were moved to, seconds from the scan's stamp

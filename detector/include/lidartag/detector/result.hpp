@@ -65,6 +65,9 @@ struct Detection {
   // are placed with the configured size: a wrong one biases them).
   double measured_size_m = -1.0;
   bool size_warning = false;
+  // What its points were moved to time_center_s with before the fits (DeskewOptions::enabled):
+  // kNone when they were fitted as fired.
+  DeskewSource deskew = DeskewSource::kNone;
   // Its `points` points in ScanResult::tag_points start here; -1 without keep_tag_points.
   int first_point = -1;
 };
@@ -130,6 +133,7 @@ struct Candidate {
   double time_first_s = 0.0, time_center_s = 0.0, time_last_s = 0.0;
   // The size its points measure, as Detection's (-1: not told).
   double measured_size_m = -1.0;
+  DeskewSource deskew = DeskewSource::kNone;  // as Detection's
   // The fitted frame before the quarter turns are known (eq. (9) is blind to them): the tag frame
   // of function f = 4 k + q is undecoded_orientation * Rx(-q * 90 deg) (x the tag's normal).
   Eigen::Quaterniond undecoded_orientation = Eigen::Quaterniond::Identity();

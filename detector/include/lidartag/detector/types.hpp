@@ -32,6 +32,17 @@ inline constexpr int kRejectionCount = static_cast<int>(Rejection::kCount);
 std::string_view rejection_name(Rejection r);
 std::string_view rejection_stage(Rejection r);
 
+// What moved a cluster's points to its centre time before the fits (deskew.hpp; a Detection's
+// and a Candidate's `deskew`).
+enum class DeskewSource : unsigned char {
+  kNone,   // not deskewed (the deskew off, or nothing known of the motion): the points as fired
+  kEgo,    // the odometry's interpolated poses
+  kModel,  // the tracker's constant-velocity model
+};
+
+// "none", "ego", "model": what `lidartag detect --json` and Python report.
+std::string_view deskew_source_name(DeskewSource s);
+
 // An edge feature of eq. (1): a point of the scan where the distance jumps.
 struct Feature {
   int ring = 0;
