@@ -4,10 +4,11 @@
 // 4 GB/s here) that pass alone cost more than reading the same packets from a pcap. On x86-64
 // with PCLMULQDQ the bulk of a buffer is folded with carry-less multiplies instead (Gopal et al.,
 // "Fast CRC Computation for Generic Polynomials Using PCLMULQDQ Instruction", Intel, 2009): four
-// 128-bit lanes folded 64 bytes at a time, then into one lane, then reduced to 32 bits by
-// Barrett reduction. The constants below are x^n mod P(x) for the n the paper gives, in the
-// bit-reflected form its reflected variant uses. The bytes left over (fewer than 16 at the end,
-// or a buffer under 64 bytes) go through zlib, which continues the same CRC.
+// 128-bit lanes folded 64 bytes at a time (four 256-bit lanes, 128 bytes at a time, where the CPU
+// has VPCLMULQDQ), then into one lane, then reduced to 32 bits by Barrett reduction. The constants
+// below are x^n mod P(x) for the n the paper gives, in the bit-reflected form its reflected variant
+// uses. The bytes left over (fewer than 16 at the end, or a buffer under 64 bytes) go through zlib,
+// which continues the same CRC.
 #include <zlib.h>
 
 #include "internal.hpp"
@@ -47,7 +48,25 @@ __attribute__((target("pclmul,sse4.1"))) inline __m128i load(const uint8_t* p) {
   return _mm_loadu_si128(reinterpret_cast<const __m128i*>(p));
 }
 
-// The CRC state (not inverted) continued over `n` bytes: n >= 64 and a multiple of 16.
+// Folds the 16-byte blocks left after `x` (n a multiple of 16) and reduces to the CRC state.
+__attribute__((target("pclmul,sse4.1"))) uint32_t finish(__m128i x, const uint8_t* p, size_t n) {
+  const __m128i k34 = _mm_set_epi64x(kK4, kK3);
+  for (; n >= 16; n -= 16, p += 16) x = fold(x, k34, load(p));
+  // 128 bits to 64 (with 32 zero bits appended): x.low * K4 ^ x.high.
+  x = _mm_xor_si128(_mm_srli_si128(x, 8), _mm_clmulepi64_si128(x, k34, 0x10));
+  // 64 bits to 32 bits and a remainder: the low 32 bits times K5, added to the rest.
+  const __m128i mask32 = _mm_set_epi32(0, 0, 0, -1);
+  const __m128i k5 = _mm_set_epi64x(0, kK5);
+  x = _mm_xor_si128(_mm_srli_si128(x, 4), _mm_clmulepi64_si128(_mm_and_si128(x, mask32), k5, 0x00));
+  // Barrett reduction: q = (low 32 bits * mu) mod x^32, remainder = x ^ q * P.
+  const __m128i poly_mu = _mm_set_epi64x(kMu, kPoly);
+  __m128i q = _mm_clmulepi64_si128(_mm_and_si128(x, mask32), poly_mu, 0x10);
+  q = _mm_clmulepi64_si128(_mm_and_si128(q, mask32), poly_mu, 0x00);
+  return static_cast<uint32_t>(_mm_extract_epi32(_mm_xor_si128(x, q), 1));
+}
+
+// The CRC state (not inverted) continued over `n` bytes: n >= 64 and a multiple of 16. Four
+// 128-bit lanes, 64 bytes a step.
 __attribute__((target("pclmul,sse4.1"))) uint32_t fold_blocks(uint32_t state, const uint8_t* p,
                                                               size_t n) {
   __m128i x0 = _mm_xor_si128(load(p), _mm_cvtsi32_si128(static_cast<int>(state)));
@@ -64,23 +83,60 @@ __attribute__((target("pclmul,sse4.1"))) uint32_t fold_blocks(uint32_t state, co
     n -= 64;
   }
   const __m128i k34 = _mm_set_epi64x(kK4, kK3);
-  __m128i x = fold(fold(fold(x0, k34, x1), k34, x2), k34, x3);
-  for (; n >= 16; n -= 16, p += 16) x = fold(x, k34, load(p));
-  // 128 bits to 64 (with 32 zero bits appended): x.low * K4 ^ x.high.
-  x = _mm_xor_si128(_mm_srli_si128(x, 8), _mm_clmulepi64_si128(x, k34, 0x10));
-  // 64 bits to 32 bits and a remainder: the low 32 bits times K5, added to the rest.
-  const __m128i mask32 = _mm_set_epi32(0, 0, 0, -1);
-  const __m128i k5 = _mm_set_epi64x(0, kK5);
-  x = _mm_xor_si128(_mm_srli_si128(x, 4), _mm_clmulepi64_si128(_mm_and_si128(x, mask32), k5, 0x00));
-  // Barrett reduction: q = (low 32 bits * mu) mod x^32, remainder = x ^ q * P.
-  const __m128i poly_mu = _mm_set_epi64x(kMu, kPoly);
-  __m128i q = _mm_clmulepi64_si128(_mm_and_si128(x, mask32), poly_mu, 0x10);
-  q = _mm_clmulepi64_si128(_mm_and_si128(q, mask32), poly_mu, 0x00);
-  return static_cast<uint32_t>(_mm_extract_epi32(_mm_xor_si128(x, q), 1));
+  return finish(fold(fold(fold(x0, k34, x1), k34, x2), k34, x3), p, n);
+}
+
+// x^(8*128+32) and x^(8*128-32) mod P: folding a lane 1024 bits on (four 256-bit lanes).
+constexpr int64_t kK1x8 = 0x1e88ef372, kK2x8 = 0x14a7fe880;
+
+__attribute__((target("avx2,vpclmulqdq,pclmul,sse4.1"))) inline __m256i fold(__m256i x, __m256i k,
+                                                                             __m256i next) {
+  const __m256i low = _mm256_clmulepi64_epi128(x, k, 0x00);
+  const __m256i high = _mm256_clmulepi64_epi128(x, k, 0x11);
+  return _mm256_xor_si256(_mm256_xor_si256(low, high), next);
+}
+
+__attribute__((target("avx2,vpclmulqdq,pclmul,sse4.1"))) inline __m256i load256(const uint8_t* p) {
+  return _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p));
+}
+
+// As fold_blocks, for n >= 256, where the CPU has VPCLMULQDQ: four 256-bit lanes (eight 128-bit
+// ones), 128 bytes a step; the eight are then folded into one, in the order of the bytes.
+__attribute__((target("avx2,vpclmulqdq,pclmul,sse4.1"))) uint32_t fold_blocks_wide(uint32_t state,
+                                                                                   const uint8_t* p,
+                                                                                   size_t n) {
+  __m256i y0 =
+      _mm256_xor_si256(load256(p), _mm256_set_epi32(0, 0, 0, 0, 0, 0, 0, static_cast<int>(state)));
+  __m256i y1 = load256(p + 32), y2 = load256(p + 64), y3 = load256(p + 96);
+  p += 128;
+  n -= 128;
+  const __m256i k = _mm256_set_epi64x(kK2x8, kK1x8, kK2x8, kK1x8);
+  while (n >= 128) {
+    y0 = fold(y0, k, load256(p));
+    y1 = fold(y1, k, load256(p + 32));
+    y2 = fold(y2, k, load256(p + 64));
+    y3 = fold(y3, k, load256(p + 96));
+    p += 128;
+    n -= 128;
+  }
+  const __m128i k34 = _mm_set_epi64x(kK4, kK3);
+  __m128i x = _mm256_castsi256_si128(y0);
+  x = fold(x, k34, _mm256_extracti128_si256(y0, 1));
+  for (const __m256i y : {y1, y2, y3}) {
+    x = fold(x, k34, _mm256_castsi256_si128(y));
+    x = fold(x, k34, _mm256_extracti128_si256(y, 1));
+  }
+  return finish(x, p, n);
 }
 
 bool have_clmul() {
   static const bool have = __builtin_cpu_supports("pclmul") && __builtin_cpu_supports("sse4.1");
+  return have;
+}
+
+bool have_vpclmul() {
+  static const bool have =
+      have_clmul() && __builtin_cpu_supports("avx2") && __builtin_cpu_supports("vpclmulqdq");
   return have;
 }
 #endif
@@ -89,9 +145,39 @@ bool have_clmul() {
 
 uint32_t crc32(std::span<const uint8_t> bytes, uint32_t crc) {
 #ifdef LIDARTAG_CRC32_CLMUL
-  if (bytes.size() >= 64 && have_clmul()) {
+  return crc32_by(have_vpclmul() ? Crc32Method::kFolded256
+                  : have_clmul() ? Crc32Method::kFolded128
+                                 : Crc32Method::kZlib,
+                  bytes, crc);
+#else
+  return crc32_zlib(bytes, crc);
+#endif
+}
+
+bool crc32_available(Crc32Method method) {
+  switch (method) {
+    case Crc32Method::kZlib:
+      return true;
+#ifdef LIDARTAG_CRC32_CLMUL
+    case Crc32Method::kFolded128:
+      return have_clmul();
+    case Crc32Method::kFolded256:
+      return have_vpclmul();
+#else
+    default:
+      break;
+#endif
+  }
+  return false;
+}
+
+uint32_t crc32_by(Crc32Method method, std::span<const uint8_t> bytes, uint32_t crc) {
+#ifdef LIDARTAG_CRC32_CLMUL
+  if (bytes.size() >= 64 && method != Crc32Method::kZlib && crc32_available(method)) {
     const size_t bulk = bytes.size() & ~size_t{15};
-    crc = ~fold_blocks(~crc, bytes.data(), bulk);
+    crc = method == Crc32Method::kFolded256 && bulk >= 256
+              ? ~fold_blocks_wide(~crc, bytes.data(), bulk)
+              : ~fold_blocks(~crc, bytes.data(), bulk);
     bytes = bytes.subspan(bulk);
   }
 #endif

@@ -78,6 +78,13 @@ class Decompressor {
 // with carry-less multiplies where the CPU has them, else zlib's).
 uint32_t crc32(std::span<const uint8_t> bytes, uint32_t crc = 0);
 
+// The ways crc32() may compute it, the fastest this CPU has being chosen: zlib's tables, and
+// (x86-64) carry-less multiplies on 128-bit (PCLMULQDQ) or 256-bit lanes (VPCLMULQDQ, AVX2).
+enum class Crc32Method { kZlib, kFolded128, kFolded256 };
+bool crc32_available(Crc32Method method);
+// crc32() by `method` (zlib's where the CPU lacks it): the tests compare them.
+uint32_t crc32_by(Crc32Method method, std::span<const uint8_t> bytes, uint32_t crc = 0);
+
 // A file read with explicit offsets (64-bit), no exceptions.
 class File {
  public:
