@@ -12,7 +12,11 @@
 #include <random>
 #include <string_view>
 
+#include "bag/bag_files.hpp"
+#include "detector/count_allocations.hpp"
 #include "internal.hpp"
+#include "lidartag/driver/bag/mcap_writer.hpp"
+#include "lidartag/driver/bag/message_reader.hpp"
 
 namespace lidartag::driver::bag::detail {
 namespace {
@@ -165,6 +169,46 @@ TEST(BagDecompressor, ReusesItsContextsAcrossChunksAndAfterDamage) {
   EXPECT_EQ(out, (Bytes{1, 2, 3}));
   EXPECT_NE(d.run("none", Bytes{1, 2, 3}, 4, out), "");
   EXPECT_NE(d.run("brotli", Bytes{1, 2, 3}, 3, out), "");
+}
+
+// Reading MCAP chunks (stored, zstd, lz4) allocates once its buffers have reached the chunks'
+// size: nothing per message or per chunk after that, whatever the topic filter passes over.
+TEST(BagMcapReading, AllocatesNothingPerMessageOrChunkInSteadyState) {
+  const testing::TempDir dir;
+  for (const auto compression :
+       {McapCompression::kNone, McapCompression::kZstd, McapCompression::kLz4}) {
+    const std::string path = dir.file("steady_" + std::to_string(static_cast<int>(compression)));
+    constexpr int kMessages = 400;
+    {
+      McapWriterOptions o;
+      o.compression = compression;
+      o.chunk_bytes = 64 << 10;
+      McapWriter w(path, o);
+      const uint16_t schema = w.add_schema("test/Blob", "ros2msg", "uint8[] data\n");
+      const uint16_t wanted = w.add_channel("/wanted", schema, "cdr");
+      const uint16_t other = w.add_channel("/other", schema, "cdr");
+      // The same 17 messages in every chunk (4,000 bytes each): chunks of one size.
+      for (int i = 0; i < kMessages; ++i) {
+        const Bytes data = pattern(4000, static_cast<uint32_t>(i % 17));
+        ASSERT_TRUE(w.write(i % 3 == 0 ? other : wanted, 1'000'000'000ULL + uint64_t(i) * 1000,
+                            1'000'000'000ULL, data));
+      }
+      w.close();
+    }
+    ReaderOptions options;
+    options.topics = {"/wanted"};
+    const auto reader = open_bag(path, options);
+    BagMessage m;
+    uint64_t read = 0;
+    while (reader->stats().chunks < 3 && reader->next(m)) ++read;  // the buffers grow here
+    const long before = lidartag::testing::heap_allocations();
+    while (reader->next(m)) ++read;
+    EXPECT_EQ(lidartag::testing::heap_allocations() - before, 0);
+    EXPECT_EQ(read, uint64_t{kMessages - (kMessages + 2) / 3});
+    EXPECT_GT(reader->stats().chunks, 20u);
+    EXPECT_EQ(reader->stats().skipped_chunks, 0u);
+    EXPECT_EQ(reader->error(), "");
+  }
 }
 
 }  // namespace
