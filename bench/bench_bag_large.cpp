@@ -6,18 +6,23 @@
 // MCAP storage holds them, chunks of 4 MiB, uncompressed and zstd) and a ROS 2 sqlite3 bag (the
 // real bag's rows repeated). Then it reads each, alternating, --runs times on this thread: the
 // packet source alone and the whole capture reader (decode + assembly into rotations); thread CPU
-// time, medians, and the bag / pcap ratios.
+// time, medians, and the bag / pcap ratios. Beside them, the zstd MCAP's chunks decompressed
+// alone with libzstd, the file already in memory: what decompression itself costs, the floor
+// for reading zstd chunks.
 //   build/bin/bench_bag_large [--pair vls128|vlp32c|vlp16_dual] [--passes 100] [--runs 5]
 //                             [--work /tmp/lidartag_bag_large] [--keep]
 #include <sqlite3.h>
 #include <time.h>
+#include <zstd.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <iterator>
 #include <map>
 #include <memory>
 #include <stdexcept>
@@ -174,6 +179,50 @@ Reading rotations(const std::string& path) {
   return r;
 }
 
+// The zstd chunks of an MCAP file in memory, decompressed with one context into one buffer:
+// CPU seconds of this thread (the walk over the records is not timed). Throws when a chunk does
+// not decompress (the file is the one this program wrote).
+double zstd_alone(const std::vector<uint8_t>& file) {
+  auto u64 = [&](size_t at) {
+    uint64_t v = 0;
+    if (at + 8 > file.size()) throw std::runtime_error("MCAP cut short");
+    std::memcpy(&v, file.data() + at, 8);
+    return v;
+  };
+  struct Frame {
+    size_t at, size, raw_size;
+  };
+  std::vector<Frame> frames;
+  // Records after the 8-byte magic: opcode (1), length (8), body; a Chunk (0x06) body is
+  // start time, end time, uncompressed size (8 each), CRC (4), compression (u32-prefixed string),
+  // records length (8), records.
+  for (size_t at = 8; at + 9 <= file.size();) {
+    const uint8_t op = file[at];
+    const size_t body = at + 9, length = u64(at + 1);
+    if (op == 0x02 || op == 0x0F) break;  // Footer, Data End
+    if (op == 0x06) {
+      uint32_t name_length = 0;
+      std::memcpy(&name_length, file.data() + body + 28, 4);
+      const std::string name(file.begin() + static_cast<std::ptrdiff_t>(body + 32),
+                             file.begin() + static_cast<std::ptrdiff_t>(body + 32 + name_length));
+      const size_t records = body + 32 + name_length;
+      if (name == "zstd") frames.push_back({records + 8, u64(records), u64(body + 16)});
+    }
+    at = body + length;
+  }
+  std::vector<uint8_t> out;
+  const std::unique_ptr<ZSTD_DCtx, size_t (*)(ZSTD_DCtx*)> context(ZSTD_createDCtx(),
+                                                                   ZSTD_freeDCtx);
+  const double t0 = thread_cpu_s();
+  for (const Frame& f : frames) {
+    out.resize(f.raw_size);
+    const size_t n =
+        ZSTD_decompressDCtx(context.get(), out.data(), out.size(), file.data() + f.at, f.size);
+    if (ZSTD_isError(n) || n != f.raw_size) throw std::runtime_error("zstd chunk not decompressed");
+  }
+  return thread_cpu_s() - t0;
+}
+
 double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
   return v.empty() ? 0.0 : v[v.size() / 2];
@@ -228,7 +277,14 @@ int main(int argc, char** argv) {
                                      {"rosbag2 sqlite3", files.rosbag2, true}};
   std::map<std::string, std::vector<double>> source_s, reader_s;
   std::map<std::string, uint64_t> packets, scans;
+  std::vector<double> zstd_s;
+  std::vector<uint8_t> zstd_file;
+  {
+    std::ifstream in(files.mcap_zstd, std::ios::binary);
+    zstd_file.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
   for (int run = 0; run < runs; ++run) {
+    zstd_s.push_back(zstd_alone(zstd_file));
     for (const Input& in : inputs) {
       const Reading s = drain([&]() -> std::unique_ptr<driver::PacketSource> {
         if (in.bag) return std::make_unique<driver::bag::BagPacketSource>(in.path);
@@ -265,6 +321,9 @@ int main(int argc, char** argv) {
     // The same packets must give the same rotations whatever holds them.
     if (packets[in.label] != packets["pcap"] || scans[in.label] != scans["pcap"]) status = 1;
   }
+  const double z = median(zstd_s);
+  std::printf("| zstd chunks decompressed alone (file in memory) | | | %.3f | %.2f | | |\n", z,
+              z / pcap_source);
   if (status != 0)
     std::printf("FAILED: a bag gave other packet or rotation counts than the pcap\n");
   if (!keep) fs::remove_all(work + "/" + std::to_string(::getpid()));
