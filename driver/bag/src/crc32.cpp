@@ -1,14 +1,14 @@
 // CRC-32 (IEEE 802.3, the reflected polynomial 0xEDB88320, as zlib and MCAP compute it).
 //
 // MCAP checks every chunk's uncompressed records against a CRC-32: at zlib's table speed (about
-// 4 GB/s here) that pass alone cost more than reading the same packets from a pcap. On x86-64
-// with PCLMULQDQ the bulk of a buffer is folded with carry-less multiplies instead (Gopal et al.,
-// "Fast CRC Computation for Generic Polynomials Using PCLMULQDQ Instruction", Intel, 2009): four
-// 128-bit lanes folded 64 bytes at a time (four 256-bit lanes, 128 bytes at a time, where the CPU
-// has VPCLMULQDQ), then into one lane, then reduced to 32 bits by Barrett reduction. The constants
-// below are x^n mod P(x) for the n the paper gives, in the bit-reflected form its reflected variant
-// uses. The bytes left over (fewer than 16 at the end, or a buffer under 64 bytes) go through zlib,
-// which continues the same CRC.
+// 4 GB/s here) that pass alone cost about as much as reading the same packets from a pcap. On
+// x86-64 with PCLMULQDQ the bulk of a buffer is folded with carry-less multiplies instead (Gopal et
+// al., "Fast CRC Computation for Generic Polynomials Using PCLMULQDQ Instruction", Intel, 2009):
+// four 128-bit lanes folded 64 bytes at a time (four 256-bit lanes, 128 bytes at a time, where the
+// CPU has VPCLMULQDQ), then into one lane, then reduced to 32 bits by Barrett reduction. The
+// folding constants are x^n mod P(x) for the n the paper gives (computed below, in the
+// bit-reflected form of its reflected variant). The bytes left over (fewer than 16 at the end, or a
+// buffer under 64 bytes) go through zlib, which continues the same CRC.
 #include <zlib.h>
 
 #include "internal.hpp"
@@ -28,12 +28,30 @@ uint32_t crc32_zlib(std::span<const uint8_t> bytes, uint32_t crc) {
 }
 
 #ifdef LIDARTAG_CRC32_CLMUL
-// x^(4*128+32) and x^(4*128-32) mod P: folding a lane 512 bits on.
-constexpr int64_t kK1 = 0x154442bd4, kK2 = 0x1c6e41596;
+// x^n mod P(x) (P = 0x104C11DB7), its 32 bits reflected and shifted left by one: the form in
+// which the reflected folding multiplies. The constants below are its values.
+constexpr int64_t x_pow_mod_p(int n) {
+  uint64_t r = 1;
+  for (int i = 0; i < n; ++i) {
+    r <<= 1;
+    if ((r >> 32) & 1) r ^= 0x104C11DB7;
+  }
+  uint64_t reflected = 0;
+  for (int i = 0; i < 32; ++i)
+    if ((r >> i) & 1) reflected |= uint64_t{1} << (31 - i);
+  return static_cast<int64_t>(reflected << 1);
+}
+// x^(4*128+32) and x^(4*128-32) mod P: folding a lane 512 bits on (four 128-bit lanes).
+constexpr int64_t kK1 = x_pow_mod_p(4 * 128 + 32), kK2 = x_pow_mod_p(4 * 128 - 32);
 // x^(128+32) and x^(128-32) mod P: folding a lane 128 bits on.
-constexpr int64_t kK3 = 0x1751997d0, kK4 = 0x0ccaa009e;
+constexpr int64_t kK3 = x_pow_mod_p(128 + 32), kK4 = x_pow_mod_p(128 - 32);
 // x^64 mod P: 64 bits to 32 bits with 32 zero bits appended.
-constexpr int64_t kK5 = 0x163cd6124;
+constexpr int64_t kK5 = x_pow_mod_p(64);
+// x^(8*128+32) and x^(8*128-32) mod P: folding a lane 1024 bits on (four 256-bit lanes).
+constexpr int64_t kK1x8 = x_pow_mod_p(8 * 128 + 32), kK2x8 = x_pow_mod_p(8 * 128 - 32);
+// The paper's published values (its reflected variant's k1 .. k5).
+static_assert(kK1 == 0x154442bd4 && kK2 == 0x1c6e41596 && kK3 == 0x1751997d0 &&
+              kK4 == 0x0ccaa009e && kK5 == 0x163cd6124);
 // P(x) itself and floor(x^64 / P(x)) (Barrett's mu), both reflected.
 constexpr int64_t kPoly = 0x1db710641, kMu = 0x1f7011641;
 
@@ -85,9 +103,6 @@ __attribute__((target("pclmul,sse4.1"))) uint32_t fold_blocks(uint32_t state, co
   const __m128i k34 = _mm_set_epi64x(kK4, kK3);
   return finish(fold(fold(fold(x0, k34, x1), k34, x2), k34, x3), p, n);
 }
-
-// x^(8*128+32) and x^(8*128-32) mod P: folding a lane 1024 bits on (four 256-bit lanes).
-constexpr int64_t kK1x8 = 0x1e88ef372, kK2x8 = 0x14a7fe880;
 
 __attribute__((target("avx2,vpclmulqdq,pclmul,sse4.1"))) inline __m256i fold(__m256i x, __m256i k,
                                                                              __m256i next) {
