@@ -145,7 +145,10 @@ __attribute__((target("avx2,vpclmulqdq,pclmul,sse4.1"))) uint32_t fold_blocks_wi
 }
 
 bool have_clmul() {
-  static const bool have = __builtin_cpu_supports("pclmul") && __builtin_cpu_supports("sse4.1");
+  static const bool have = [] {
+    __builtin_cpu_init();  // idempotent; needed if the first CRC ran before constructors
+    return __builtin_cpu_supports("pclmul") && __builtin_cpu_supports("sse4.1");
+  }();
   return have;
 }
 
