@@ -3,18 +3,23 @@
 // nothing). From a real pair of ../shared/captures (a ROS 2 bag of VelodyneScan and the pcap it
 // was recorded beside) it writes, into --work, the packets repeated --passes times (each pass's
 // times moved on by the capture's length): a pcap, an MCAP of the same CDR messages (as rosbag2's
-// MCAP storage holds them, chunks of 4 MiB, uncompressed and zstd) and a ROS 2 sqlite3 bag (the
-// real bag's rows repeated). Then it reads each, alternating, --runs times on this thread: the
+// MCAP storage holds them, chunks of 4 MiB, uncompressed, zstd and lz4) and a ROS 2 sqlite3 bag
+// (the real bag's rows repeated). Then it reads each, alternating, --runs times on this thread: the
 // packet source alone and the whole capture reader (decode + assembly into rotations); thread CPU
-// time, medians, and the bag / pcap ratios.
+// time, medians, and the bag / pcap ratios. Beside them, the compressed MCAPs' chunks
+// decompressed alone (libzstd, liblz4), the file already in memory: what decompression itself
+// costs, the floor for reading compressed chunks.
 //   build/bin/bench_bag_large [--pair vls128|vlp32c|vlp16_dual] [--passes 100] [--runs 5]
 //                             [--work /tmp/lidartag_bag_large] [--keep]
+#include <lz4frame.h>
 #include <sqlite3.h>
 #include <time.h>
+#include <zstd.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -92,7 +97,7 @@ void sql(sqlite3* db, const std::string& statement) {
 }
 
 struct Files {
-  std::string pcap, mcap_none, mcap_zstd, rosbag2;
+  std::string pcap, mcap_none, mcap_zstd, mcap_lz4, rosbag2;
 };
 
 Files write_files(const Pair& p, const std::string& work, int passes) {
@@ -106,7 +111,8 @@ Files write_files(const Pair& p, const std::string& work, int passes) {
 
   fs::create_directories(work);
   Files f{work + "/" + p.name + ".pcap", work + "/" + p.name + "_none.mcap",
-          work + "/" + p.name + "_zstd.mcap", work + "/" + p.name + "_rosbag2"};
+          work + "/" + p.name + "_zstd.mcap", work + "/" + p.name + "_lz4.mcap",
+          work + "/" + p.name + "_rosbag2"};
   {
     driver::PcapWriter w(f.pcap);
     for (int k = 0; k < passes; ++k)
@@ -115,7 +121,8 @@ Files write_files(const Pair& p, const std::string& work, int passes) {
   }
   for (const auto& [path, compression] :
        {std::pair{f.mcap_none, driver::bag::McapCompression::kNone},
-        std::pair{f.mcap_zstd, driver::bag::McapCompression::kZstd}}) {
+        std::pair{f.mcap_zstd, driver::bag::McapCompression::kZstd},
+        std::pair{f.mcap_lz4, driver::bag::McapCompression::kLz4}}) {
     driver::bag::McapWriterOptions o;
     o.compression = compression;
     o.profile = "ros2";
@@ -174,6 +181,73 @@ Reading rotations(const std::string& path) {
   return r;
 }
 
+std::vector<uint8_t> read_file(const std::string& path) {
+  std::vector<uint8_t> bytes(fs::file_size(path));
+  const std::unique_ptr<std::FILE, int (*)(std::FILE*)> f(std::fopen(path.c_str(), "rb"),
+                                                          std::fclose);
+  if (!f || std::fread(bytes.data(), 1, bytes.size(), f.get()) != bytes.size())
+    throw std::runtime_error("cannot read " + path);
+  return bytes;
+}
+
+// The chunks of an MCAP file in memory compressed as `compression` ("zstd", "lz4"), decompressed
+// with one context into one buffer: CPU seconds of this thread (the walk over the records is not
+// timed). Throws when a chunk does not decompress (the file is the one this program wrote).
+double decompress_alone(const std::vector<uint8_t>& file, const std::string& compression) {
+  auto u64 = [&](size_t at) {
+    uint64_t v = 0;
+    if (at + 8 > file.size()) throw std::runtime_error("MCAP cut short");
+    std::memcpy(&v, file.data() + at, 8);
+    return v;
+  };
+  struct Frame {
+    size_t at, size, raw_size;
+  };
+  std::vector<Frame> frames;
+  // Records after the 8-byte magic: opcode (1), length (8), body; a Chunk (0x06) body is
+  // start time, end time, uncompressed size (8 each), CRC (4), compression (u32-prefixed string),
+  // records length (8), records.
+  for (size_t at = 8; at + 9 <= file.size();) {
+    const uint8_t op = file[at];
+    const size_t body = at + 9, length = u64(at + 1);
+    if (op == 0x02 || op == 0x0F) break;  // Footer, Data End
+    if (op == 0x06) {
+      uint32_t name_length = 0;
+      std::memcpy(&name_length, file.data() + body + 28, 4);
+      const std::string name(file.begin() + static_cast<std::ptrdiff_t>(body + 32),
+                             file.begin() + static_cast<std::ptrdiff_t>(body + 32 + name_length));
+      const size_t records = body + 32 + name_length;
+      if (name == compression) frames.push_back({records + 8, u64(records), u64(body + 16)});
+    }
+    at = body + length;
+  }
+  if (frames.empty()) throw std::runtime_error("no " + compression + " chunks");
+  std::vector<uint8_t> out;
+  const std::unique_ptr<ZSTD_DCtx, size_t (*)(ZSTD_DCtx*)> zstd(ZSTD_createDCtx(), ZSTD_freeDCtx);
+  LZ4F_dctx* lz4_context = nullptr;
+  if (LZ4F_isError(LZ4F_createDecompressionContext(&lz4_context, LZ4F_VERSION)))
+    throw std::runtime_error("no lz4 context");
+  const std::unique_ptr<LZ4F_dctx, size_t (*)(LZ4F_dctx*)> lz4(lz4_context,
+                                                               LZ4F_freeDecompressionContext);
+  const double t0 = thread_cpu_s();
+  for (const Frame& f : frames) {
+    out.resize(f.raw_size);
+    size_t n = 0;
+    if (compression == "zstd") {
+      n = ZSTD_decompressDCtx(zstd.get(), out.data(), out.size(), file.data() + f.at, f.size);
+      if (ZSTD_isError(n)) n = 0;
+    } else {
+      // One call: the whole frame in, its whole size out.
+      size_t out_size = out.size(), in_size = f.size;
+      const size_t rc =
+          LZ4F_decompress(lz4.get(), out.data(), &out_size, file.data() + f.at, &in_size, nullptr);
+      n = rc == 0 ? out_size : 0;
+    }
+    if (n != f.raw_size) throw std::runtime_error(compression + " chunk not decompressed");
+  }
+  return thread_cpu_s() - t0;
+}
+
 double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
   return v.empty() ? 0.0 : v[v.size() / 2];
@@ -225,10 +299,19 @@ int main(int argc, char** argv) {
   const std::vector<Input> inputs = {{"pcap", files.pcap, false},
                                      {"MCAP (uncompressed)", files.mcap_none, true},
                                      {"MCAP (zstd)", files.mcap_zstd, true},
+                                     {"MCAP (lz4)", files.mcap_lz4, true},
                                      {"rosbag2 sqlite3", files.rosbag2, true}};
   std::map<std::string, std::vector<double>> source_s, reader_s;
   std::map<std::string, uint64_t> packets, scans;
+  // The compressed files in memory, for their chunks decompressed alone.
+  const std::vector<std::pair<std::string, std::string>> compressed = {{"zstd", files.mcap_zstd},
+                                                                       {"lz4", files.mcap_lz4}};
+  std::map<std::string, std::vector<uint8_t>> compressed_file;
+  std::map<std::string, std::vector<double>> alone_s;
+  for (const auto& [name, path] : compressed) compressed_file[name] = read_file(path);
   for (int run = 0; run < runs; ++run) {
+    for (const auto& [name, path] : compressed)
+      alone_s[name].push_back(decompress_alone(compressed_file[name], name));
     for (const Input& in : inputs) {
       const Reading s = drain([&]() -> std::unique_ptr<driver::PacketSource> {
         if (in.bag) return std::make_unique<driver::bag::BagPacketSource>(in.path);
@@ -264,6 +347,11 @@ int main(int argc, char** argv) {
                 r / pcap_reader);
     // The same packets must give the same rotations whatever holds them.
     if (packets[in.label] != packets["pcap"] || scans[in.label] != scans["pcap"]) status = 1;
+  }
+  for (const auto& [name, path] : compressed) {
+    const double z = median(alone_s[name]);
+    std::printf("| %s chunks decompressed alone (file in memory) | | | %.3f | %.2f | | |\n",
+                name.c_str(), z, z / pcap_source);
   }
   if (status != 0)
     std::printf("FAILED: a bag gave other packet or rotation counts than the pcap\n");

@@ -1,6 +1,5 @@
 #include <bzlib.h>
 #include <lz4frame.h>
-#include <zlib.h>
 #include <zstd.h>
 
 #include <algorithm>
@@ -20,8 +19,20 @@ std::string at(uint64_t offset) {
   return "at byte " + std::to_string(offset) + ": ";
 }
 
-std::string decompress(std::string_view compression, std::span<const uint8_t> in, uint64_t size,
-                       std::vector<uint8_t>& out) {
+struct Decompressor::Contexts {
+  ZSTD_DCtx* zstd = nullptr;
+  LZ4F_dctx* lz4 = nullptr;
+  ~Contexts() {
+    ZSTD_freeDCtx(zstd);  // both accept null
+    LZ4F_freeDecompressionContext(lz4);
+  }
+};
+
+Decompressor::Decompressor() : contexts_(std::make_unique<Contexts>()) {}
+Decompressor::~Decompressor() = default;
+
+std::string Decompressor::run(std::string_view compression, std::span<const uint8_t> in,
+                              uint64_t size, std::vector<uint8_t>& out) {
   out.resize(size);
   if (compression.empty() || compression == "none") {
     if (in.size() != size)
@@ -31,31 +42,37 @@ std::string decompress(std::string_view compression, std::span<const uint8_t> in
     return {};
   }
   if (compression == "zstd") {
-    const size_t n = ZSTD_decompress(out.data(), out.size(), in.data(), in.size());
+    // Created on the first zstd chunk, then reused (one allocation per reader, not per chunk).
+    if (contexts_->zstd == nullptr) contexts_->zstd = ZSTD_createDCtx();
+    if (contexts_->zstd == nullptr) return "zstd: no decompression context";
+    const size_t n =
+        ZSTD_decompressDCtx(contexts_->zstd, out.data(), out.size(), in.data(), in.size());
     if (ZSTD_isError(n)) return std::string("zstd: ") + ZSTD_getErrorName(n);
     if (n != size)
       return "zstd: " + std::to_string(n) + " bytes, " + std::to_string(size) + " declared";
     return {};
   }
   if (compression == "lz4") {
-    LZ4F_dctx* ctx = nullptr;
-    if (LZ4F_isError(LZ4F_createDecompressionContext(&ctx, LZ4F_VERSION)))
+    if (contexts_->lz4 == nullptr &&
+        LZ4F_isError(LZ4F_createDecompressionContext(&contexts_->lz4, LZ4F_VERSION))) {
+      contexts_->lz4 = nullptr;
       return "lz4: no decompression context";
+    }
+    LZ4F_dctx* ctx = contexts_->lz4;
     size_t in_pos = 0, out_pos = 0, status = 1;
     while (in_pos < in.size() && status != 0) {
       size_t in_left = in.size() - in_pos, out_left = out.size() - out_pos;
       status = LZ4F_decompress(ctx, out.data() + out_pos, &out_left, in.data() + in_pos, &in_left,
                                nullptr);
       if (LZ4F_isError(status)) {
-        const std::string text = LZ4F_getErrorName(status);
-        LZ4F_freeDecompressionContext(ctx);
-        return "lz4: " + text;
+        LZ4F_resetDecompressionContext(ctx);  // ready for the next frame
+        return std::string("lz4: ") + LZ4F_getErrorName(status);
       }
       in_pos += in_left;
       out_pos += out_left;
       if (in_left == 0 && out_left == 0) break;  // no progress: output full or input stuck
     }
-    LZ4F_freeDecompressionContext(ctx);
+    if (status != 0) LZ4F_resetDecompressionContext(ctx);  // a frame left unfinished
     if (status != 0 || out_pos != size)
       return "lz4: " + std::to_string(out_pos) + " bytes, " + std::to_string(size) + " declared" +
              (status != 0 ? " (frame incomplete)" : "");
@@ -77,12 +94,6 @@ std::string decompress(std::string_view compression, std::span<const uint8_t> in
     return {};
   }
   return "unknown compression '" + std::string(compression) + "'";
-}
-
-uint32_t crc32(std::span<const uint8_t> bytes, uint32_t crc) {
-  // zlib's (several times faster than a byte table; a chunk is checked as it is read). crc32_z
-  // takes a size_t length: no 4 GiB limit.
-  return static_cast<uint32_t>(::crc32_z(crc, bytes.data(), bytes.size()));
 }
 
 File::File(const std::string& path) : owner_(std::fopen(path.c_str(), "rb")), file_(owner_.get()) {

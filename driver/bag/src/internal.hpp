@@ -55,13 +55,35 @@ class Cursor {
   bool ok_ = true;
 };
 
-// Decompresses `in` into `out` (resized to `size`): "", "none", "bz2", "lz4" (LZ4 frame format:
-// what both ROS 1 and MCAP write), "zstd". Empty on success, else what went wrong.
-std::string decompress(std::string_view compression, std::span<const uint8_t> in, uint64_t size,
-                       std::vector<uint8_t>& out);
+// Decompresses chunks and messages, keeping zstd's and lz4's contexts from one to the next
+// (creating one allocates and clears tens of kilobytes): one per reader.
+class Decompressor {
+ public:
+  Decompressor();
+  ~Decompressor();
+  Decompressor(const Decompressor&) = delete;
+  Decompressor& operator=(const Decompressor&) = delete;
+  // Decompresses `in` into `out` (resized to `size`; its capacity kept, so that a reused buffer
+  // is not allocated again): "", "none", "bz2", "lz4" (LZ4 frame format: what both ROS 1 and
+  // MCAP write), "zstd". Empty on success, else what went wrong.
+  std::string run(std::string_view compression, std::span<const uint8_t> in, uint64_t size,
+                  std::vector<uint8_t>& out);
 
-// CRC-32 (IEEE 802.3, as zlib and MCAP compute it), continuing from `crc`.
+ private:
+  struct Contexts;
+  std::unique_ptr<Contexts> contexts_;
+};
+
+// CRC-32 (IEEE 802.3, as zlib and MCAP compute it), continuing from `crc` (crc32.cpp: folded
+// with carry-less multiplies where the CPU has them, else zlib's).
 uint32_t crc32(std::span<const uint8_t> bytes, uint32_t crc = 0);
+
+// The ways crc32() may compute it, the fastest this CPU has being chosen: zlib's tables, and
+// (x86-64) carry-less multiplies on 128-bit (PCLMULQDQ) or 256-bit lanes (VPCLMULQDQ, AVX2).
+enum class Crc32Method { kZlib, kFolded128, kFolded256 };
+bool crc32_available(Crc32Method method);
+// crc32() by `method` (zlib's where the CPU lacks it): the tests compare them.
+uint32_t crc32_by(Crc32Method method, std::span<const uint8_t> bytes, uint32_t crc = 0);
 
 // A file read with explicit offsets (64-bit), no exceptions.
 class File {

@@ -17,6 +17,7 @@ constexpr uint64_t kMagicSize = 8;
 constexpr uint8_t kFooter = 0x02, kSchema = 0x03, kChannel = 0x04, kMessage = 0x05, kChunk = 0x06,
                   kStatistics = 0x0B, kDataEnd = 0x0F;
 constexpr uint64_t kFooterSize = 1 + 8 + 20;  // opcode, length, summary_start, offset, crc
+constexpr uint32_t kNoChannel = UINT32_MAX;
 
 class McapReader final : public MessageReader {
  public:
@@ -129,7 +130,7 @@ class McapReader final : public MessageReader {
       if (stored && records.size() == size) {
         chunk_view_ = records;
       } else {
-        problem = decompress(compression, records, size, chunk_);
+        problem = decompressor_.run(compression, records, size, chunk_);
         chunk_view_ = std::span<const uint8_t>(chunk_).first(problem.empty() ? size : 0);
       }
       if (problem.empty() && crc != 0 && crc32(chunk_view_) != crc) problem = "CRC mismatch";
@@ -153,21 +154,21 @@ class McapReader final : public MessageReader {
       c.get<uint32_t>();  // sequence
       const auto log_time = c.get<uint64_t>();
       c.get<uint64_t>();  // publish_time
-      const auto it = channels_.find(channel);
-      if (!c.ok() || it == channels_.end()) {
+      const uint32_t index =
+          c.ok() && channel < channel_index_.size() ? channel_index_[channel] : kNoChannel;
+      if (index == kNoChannel) {
         ++stats_.skipped_records;
         note(c.ok() ? "a message of an unknown channel skipped" : "a corrupt message skipped");
         return false;
       }
-      Connection& conn = connections_[it->second];
-      if (!counted_) ++conn.count;
+      if (!counted_) ++connections_[index].count;
       const bool inside = in_window(static_cast<int64_t>(log_time));
-      if (!wanted(conn.topic)) return false;
+      if (!wanted_[index]) return false;
       if (!inside) {
         ++stats_.outside_window;
         return false;
       }
-      out.connection = it->second;
+      out.connection = index;
       out.time_ns = static_cast<int64_t>(log_time);
       out.data = body.subspan(c.pos());
       ++stats_.messages;
@@ -195,7 +196,7 @@ class McapReader final : public MessageReader {
       note("a corrupt channel record skipped");
       return;
     }
-    if (channels_.count(id)) return;
+    if (id < channel_index_.size() && channel_index_[id] != kNoChannel) return;
     Connection conn;
     conn.topic = std::string(topic);
     const auto s = schemas_.find(schema);
@@ -203,7 +204,9 @@ class McapReader final : public MessageReader {
     conn.encoding = encoding == "cdr"    ? Encoding::kCdr
                     : encoding == "ros1" ? Encoding::kRos1
                                          : Encoding::kOther;
-    channels_[id] = static_cast<uint32_t>(connections_.size());
+    if (id >= channel_index_.size()) channel_index_.resize(size_t{id} + 1, kNoChannel);
+    channel_index_[id] = static_cast<uint32_t>(connections_.size());
+    wanted_.push_back(wanted(conn.topic));
     connections_.push_back(std::move(conn));
   }
 
@@ -249,8 +252,8 @@ class McapReader final : public MessageReader {
     if (!have_statistics) return;
     for (auto& conn : connections_) conn.count = 0;
     for (const auto& [id, n] : counts) {
-      const auto it = channels_.find(id);
-      if (it != channels_.end()) connections_[it->second].count = n;
+      if (id < channel_index_.size() && channel_index_[id] != kNoChannel)
+        connections_[channel_index_[id]].count = n;
     }
     counted_ = true;
     // The earliest message's log time (a file without messages declares 0: left unknown).
@@ -263,7 +266,10 @@ class McapReader final : public MessageReader {
   uint64_t pos_ = 0;
   bool done_ = false, counted_ = false;
   std::map<uint16_t, std::string> schemas_;
-  std::map<uint16_t, uint32_t> channels_;
+  // Per channel id (a u16), its connection's index, kNoChannel if none: looked up per message.
+  std::vector<uint32_t> channel_index_;
+  std::vector<uint8_t> wanted_;  // per connection: its topic is read
+  Decompressor decompressor_;
   std::vector<uint8_t> record_, chunk_;
   std::span<const uint8_t> chunk_view_;  // the chunk's records: in record_ or chunk_
   size_t chunk_pos_ = 0;

@@ -146,7 +146,7 @@ class Ros1Reader final : public MessageReader {
         if (!size || *size > options_.max_chunk_bytes) {
           problem = "chunk header without a plausible size";
         } else {
-          problem = decompress(compression, r.data, *size, chunk_);
+          problem = decompressor_.run(compression, r.data, *size, chunk_);
         }
         if (!problem.empty()) {
           ++stats_.skipped_chunks;
@@ -289,6 +289,7 @@ class Ros1Reader final : public MessageReader {
   bool done_ = false, indexed_ = false;
   std::map<uint32_t, uint32_t> ids_;  // conn id -> index in connections_
   std::vector<uint8_t> header_buf_, data_buf_, chunk_;
+  Decompressor decompressor_;
   size_t chunk_pos_ = 0;
   uint64_t chunk_start_ = 0;
   std::string problem_;

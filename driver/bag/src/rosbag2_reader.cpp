@@ -149,7 +149,7 @@ class Rosbag2Reader final : public MessageReader {
                                             static_cast<size_t>(std::max(bytes, 0)));
         if (message_zstd_) {
           const uint64_t size = zstd_content_size(out.data);
-          const std::string problem = decompress("zstd", out.data, size, buffer_);
+          const std::string problem = decompressor_.run("zstd", out.data, size, buffer_);
           if (!problem.empty()) {
             ++stats_.skipped_records;
             note(names_[file_].string() + ": a message skipped: " + problem);
@@ -248,6 +248,7 @@ class Rosbag2Reader final : public MessageReader {
   sqlite3_stmt* query_ = nullptr;
   bool message_zstd_ = false;
   std::vector<uint8_t> buffer_;
+  Decompressor decompressor_;
 };
 
 }  // namespace
