@@ -12,6 +12,8 @@ packages=(
   libpng-dev libjpeg-dev
   # ROS bags and MCAP (driver/bag): rosbag2 sqlite3 storage; bz2, lz4 and zstd chunks
   libsqlite3-dev libbz2-dev liblz4-dev libzstd-dev
+  # MCAP chunk CRC-32 at memory speed (ISA-L's crc32_gzip_refl)
+  libisal-dev
   # the Python module (for /usr/bin/python3) and its tests
   python3-dev pybind11-dev python3-numpy python3-pytest
   libgtest-dev libgmock-dev libbenchmark-dev

@@ -1,14 +1,12 @@
 // The readers' shared byte codecs (driver/bag/src/internal.hpp): the CRC-32 that checks MCAP
-// chunks, by each method the CPU has (folded with carry-less multiplies, 128- or 256-bit lanes),
-// against zlib's at every length, alignment and split, and the decompressor whose zstd and lz4
-// contexts are reused from chunk to chunk, also after a damaged chunk.
+// chunks (ISA-L's) against zlib's at every length, alignment and split, and the decompressor whose
+// zstd and lz4 contexts are reused from chunk to chunk, also after a damaged chunk.
 #include <gtest/gtest.h>
 #include <lz4frame.h>
 #include <zlib.h>
 #include <zstd.h>
 
 #include <cstdio>
-#include <functional>
 #include <random>
 #include <string_view>
 
@@ -34,55 +32,28 @@ Bytes random_bytes(size_t n, uint32_t seed) {
   return b;
 }
 
-// Every method this CPU has (zlib's everywhere; the folded ones on x86-64 with PCLMULQDQ and
-// VPCLMULQDQ), then crc32() itself.
-std::vector<std::pair<std::string, std::function<uint32_t(std::span<const uint8_t>, uint32_t)>>>
-methods() {
-  std::vector<std::pair<std::string, std::function<uint32_t(std::span<const uint8_t>, uint32_t)>>>
-      m;
-  for (const auto& [name, method] :
-       {std::pair{"zlib", Crc32Method::kZlib}, std::pair{"folded128", Crc32Method::kFolded128},
-        std::pair{"folded256", Crc32Method::kFolded256}}) {
-    if (!crc32_available(method)) {
-      std::printf("CRC-32 %s: not on this CPU, not checked\n", name);
-      continue;
-    }
-    const Crc32Method chosen = method;
-    m.emplace_back(name, [chosen](std::span<const uint8_t> b, uint32_t crc) {
-      return crc32_by(chosen, b, crc);
-    });
-  }
-  m.emplace_back("crc32()", [](std::span<const uint8_t> b, uint32_t crc) { return crc32(b, crc); });
-  return m;
-}
-
+// The readers' crc32() (ISA-L's) and zlib's are the same function of the bytes.
 TEST(BagCrc32, CheckValueOfTheStandard) {
   const std::string_view s = "123456789";
   const std::span<const uint8_t> digits(reinterpret_cast<const uint8_t*>(s.data()), s.size());
-  // The same digits repeated past the folded paths' 64- and 256-byte minimums.
+  EXPECT_EQ(crc32(digits), 0xCBF43926u);
+  // The same digits repeated past the folding paths' 64- and 256-byte minimums.
   Bytes many;
   for (int i = 0; i < 100; ++i) many.insert(many.end(), s.begin(), s.end());
-  for (const auto& [name, crc] : methods()) {
-    SCOPED_TRACE(name);
-    EXPECT_EQ(crc(digits, 0), 0xCBF43926u);
-    EXPECT_EQ(crc(many, 0), zlib_crc(many));
-  }
+  EXPECT_EQ(crc32(many), zlib_crc(many));
 }
 
 TEST(BagCrc32, MatchesZlibAtEveryLengthAndAlignment) {
   const Bytes data = random_bytes(4096 + 64, 1);
-  for (const auto& [name, crc] : methods()) {
-    SCOPED_TRACE(name);
-    for (size_t offset = 0; offset < 16; ++offset)
-      for (size_t n = 0; n <= 1100; ++n) {
-        const std::span<const uint8_t> s(data.data() + offset, n);
-        ASSERT_EQ(crc(s, 0), zlib_crc(s)) << "offset " << offset << " length " << n;
-      }
-    // All zeros and all ones (no accidental cancellation in the fold).
-    for (const uint8_t fill : {uint8_t{0}, uint8_t{0xFF}}) {
-      const Bytes same(5000, fill);
-      EXPECT_EQ(crc(same, 0), zlib_crc(same));
+  for (size_t offset = 0; offset < 16; ++offset)
+    for (size_t n = 0; n <= 1100; ++n) {
+      const std::span<const uint8_t> s(data.data() + offset, n);
+      ASSERT_EQ(crc32(s), zlib_crc(s)) << "offset " << offset << " length " << n;
     }
+  // All zeros and all ones (no accidental cancellation in the fold).
+  for (const uint8_t fill : {uint8_t{0}, uint8_t{0xFF}}) {
+    const Bytes same(5000, fill);
+    EXPECT_EQ(crc32(same), zlib_crc(same));
   }
 }
 
@@ -90,30 +61,24 @@ TEST(BagCrc32, ContinuesAcrossSplitsAndFromAnyStart) {
   const Bytes data = random_bytes(1 << 20, 2);
   const std::span<const uint8_t> all(data);
   const uint32_t whole = zlib_crc(data);
-  for (const auto& [name, crc] : methods()) {
-    SCOPED_TRACE(name);
-    EXPECT_EQ(crc(all, 0), whole);
-    std::mt19937 rng(3);
-    for (int i = 0; i < 100; ++i) {
-      const size_t cut = rng() % data.size();
-      EXPECT_EQ(crc(all.subspan(cut), crc(all.first(cut), 0)), whole) << "cut at " << cut;
-    }
-    // A CRC continued from any value matches zlib's continuation.
-    for (const uint32_t start : {0u, 1u, 0xFFFFFFFFu, 0x12345678u})
-      EXPECT_EQ(crc(all.first(777), start), zlib_crc(all.first(777), start));
+  EXPECT_EQ(crc32(all), whole);
+  std::mt19937 rng(3);
+  for (int i = 0; i < 100; ++i) {
+    const size_t cut = rng() % data.size();
+    EXPECT_EQ(crc32(all.subspan(cut), crc32(all.first(cut))), whole) << "cut at " << cut;
   }
+  // A CRC continued from any value matches zlib's continuation.
+  for (const uint32_t start : {0u, 1u, 0xFFFFFFFFu, 0x12345678u})
+    EXPECT_EQ(crc32(all.first(777), start), zlib_crc(all.first(777), start));
 }
 
 TEST(BagCrc32, ChangesWithEveryFlippedBit) {
   Bytes data = random_bytes(1000, 4);
-  for (const auto& [name, crc] : methods()) {
-    SCOPED_TRACE(name);
-    const uint32_t good = crc(data, 0);
-    for (size_t bit = 0; bit < data.size() * 8; bit += 7) {
-      data[bit / 8] ^= static_cast<uint8_t>(1u << (bit % 8));
-      EXPECT_NE(crc(data, 0), good) << "bit " << bit;
-      data[bit / 8] ^= static_cast<uint8_t>(1u << (bit % 8));
-    }
+  const uint32_t good = crc32(data);
+  for (size_t bit = 0; bit < data.size() * 8; bit += 7) {
+    data[bit / 8] ^= static_cast<uint8_t>(1u << (bit % 8));
+    EXPECT_NE(crc32(data), good) << "bit " << bit;
+    data[bit / 8] ^= static_cast<uint8_t>(1u << (bit % 8));
   }
 }
 

@@ -1,4 +1,5 @@
 #include <bzlib.h>
+#include <isa-l/crc.h>
 #include <lz4frame.h>
 #include <zstd.h>
 
@@ -17,6 +18,10 @@ namespace detail {
 
 std::string at(uint64_t offset) {
   return "at byte " + std::to_string(offset) + ": ";
+}
+
+uint32_t crc32(std::span<const uint8_t> bytes, uint32_t crc) {
+  return crc32_gzip_refl(crc, bytes.data(), bytes.size());
 }
 
 struct Decompressor::Contexts {
