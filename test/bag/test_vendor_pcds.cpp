@@ -6,7 +6,8 @@
 // for no return; in each of DATA binary, binary_compressed and ascii. Each is read as the tools and
 // Python read a PCD (read_pcd, pcd_cloud_columns: the field vocabulary bags share) and must give
 // every return and the tags the detector finds on the rotation itself, within 2 cm; one of them
-// also through `lidartag detect`.
+// also through `lidartag detect`. Also: each driver's time unit into seconds (the shared rule) and
+// ring fields out of range (counted, or a clear error when no point has a ring).
 #include <gtest/gtest.h>
 #include <lzf.h>
 
@@ -309,6 +310,105 @@ TEST(VendorPcds, LidartagDetectReadsAHesaiPcd) {
   ASSERT_EQ(l.exit_code, 0) << l.out;
   EXPECT_EQ(nlohmann::json::parse(l.out.substr(0, l.out.find('\n')))["detections"].size(), 2u)
       << l.out;
+}
+
+// The columns of a cloud of `n` points whose fields hold `values` (one vector per field).
+driver::CloudColumns columns_of(const std::vector<driver::CloudSourceField>& fields,
+                                const std::vector<std::vector<double>>& values) {
+  driver::CloudColumns out;
+  driver::cloud_columns_of(
+      fields, [&](size_t k, std::vector<double>& column) { column = values[k]; }, out);
+  return out;
+}
+
+std::vector<double> time_of(const driver::CloudColumns& c) {
+  const auto it = std::find(c.names.begin(), c.names.end(), "time");
+  return it == c.names.end() ? std::vector<double>{}
+                             : c.columns[static_cast<size_t>(it - c.names.begin())];
+}
+
+TEST(VendorPcds, EachDriversTimeUnitBecomesSecondsFromTheSweep) {
+  const double epoch_s = 1.7e9;
+  // Livox's custom point: uint32 ns from the cloud's time base, kept as offsets.
+  auto c = columns_of({{"x", false}, {"offset_time", true}}, {{0, 0, 0}, {0, 5e7, 1e8}});
+  EXPECT_EQ(time_of(c), (std::vector<double>{0, 0.05, 0.1}));
+  EXPECT_EQ(c.source.back(), "offset_time");
+  // Ouster's t (uint32 ns from the frame's start): offsets, kept even when the first is not 0.
+  c = columns_of({{"t", true}}, {{1e6, 2e6}});
+  EXPECT_EQ(time_of(c), (std::vector<double>{1e-3, 2e-3}));
+  // Livox's PointCloud2 timestamp: ns since the epoch in a double; seconds from the earliest.
+  c = columns_of({{"timestamp", false}}, {{epoch_s * 1e9 + 2e7, epoch_s * 1e9}});
+  ASSERT_EQ(time_of(c).size(), 2u);
+  EXPECT_NEAR(time_of(c)[0], 0.02, 1e-6);
+  EXPECT_EQ(time_of(c)[1], 0.0);
+  // Hesai and RoboSense: seconds since the epoch in a double.
+  c = columns_of({{"timestamp", false}}, {{epoch_s + 0.1, epoch_s + 0.03}});
+  EXPECT_NEAR(time_of(c)[0], 0.07, 1e-6);
+  EXPECT_EQ(time_of(c)[1], 0.0);
+  // ROS's Velodyne driver: seconds relative to the last packet, negative.
+  c = columns_of({{"time", false}}, {{-0.1, -0.04, 0.0}});
+  EXPECT_NEAR(time_of(c)[1], 0.06, 1e-12);
+  // lidartag's own dump: seconds from the rotation's start, kept as they are.
+  c = columns_of({{"time", false}}, {{0.25, 0.001}});
+  EXPECT_EQ(time_of(c), (std::vector<double>{0.25, 0.001}));
+  // The pair time_sec + time_nsec comes first, from the earliest point.
+  c = columns_of({{"time", false}, {"time_sec", true}, {"time_nsec", true}},
+                 {{9, 9}, {epoch_s + 1, epoch_s}, {1e8, 9e8}});
+  EXPECT_NEAR(time_of(c)[0], 0.2, 1e-9);
+  EXPECT_EQ(time_of(c)[1], 0.0);
+  EXPECT_EQ(c.source.back(), "time_sec+time_nsec");
+  // The first of the ring names present; none of the fields outside the vocabulary.
+  c = columns_of({{"line", true}, {"channel", true}, {"reflectivity", false}}, {{1}, {2}, {3}});
+  EXPECT_EQ(c.names, (std::vector<std::string>{"ring"}));
+  EXPECT_EQ(c.source, (std::vector<std::string>{"channel"}));
+}
+
+TEST(VendorPcds, RingsOutOfRangeAreCountedOrAClearError) {
+  test::ProcessTempDir dir("vendor_pcds_rings");
+  const std::string path = dir.path() + "/rings.pcd";
+  const auto write = [&](const std::string& rings) {
+    std::ofstream(path, std::ios::trunc)
+        << "FIELDS x y z intensity ring\nSIZE 4 4 4 4 4\nTYPE F F F F I\nWIDTH 4\nDATA ascii\n"
+        << "5 0 0 100 " << rings.substr(0, rings.find(' ')) << "\n5 1 0 100 1\n"
+        << "5 2 0 100 " << rings.substr(rings.find(' ') + 1) << "\n5 3 0 100 -2\n";
+  };
+  const auto convert = [&](Scan& scan) {
+    driver::CloudColumns columns;
+    velodyne::pcd_cloud_columns(velodyne::read_pcd_points(path), columns);
+    const auto fields = detector::cloud_fields_by_name(columns.names, columns.columns,
+                                                       columns.width, columns.height);
+    return detector::cloud_to_scan(fields, detector::cloud_scan_options(fields, {}, 0, 0.2), scan);
+  };
+  write("0 300");  // rings 0 and 1 kept; 300 and -2 are no ring of a LiDAR
+  Scan scan;
+  const auto report = convert(scan);
+  EXPECT_EQ(report.points, 2u);
+  EXPECT_EQ(report.skipped_rings, 2u);
+  EXPECT_EQ(scan.rings, 2);
+  auto r = testing::run_tool("detect " + path);
+  EXPECT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("2 points with a ring that is not a whole number in 0..1 skipped"),
+            std::string::npos)
+      << r.out;
+  // No point with a ring a LiDAR has: refused, naming the ring field's range.
+  std::ofstream(path, std::ios::trunc)
+      << "FIELDS x y z intensity line\nSIZE 4 4 4 4 2\nTYPE F F F F U\nWIDTH 2\nDATA ascii\n"
+      << "5 0 0 100 4000\n5 1 0 100 300\n";
+  EXPECT_THROW(
+      {
+        try {
+          convert(scan);
+        } catch (const detector::CloudError& e) {
+          EXPECT_NE(std::string(e.what()).find("no point has a ring number in 0..255"),
+                    std::string::npos)
+              << e.what();
+          throw;
+        }
+      },
+      detector::CloudError);
+  r = testing::run_tool("detect " + path);
+  EXPECT_EQ(r.exit_code, 1) << r.out;
+  EXPECT_NE(r.out.find("no point has a ring number"), std::string::npos) << r.out;
 }
 
 }  // namespace
