@@ -124,30 +124,24 @@ void to_grid(const CloudFields& f, int rings, int returns, double scale, CloudSc
 bool rings_level(const CloudFields& f, int rings) {
   std::vector<double> sum(static_cast<size_t>(rings), 0.0);
   std::vector<size_t> count(static_cast<size_t>(rings), 0);
-  const auto elevation = [&](size_t k, int& ring) {
-    ring = ring_of(f.ring[k], rings);
-    const double h = std::hypot(f.x[k], f.y[k]);
-    const double e = std::atan2(f.z[k], h) * 180.0 / std::numbers::pi;
-    if (ring < 0 || !std::isfinite(e) || !(h > 0.0 || f.z[k] != 0.0)) ring = -1;
-    return e;
-  };
-  int ring = -1;
+  std::vector<std::pair<int, float>> elevations;  // ring, degrees: each point's, computed once
+  elevations.reserve(f.x.size());
   for (size_t k = 0; k < f.x.size(); ++k) {
-    const double e = elevation(k, ring);
-    if (ring < 0) continue;
+    const int ring = ring_of(f.ring[k], rings);
+    const double h = std::hypot(f.x[k], f.y[k]);
+    if (ring < 0 || !(h > 0.0 || f.z[k] != 0.0)) continue;  // no ring, no return
+    const double e = std::atan2(f.z[k], h) * 180.0 / std::numbers::pi;
+    if (!std::isfinite(e)) continue;
+    elevations.emplace_back(ring, static_cast<float>(e));
     sum[static_cast<size_t>(ring)] += e;
     ++count[static_cast<size_t>(ring)];
   }
   double spread = 0.0;
-  size_t n = 0;
-  for (size_t k = 0; k < f.x.size(); ++k) {
-    const double e = elevation(k, ring);
-    if (ring < 0) continue;
+  for (const auto& [ring, e] : elevations) {
     const auto r = static_cast<size_t>(ring);
     spread += std::fabs(e - sum[r] / static_cast<double>(count[r]));
-    ++n;
   }
-  return n == 0 || spread / static_cast<double>(n) <= kMaxRingSpreadDeg;
+  return elevations.empty() || spread / static_cast<double>(elevations.size()) <= kMaxRingSpreadDeg;
 }
 
 }  // namespace
