@@ -1,7 +1,9 @@
 // Fuzz target: a PCD file through read_pcd (ascii, binary and binary_compressed, any header).
 // Checks: bad files throw IoError naming the problem; a cloud read has one column per field, each
 // of width x height numbers, no more points than the file's bytes can hold, and every field name
-// can be looked up.
+// can be looked up; the cloud's columns by the field vocabulary bags share (pcd_cloud_columns) are
+// of the cloud's size, named only as that vocabulary names them, their times finite or not there.
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 
@@ -30,6 +32,19 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     fuzz::check(cloud.columns[f].size() == cloud.size(), "a column of the wrong length");
     fuzz::check(cloud.has(cloud.fields[f]), "a field that cannot be found");
     (void)cloud.field(cloud.fields[f]);
+  }
+  driver::CloudColumns columns;
+  velodyne::pcd_cloud_columns(cloud, columns);
+  fuzz::check(columns.names.size() == columns.columns.size() &&
+                  columns.source.size() == columns.columns.size(),
+              "columns, names and sources disagree");
+  for (size_t c = 0; c < columns.columns.size(); ++c) {
+    fuzz::check(columns.columns[c].size() == cloud.size(), "a named column of the wrong length");
+    const std::string& name = columns.names[c];
+    fuzz::check(name == "ring" || name == "time" ||
+                    std::find(driver::kPlainFieldNames.begin(), driver::kPlainFieldNames.end(),
+                              name) != driver::kPlainFieldNames.end(),
+                "a column named outside the vocabulary");
   }
   return 0;
 }

@@ -50,8 +50,8 @@ if [ "${1:-}" != "--no-sanitizers" ]; then
     test_sim_ouster"
   # MCAP out: the writer, read back with the project's reader (issue 34).
   targets="$targets test_mcap_writer"
-  # Other drivers' PointCloud2 layouts through the bag cloud reader (issue 34).
-  targets="$targets test_vendor_clouds"
+  # Other drivers' PointCloud2 layouts through the bag cloud reader, and as PCD files (issue 34).
+  targets="$targets test_vendor_clouds test_vendor_pcds"
   # The daemon's configuration parsing, LCM URL/log/bus, recorder and setup checks.
   # (test_daemon_odometry runs the detection flow graph: as test_daemon_pipeline, it is left out,
   # TBB's graph_task destroys its task through a base pointer that UBSan's vptr check rejects.)

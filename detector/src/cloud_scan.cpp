@@ -119,6 +119,31 @@ void to_grid(const CloudFields& f, int rings, int returns, double scale, CloudSc
   fill_gaps(out.column_time_s, time_known, columns);
 }
 
+// Whether the points of each ring lie on one cone: their mean distance from their ring's mean
+// elevation is within kMaxRingSpreadDeg.
+bool rings_level(const CloudFields& f, int rings) {
+  std::vector<double> sum(static_cast<size_t>(rings), 0.0);
+  std::vector<size_t> count(static_cast<size_t>(rings), 0);
+  std::vector<std::pair<int, float>> elevations;  // ring, degrees: each point's, computed once
+  elevations.reserve(f.x.size());
+  for (size_t k = 0; k < f.x.size(); ++k) {
+    const int ring = ring_of(f.ring[k], rings);
+    const double h = std::hypot(f.x[k], f.y[k]);
+    if (ring < 0 || !(h > 0.0 || f.z[k] != 0.0)) continue;  // no ring, no return
+    const double e = std::atan2(f.z[k], h) * 180.0 / std::numbers::pi;
+    if (!std::isfinite(e)) continue;
+    elevations.emplace_back(ring, static_cast<float>(e));
+    sum[static_cast<size_t>(ring)] += e;
+    ++count[static_cast<size_t>(ring)];
+  }
+  double spread = 0.0;
+  for (const auto& [ring, e] : elevations) {
+    const auto r = static_cast<size_t>(ring);
+    spread += std::fabs(e - sum[r] / static_cast<double>(count[r]));
+  }
+  return elevations.empty() || spread / static_cast<double>(elevations.size()) <= kMaxRingSpreadDeg;
+}
+
 }  // namespace
 
 CloudFields cloud_fields_by_name(const std::vector<std::string>& names,
@@ -155,6 +180,8 @@ CloudScanOptions cloud_scan_options(const CloudFields& cloud,
     options.elevations_deg = std::move(model_elevations_deg);
   } else if (cloud.ring.empty()) {
     options.rings = rings;
+  } else {
+    options.unlevel_ring_beams = rings;
   }
   return options;
 }
@@ -189,6 +216,18 @@ CloudScanReport cloud_to_scan(const CloudFields& f, const CloudScanOptions& opti
     rings = max_ring + 1;
     if (rings <= 0)
       throw CloudError("no point has a ring number in 0.." + std::to_string(kMaxRings - 1));
+  }
+  if (!f.ring.empty() && !rings_level(f, rings)) {
+    report.rings_not_level = true;
+    if (!options.elevations_deg.empty() || options.unlevel_ring_beams > 0) {
+      CloudFields without = f;
+      without.ring = {};
+      CloudScanOptions regress = options;
+      if (options.elevations_deg.empty()) regress.rings = options.unlevel_ring_beams;
+      CloudScanReport r = cloud_to_scan(without, regress, out);
+      r.rings_not_level = true;
+      return r;
+    }
   }
   if (!f.ring.empty() && f.height > 1 && f.width > 0 &&
       f.height % static_cast<size_t>(rings) == 0 && f.height / static_cast<size_t>(rings) <= 2) {

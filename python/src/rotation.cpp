@@ -19,6 +19,7 @@
 #include "lidartag/bag_cloud_reader.hpp"
 #include "lidartag/detector/cloud_scan.hpp"
 #include "lidartag/driver/bag/message_reader.hpp"
+#include "lidartag/driver/cloud_fields.hpp"
 #include "lidartag/driver/io/errors.hpp"
 #include "lidartag/driver/io/udp_frame.hpp"
 #include "lidartag/driver/ouster/io/capture_reader.hpp"
@@ -121,8 +122,10 @@ py::dict arrays_of(const Scan& s) {
 Rotation rotation_of_pcd(const std::string& path, const std::optional<velodyne::Model>& model,
                          int rings, double resolution_deg) {
   const velodyne::PcdCloud pcd = velodyne::read_pcd_points(path);
+  driver::CloudColumns columns;  // another driver's field names read as a bag's clouds are
+  velodyne::pcd_cloud_columns(pcd, columns);
   const detector::CloudFields fields =
-      detector::cloud_fields_by_name(pcd.fields, pcd.columns, pcd.width, pcd.height);
+      detector::cloud_fields_by_name(columns.names, columns.columns, columns.width, columns.height);
   const detector::CloudScanOptions options = detector::cloud_scan_options(
       fields, velodyne::beam_elevations_deg(model), rings, resolution_deg);
   Rotation r;
@@ -151,32 +154,45 @@ Rotation Rotation::from_points(const py::object& points, int rings,
         "from_points takes a numpy structured array (fields x, y, z, intensity, optionally ring, "
         "azimuth, time, return_type) or a dict of such arrays");
   }
-  // The fields the detector reads (detector::kCloudFieldNames), each as a contiguous float64
-  // column (a copy when it is not one already); other fields are left alone.
-  std::vector<std::string> found;
-  std::vector<py::array_t<double, py::array::c_style | py::array::forcecast>> arrays;
-  std::vector<std::span<const double>> columns;
-  for (const std::string_view name : detector::kCloudFieldNames) {
-    if (std::find(names.begin(), names.end(), name) == names.end()) continue;
-    found.emplace_back(name);
-    auto column = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(
-        points[py::str(found.back())]);
-    if (!column || column.ndim() != 1)
-      throw detector::CloudError("field " + found.back() + " is not a 1-D array of numbers");
-    columns.emplace_back(column.data(), static_cast<size_t>(column.size()));
-    arrays.push_back(std::move(column));  // keeps the view's data alive
-    if (columns.back().size() != columns.front().size())
-      throw detector::CloudError("field " + found.back() + " has " +
-                                 std::to_string(columns.back().size()) + " values, field " +
-                                 found.front() + " " + std::to_string(columns.front().size()));
+  // The fields the detector reads, named as another driver's PointCloud2 or PCD names them (the
+  // one vocabulary, driver/cloud_fields.hpp: `timestamp`, `t` or `offset_time` as the time, in
+  // seconds by its rule; `channel`, `laser_id` or `line` as the ring), each copied as float64;
+  // other fields are left alone.
+  std::vector<driver::CloudSourceField> sources;
+  for (const std::string& name : names) {
+    const py::object column = points[py::str(name)];
+    bool integer = false;
+    if (py::hasattr(column, "dtype")) {
+      const auto kind = py::str(column.attr("dtype").attr("kind")).cast<std::string>();
+      integer = kind == "i" || kind == "u";
+    }
+    sources.push_back({name, integer});
   }
+  driver::CloudColumns found;
+  driver::cloud_columns_of(
+      sources,
+      [&](size_t k, std::vector<double>& values) {
+        const auto column = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(
+            points[py::str(names[k])]);
+        if (!column || column.ndim() != 1)
+          throw detector::CloudError("field " + names[k] + " is not a 1-D array of numbers");
+        values.assign(column.data(), column.data() + column.size());
+      },
+      found);
   for (const char* required : {"x", "y", "z", "intensity"}) {
-    if (std::find(found.begin(), found.end(), required) == found.end())
+    if (std::find(found.names.begin(), found.names.end(), required) == found.names.end())
       throw detector::CloudError(std::string("the points have no ") + required +
                                  " field (the detector reads tags from x, y, z and intensity)");
   }
+  for (size_t c = 1; c < found.columns.size(); ++c) {
+    if (found.columns[c].size() != found.columns.front().size())
+      throw detector::CloudError("field " + found.source[c] + " has " +
+                                 std::to_string(found.columns[c].size()) + " values, field " +
+                                 found.source.front() + " " +
+                                 std::to_string(found.columns.front().size()));
+  }
   const detector::CloudFields fields =
-      detector::cloud_fields_by_name(found, columns, columns.front().size(), 1);
+      detector::cloud_fields_by_name(found.names, found.columns, found.columns.front().size(), 1);
   const std::optional<velodyne::Model> m = model_option(model);
   const detector::CloudScanOptions options =
       detector::cloud_scan_options(fields, velodyne::beam_elevations_deg(m), rings, resolution_deg);

@@ -308,5 +308,28 @@ TEST(CloudScan, FieldsByNameAndOptionsForAModelOrNot) {
   EXPECT_TRUE(cloud_scan_options(with_rings, {}, 7, 0.2).elevations_deg.empty());
 }
 
+TEST(CloudScan, ARingFieldWhoseRingsAreNotLevelIsSetAsideWhenBeamsAreGiven) {
+  const Scan s = tag_scene();
+  Columns level = unorganised(s);
+  // Livox's line numbers: four lines, each through every eighth beam (every elevation).
+  Columns lines = level;
+  for (double& r : lines.ring) r = std::fmod(r, 4.0);
+  Scan out;
+  CloudScanReport r =
+      cloud_to_scan(level.fields(), cloud_scan_options(level.fields(), {}, 32, 0.2), out);
+  EXPECT_FALSE(r.rings_not_level);
+  EXPECT_FALSE(r.regressed);
+  // Kept as they are without beams to regress (reported), regressed with them.
+  r = cloud_to_scan(lines.fields(), cloud_scan_options(lines.fields(), {}, 0, 0.2), out);
+  EXPECT_TRUE(r.rings_not_level);
+  EXPECT_FALSE(r.regressed);
+  EXPECT_EQ(out.rings, 4);
+  r = cloud_to_scan(lines.fields(), cloud_scan_options(lines.fields(), {}, 32, 0.2), out);
+  EXPECT_TRUE(r.rings_not_level);
+  EXPECT_TRUE(r.regressed);
+  EXPECT_EQ(out.rings, 32);
+  EXPECT_EQ(detect(out).size(), 1u);
+}
+
 }  // namespace
 }  // namespace lidartag::detector

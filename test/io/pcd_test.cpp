@@ -406,6 +406,10 @@ TEST(Pcd, BadFilesAreIoErrorsNamingTheProblem) {
   expect_error("FIELDS x\nSIZE 4\nTYPE F\nCOUNT 3\nWIDTH 1\nDATA ascii\n1 2\n", "ascii data ends");
   expect_error("FIELDS x\nSIZE 4\nTYPE F\nWIDTH 1000000000000\nDATA binary\n", "cannot fit");
   expect_error(header + "POINTS 2\n", "header ends");
+  // A header lying about its points; a type PCD does not have.
+  expect_error(header + "POINTS 3\nDATA binary\n" + std::string(24, '\0'),
+               "POINTS is not WIDTH x HEIGHT");
+  expect_error("FIELDS x\nSIZE 4\nTYPE X\nWIDTH 1\nDATA ascii\n1\n", "unsupported type X4");
   EXPECT_THROW(read_pcd("/nonexistent-lidartag/x.pcd"), driver::IoError);
   std::filesystem::remove(path);
 }

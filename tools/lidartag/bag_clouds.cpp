@@ -31,7 +31,7 @@ size_t for_each_bag_cloud(const CaptureArgs& args, int rings, double resolution_
   options.resolution_deg = resolution_deg;
   clouds::BagCloudReader reader(args.capture, options);
   Scan scan;
-  size_t n = 0;
+  size_t n = 0, unlevel = 0;
   for (;;) {
     const auto step = reader.next(scan);
     if (step == clouds::BagCloudReader::Step::kEnd) break;
@@ -48,12 +48,19 @@ size_t for_each_bag_cloud(const CaptureArgs& args, int rings, double resolution_
           "{}: {} of {} points fell into a cell of their ring a nearer point took "
           "(--resolution sets the column width)",
           name, reader.report().merged, reader.cloud_points());
+    if (reader.report().rings_not_level && !reader.report().regressed) ++unlevel;
     ++n;
     if (!each(scan)) break;
   }
   const auto& r = reader.reader();
   if (!r.error().empty()) spdlog::warn("{}: {}", args.capture, r.error());
   if (reader.skipped() > 0) spdlog::warn("{}: {} clouds skipped", args.capture, reader.skipped());
+  // Once, not per cloud: the ring field of every cloud of a sensor is alike.
+  if (unlevel > 0)
+    spdlog::warn(
+        "{}: the ring field of {} cloud{} is not level (points of one ring at many elevations, as "
+        "Livox's line numbers): --model or --rings N regresses rings from elevations instead",
+        args.capture, unlevel, unlevel == 1 ? "" : "s");
   if (args.windowed())
     spdlog::info("{}: {} messages of {} outside --start/--duration", args.capture,
                  r.stats().outside_window, reader.topic());

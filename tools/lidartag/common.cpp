@@ -139,8 +139,10 @@ void load_pcd_scan(const CaptureArgs& args, int rings, double resolution_deg, Sc
         "--start/--duration take a capture or a bag; {} is a PCD file (one cloud)", args.capture));
   const std::string& path = args.capture;
   const velodyne::PcdCloud pcd = velodyne::read_pcd_points(path);
+  driver::CloudColumns columns;  // another driver's field names read as a bag's clouds are
+  velodyne::pcd_cloud_columns(pcd, columns);
   const detector::CloudFields fields =
-      detector::cloud_fields_by_name(pcd.fields, pcd.columns, pcd.width, pcd.height);
+      detector::cloud_fields_by_name(columns.names, columns.columns, columns.width, columns.height);
   const auto model = args.model.empty() ? std::nullopt : velodyne::model_from_name(args.model);
   const detector::CloudScanOptions options = detector::cloud_scan_options(
       fields, velodyne::beam_elevations_deg(model), rings, resolution_deg);
@@ -164,6 +166,21 @@ void load_pcd_scan(const CaptureArgs& args, int rings, double resolution_deg, Sc
         "{}: {} of {} points dropped: each fell into a ring's column (of {} degrees) that a "
         "nearer point took; --resolution sets the column width",
         path, report.merged, report.merged + report.points, resolution_deg);
+  }
+  if (report.rings_not_level) {
+    const std::string field = columns.source[static_cast<size_t>(
+        std::find(columns.names.begin(), columns.names.end(), "ring") - columns.names.begin())];
+    if (report.regressed)
+      spdlog::info(
+          "{}: the rings of field '{}' are not level (points of one ring at many "
+          "elevations): set aside, rings regressed from elevations",
+          path, field);
+    else
+      spdlog::warn(
+          "{}: the rings of field '{}' are not level (points of one ring at many "
+          "elevations, as Livox's line numbers): --model or --rings N regresses rings "
+          "from elevations instead",
+          path, field);
   }
   if (report.intensity_scaled)
     spdlog::warn("{}: every intensity is within [0, 1]: read as 0..1 and scaled to 0..255", path);

@@ -191,10 +191,6 @@ DecodeResult decode_point_cloud(std::span<const uint8_t> message, Encoding encod
 
 namespace {
 
-// No LiDAR sweep lasts this long (seconds): a floating time field spanning more in one cloud
-// counts nanoseconds.
-constexpr double kLongestSweepS = 1000.0;
-
 double field_value(const uint8_t* p, PointFieldType type, bool big_endian) {
   uint8_t b[8] = {};
   const size_t n = type_size(type);
@@ -233,14 +229,6 @@ bool is_integer(PointFieldType t) {
   return t != PointFieldType::kFloat32 && t != PointFieldType::kFloat64;
 }
 
-const PointField* find_field(const PointCloudView& cloud,
-                             std::initializer_list<std::string_view> names) {
-  for (const std::string_view name : names)
-    for (const PointField& f : cloud.fields)
-      if (f.name == name) return &f;
-  return nullptr;
-}
-
 void column(const PointCloudView& cloud, const PointField& f, std::vector<double>& out) {
   const size_t n = cloud.points();
   out.resize(n);
@@ -255,60 +243,19 @@ void column(const PointCloudView& cloud, const PointField& f, std::vector<double
 }  // namespace
 
 void cloud_columns(const PointCloudView& cloud, CloudColumns& out) {
-  out.names.clear();
-  out.source.clear();
-  out.columns.clear();
-  out.width = cloud.width;
-  out.height = cloud.height;
   // Rows are row_step apart; a row_step that does not hold a row is corrupt: read as packed.
   PointCloudView packed = cloud;
   if (uint64_t{packed.row_step} < uint64_t{packed.width} * packed.point_step ||
       uint64_t{packed.row_step} * packed.height > packed.data.size())
     packed.row_step = packed.width * packed.point_step;
-  auto add = [&](std::string_view name, const PointField& f) {
-    out.names.emplace_back(name);
-    out.source.emplace_back(f.name);
-    out.columns.emplace_back();
-    column(packed, f, out.columns.back());
-  };
-  for (const std::string_view name : {"x", "y", "z", "intensity"})
-    if (const PointField* f = find_field(cloud, {name})) add(name, *f);
-  if (const PointField* f = find_field(cloud, {"ring", "channel", "laser_id"})) add("ring", *f);
-  // Time: seconds from the earliest point. Integer fields count ns, floating ones seconds.
-  std::vector<double> time;
-  std::string source;
-  const PointField* sec = find_field(cloud, {"time_sec"});
-  const PointField* nsec = find_field(cloud, {"time_nsec"});
-  if (sec && nsec) {
-    std::vector<double> s, ns;
-    column(packed, *sec, s);
-    column(packed, *nsec, ns);
-    const double s0 = s.empty() ? 0.0 : *std::min_element(s.begin(), s.end());
-    time = std::move(s);
-    for (size_t i = 0; i < time.size(); ++i) time[i] = (time[i] - s0) + ns[i] * 1e-9;
-    source = "time_sec+time_nsec";
-  } else if (const PointField* f =
-                 find_field(cloud, {"time", "t", "time_offset", "timestamp", "time_stamp"})) {
-    column(packed, *f, time);
-    // Integer times count ns. Floating ones are seconds, unless their span in this one cloud is
-    // beyond any sweep's (Livox's driver writes ns since the epoch in a double).
-    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-    for (const double v : time)
-      if (std::isfinite(v)) lo = std::min(lo, v), hi = std::max(hi, v);
-    if (is_integer(f->type) || (hi > lo && hi - lo > kLongestSweepS))
-      for (double& v : time) v *= 1e-9;
-    source = std::string(f->name);
-  }
-  if (!source.empty()) {
-    double t0 = std::numeric_limits<double>::infinity();
-    for (const double v : time)
-      if (std::isfinite(v)) t0 = std::min(t0, v);
-    if (std::isfinite(t0))
-      for (double& v : time) v -= t0;
-    out.names.emplace_back("time");
-    out.source.push_back(source);
-    out.columns.push_back(std::move(time));
-  }
+  std::vector<CloudSourceField> fields;
+  fields.reserve(cloud.fields.size());
+  for (const PointField& f : cloud.fields) fields.push_back({f.name, is_integer(f.type)});
+  cloud_columns_of(
+      fields,
+      [&](size_t k, std::vector<double>& values) { column(packed, cloud.fields[k], values); }, out);
+  out.width = cloud.width;
+  out.height = cloud.height;
 }
 
 std::vector<std::string> lidar_topics(const std::vector<Connection>& connections) {

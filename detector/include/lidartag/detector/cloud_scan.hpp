@@ -41,7 +41,17 @@ struct CloudScanOptions {
   // Column width, degrees of azimuth, when columns are made by binning azimuths (every cloud
   // that is not organised with ring numbers). Default 0.2: a Velodyne at 10 Hz.
   double resolution_deg = 0.2;
+  // A ring field whose rings are not level (kMaxRingSpreadDeg: Livox's line numbers, each line of
+  // its non-repetitive pattern sweeping every elevation; Luminar's two lasers): set aside and the
+  // rings regressed instead, from `elevations_deg` or else this many beams estimated from the
+  // cloud. 0 (default) with no elevations: such a field is kept as the rings (reported).
+  int unlevel_ring_beams = 0;
 };
+
+// Mean distance, degrees, of a ring's points from their ring's mean elevation above which a ring
+// field's rings are not level (a spinning sensor's ring holds one elevation to a few hundredths of
+// a degree, and its beams are at least 0.1 degrees apart).
+inline constexpr double kMaxRingSpreadDeg = 1.0;
 
 struct CloudScanReport {
   size_t points = 0;               // points with a return placed in the scan
@@ -53,7 +63,10 @@ struct CloudScanReport {
   // Organised with ring numbers: each point kept its column and return (rows: the rings of return
   // 0, then of return 1, as `lidartag dump --organized` writes).
   bool grid = false;
-  bool regressed = false;         // no ring numbers: rings from elevations (ring_regression.hpp)
+  bool regressed = false;  // no ring numbers: rings from elevations (ring_regression.hpp)
+  // The ring field's rings are not level (CloudScanOptions::unlevel_ring_beams): regressed when
+  // the options allow, else kept as they are.
+  bool rings_not_level = false;
   bool intensity_scaled = false;  // every intensity within [0, 1]: read as 0..1, scaled by 255
 };
 
@@ -74,7 +87,8 @@ CloudFields cloud_fields_by_name(const std::vector<std::string>& names,
 
 // The options for `cloud` from a sensor model's beam elevations (`model_elevations_deg`, one per
 // ring: the scan has that many rings) or, without a model (empty), `rings` beams to estimate when
-// the cloud has no ring numbers (with ring numbers, the rings they give).
+// the cloud has no ring numbers (with ring numbers, the rings they give; `rings` beams are
+// estimated when they are not level).
 CloudScanOptions cloud_scan_options(const CloudFields& cloud,
                                     std::vector<double> model_elevations_deg, int rings,
                                     double resolution_deg);

@@ -310,6 +310,17 @@ PcdCloud read_pcd_points(const std::string& path) {
   return cloud;
 }
 
+void pcd_cloud_columns(const PcdCloud& cloud, driver::CloudColumns& out) {
+  std::vector<driver::CloudSourceField> fields;
+  fields.reserve(cloud.fields.size());
+  for (size_t f = 0; f < cloud.fields.size(); ++f)
+    fields.push_back({cloud.fields[f], f < cloud.types.size() && cloud.types[f] != 'F'});
+  driver::cloud_columns_of(
+      fields, [&](size_t k, std::vector<double>& values) { values = cloud.columns[k]; }, out);
+  out.width = cloud.width;
+  out.height = cloud.height;
+}
+
 bool PcdCloud::has(const std::string& name) const {
   return std::find(fields.begin(), fields.end(), name) != fields.end();
 }
@@ -410,6 +421,7 @@ PcdCloud read_pcd(const std::string& path) {
     if (!seen.insert(name).second) throw pcd_error(path, "field '" + name + "' appears twice");
     layout.column.push_back(static_cast<int>(cloud.fields.size()));
     cloud.fields.push_back(name);
+    cloud.types.push_back(t);
   }
   if (data_kind == "ascii") {
     cloud.format = PcdFormat::kAscii;

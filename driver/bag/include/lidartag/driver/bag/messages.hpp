@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "lidartag/driver/bag/message_reader.hpp"
+#include "lidartag/driver/cloud_fields.hpp"
 
 namespace lidartag::driver::bag {
 
@@ -91,18 +92,11 @@ struct PointCloudView {
 [[nodiscard]] DecodeResult decode_point_cloud(std::span<const uint8_t> message, Encoding encoding,
                                               PointCloudView& out);
 
-// A cloud's points as columns named as the detector's clouds name them (x y z intensity ring time,
-// detector/cloud_scan.hpp's kCloudFieldNames): x, y, z and intensity by those names; `ring` from
-// a field named ring, channel or laser_id (the first present); `time` in seconds from the cloud's
-// earliest point, from a field named time, t (ns, Ouster), time_offset, timestamp or time_stamp
-// (absolute seconds) or the pair time_sec + time_nsec; fields missing from the cloud are left out.
-// `source` names, for each column, the cloud field it came from.
-struct CloudColumns {
-  std::vector<std::string> names;
-  std::vector<std::string> source;
-  std::vector<std::vector<double>> columns;
-  size_t width = 0, height = 1;
-};
+// A cloud's points as the detector's columns, its fields named by the one vocabulary that PCD
+// files share (driver/cloud_fields.hpp: x y z intensity azimuth return_type; the ring under ring,
+// channel, laser_id or line; the time under time, t, time_offset, timestamp, time_stamp,
+// offset_time or time_sec + time_nsec, in seconds by time_to_seconds's rule).
+using driver::CloudColumns;
 void cloud_columns(const PointCloudView& cloud, CloudColumns& out);
 
 // The topics that carry LiDAR data: VelodyneScan, PointCloud2 and Ouster packet topics (not those

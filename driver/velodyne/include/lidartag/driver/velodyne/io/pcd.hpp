@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "lidartag/driver/cloud_fields.hpp"
 #include "lidartag/driver/io/errors.hpp"
 #include "lidartag/driver/scan.hpp"
 #include "lidartag/driver/velodyne/sensor_model.hpp"
@@ -59,6 +60,7 @@ struct PcdRotation {
 struct PcdCloud {
   std::vector<std::string> fields;           // fields read (COUNT 1), in file order
   std::vector<std::vector<double>> columns;  // columns[f][point]; NaN where the file says nan
+  std::vector<char> types;                   // types[f]: the field's PCD TYPE, 'F', 'U' or 'I'
   std::vector<std::string> skipped_fields;   // COUNT > 1 fields and "_" padding: not read
   size_t width = 0, height = 0;              // organised when height > 1 (row-major)
   PcdFormat format = PcdFormat::kBinary;
@@ -79,6 +81,11 @@ PcdCloud read_pcd(const std::string& path);
 // read_pcd for a cloud of points (what `lidartag detect` and the Python module read): also an
 // IoError naming the file when it has no x, y or z field.
 PcdCloud read_pcd_points(const std::string& path);
+
+// The cloud's columns as the detector reads them, its fields named by the vocabulary PointCloud2
+// clouds share (driver/cloud_fields.hpp: another driver's `timestamp` or `t` becomes `time` in
+// seconds, its `channel`, `laser_id` or `line` the `ring`). `out` is cleared first.
+void pcd_cloud_columns(const PcdCloud& cloud, driver::CloudColumns& out);
 
 // Sets the per-rotation fields of `scan` (stamp_ns, sequence, model, return_mode, complete, rpm)
 // that `rotation` has; the others are left as they are.
