@@ -17,8 +17,10 @@
 // polish on every point, the *_no_family_check ones the decoding against the families not
 // configured, the *_no_track_only ones the clusters fitted and decoded as tracker evidence only
 // (validation.track_boundary_scale = boundary_scale), the *_no_retry ones the second pose fit of
-// clusters whose fit stays poor (pose.retry_mean_cost_m = 0). BM_EdgeFeatures and BM_Clustering
-// time the first two stages alone.
+// clusters whose fit stays poor (pose.retry_mean_cost_m = 0), the *_strict_track_bound ones the
+// tracks' boundary bound as before 2026-12-05 (validation.track_testable_per_transition = 6,
+// track_transitions_per_ring = 0). BM_EdgeFeatures and BM_Clustering time the first two stages
+// alone.
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -115,7 +117,14 @@ double median(std::vector<double> v) {
 }
 
 // What a variant changes in the scene's options.
-enum class Variant { kDefault, kNoPolish, kNoFamilyCheck, kNoTrackOnly, kNoRetry };
+enum class Variant {
+  kDefault,
+  kNoPolish,
+  kNoFamilyCheck,
+  kNoTrackOnly,
+  kNoRetry,
+  kStrictTrackBound
+};
 
 void BM_Detect(benchmark::State& state, const std::string& name, Variant variant) {
   const Capture& c = capture(name);
@@ -129,6 +138,10 @@ void BM_Detect(benchmark::State& state, const std::string& name, Variant variant
   if (variant == Variant::kNoRetry) options.pose.retry_mean_cost_m = 0.0;
   if (variant == Variant::kNoTrackOnly)
     options.validation.track_boundary_scale = options.validation.boundary_scale;
+  if (variant == Variant::kStrictTrackBound) {
+    options.validation.track_testable_per_transition = 6.0f;
+    options.validation.track_transitions_per_ring = 0.0f;
+  }
   detector::Detector det(options);
   detector::ScanResult result;
   std::array<std::vector<double>, detector::kStageCount> stage_ms;
@@ -212,6 +225,17 @@ BENCHMARK_CAPTURE(BM_Detect, demo_no_track_only, std::string("demo"), Variant::k
 BENCHMARK_CAPTURE(BM_Detect, outdoor_no_track_only, std::string("outdoor"), Variant::kNoTrackOnly)
     ->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_Detect, boards_no_track_only, std::string("boards"), Variant::kNoTrackOnly)
+    ->Unit(benchmark::kMillisecond);
+// With the tracks' boundary bound as strict as before 2026-12-05 (one transition per 6 testable
+// points, no cap per ring): what the far edge's looser bound costs.
+BENCHMARK_CAPTURE(BM_Detect, demo_strict_track_bound, std::string("demo"),
+                  Variant::kStrictTrackBound)
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Detect, outdoor_strict_track_bound, std::string("outdoor"),
+                  Variant::kStrictTrackBound)
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Detect, boards_strict_track_bound, std::string("boards"),
+                  Variant::kStrictTrackBound)
     ->Unit(benchmark::kMillisecond);
 // Without the second pose fit, turned 45 degrees, of clusters whose fit stays above
 // pose.retry_mean_cost_m: what it costs.

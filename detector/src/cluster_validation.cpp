@@ -164,9 +164,16 @@ int testable_points(std::span<const ClusterPoint> points, const ValidationOption
   return n;
 }
 
-int track_boundary_bound(int testable, int psi, int track_bound) {
-  const int by_points = (std::max(testable, 0) + kTestablePerStep - 1) / kTestablePerStep;
-  return std::max((psi + 3) / 4, std::min(track_bound, by_points));
+int track_boundary_bound(int testable, int rings, int psi, int track_bound,
+                         const ValidationOptions& opt) {
+  const float step = std::max(opt.track_testable_per_transition, 1e-3f);
+  int bound = std::min(
+      track_bound,
+      static_cast<int>(std::ceil(static_cast<float>(std::max(testable, 0)) / step - 1e-4f)));
+  if (opt.track_transitions_per_ring > 0.0f)
+    bound = std::min(bound, static_cast<int>(std::ceil(opt.track_transitions_per_ring *
+                                                       static_cast<float>(std::max(rings, 0)))));
+  return std::max((psi + 3) / 4, bound);
 }
 
 int count_boundary_points(std::span<const ClusterPoint> points, const ValidationOptions& opt) {

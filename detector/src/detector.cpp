@@ -271,10 +271,11 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, const Senso
                          opt_.validation);
   if (r != Rejection::kNone) return finish(Stage::kValidation, r);
   diag.boundary_points = count_boundary_points(b.points, opt_.validation);
-  const int track_bound = limits_.min_track_boundary_points < limits_.min_boundary_points
-                              ? track_boundary_bound(testable_points(b.points, opt_.validation),
-                                                     limits_.psi, limits_.min_track_boundary_points)
-                              : limits_.min_track_boundary_points;
+  const int track_bound =
+      limits_.min_track_boundary_points < limits_.min_boundary_points
+          ? track_boundary_bound(testable_points(b.points, opt_.validation), rings_in(b.points),
+                                 limits_.psi, limits_.min_track_boundary_points, opt_.validation)
+          : limits_.min_track_boundary_points;
   if (diag.boundary_points < track_bound)
     return finish(Stage::kValidation, Rejection::kFewBoundaryPoints);
   if (static_cast<int>(b.points.size()) < limits_.min_points) {

@@ -130,16 +130,20 @@ TEST(ClusterValidation, TestablePointsAreThoseWithNeighboursOnBothSidesOfTheirRi
 
 // The tracks' boundary bound depends on what the rings crossing the cluster can show: a
 // well-sampled cluster keeps track_boundary_scale's bound, a sparse one (few returns per ring)
-// asks for one transition per kTestablePerStep testable points, never below psi / 4.
+// asks for one transition per track_testable_per_transition testable points, never below psi / 4.
 TEST(ClusterValidation, TheTracksBoundaryBoundFollowsTheRingsCrossingTheCluster) {
   const int psi = 12, track = 9;  // tag16h5: 2 (d + 2), and 0.75 of it
-  EXPECT_EQ(track_boundary_bound(500, psi, track), track);
-  EXPECT_EQ(track_boundary_bound(30, psi, track), 5);  // 10 rings of 5 returns: 3 testable each
-  EXPECT_EQ(track_boundary_bound(0, psi, track), 3);
-  EXPECT_EQ(track_boundary_bound(-4, psi, track), 3);
+  const ValidationOptions o;
+  EXPECT_EQ(track_boundary_bound(500, 10, psi, track, o), track);
+  // 10 rings of 5 returns: 3 testable each, one transition per 8 of them.
+  EXPECT_EQ(track_boundary_bound(30, 10, psi, track, o), 4);
+  EXPECT_EQ(track_boundary_bound(0, 10, psi, track, o), 3);
+  EXPECT_EQ(track_boundary_bound(-4, 10, psi, track, o), 3);
   // A VLP-32C's 1.2 m tag at 6 m keeps the bound, and shows more transitions than it.
   const Filled near = fill_tag(6, 220, 20);
-  EXPECT_EQ(track_boundary_bound(testable_points(near.points, {}), psi, track), track);
+  EXPECT_EQ(
+      track_boundary_bound(testable_points(near.points, {}), rings_in(near.points), psi, track, o),
+      track);
   EXPECT_GE(count_boundary_points(near.points, {}), track);
   // Six rings of five returns across a turned tag at the far edge (white, black, black, white,
   // white): one transition each, below the well-sampled bound, at the sparse one.
@@ -153,9 +157,50 @@ TEST(ClusterValidation, TheTracksBoundaryBoundFollowsTheRingsCrossingTheCluster)
   const int shown = count_boundary_points(far, {});
   EXPECT_EQ(shown, 6);
   EXPECT_LT(shown, track);
-  const int bound = track_boundary_bound(testable_points(far, {}), psi, track);
+  const int bound = track_boundary_bound(testable_points(far, {}), rings_in(far), psi, track, o);
   EXPECT_EQ(bound, 3);
   EXPECT_GE(shown, bound);
+}
+
+// The far edge's sparse rotations: 38 testable points on 10 rings (a VLP-32C's 1.2 m tag at 28 m
+// and 45 degrees) showing 5 transitions passed one per 8 testable points, not one per 6 (the
+// rate before 2026-12-05, which dropped those rotations: bench_tracker --cell vlp32c:28:45
+// --trace); a sparser rate asks for fewer.
+TEST(ClusterValidation, TheTracksBoundaryBoundAsksOneTransitionPerTestablePointsOfItsRate) {
+  const int psi = 12, track = 9;
+  ValidationOptions o;
+  EXPECT_EQ(track_boundary_bound(38, 10, psi, track, o), 5);
+  o.track_testable_per_transition = 6.0f;
+  EXPECT_EQ(track_boundary_bound(38, 10, psi, track, o), 7);
+  o.track_testable_per_transition = 100.0f;
+  EXPECT_EQ(track_boundary_bound(38, 10, psi, track, o), 3);  // never below psi / 4
+}
+
+// Few rings with many returns each (a VLP-16's tag at 10 m and 45 degrees: 5 rings of 20 returns)
+// show at most about track_transitions_per_ring transitions per ring, however many of their points
+// are testable: the bound asks no more than that; 0 turns the cap off.
+TEST(ClusterValidation, TheTracksBoundaryBoundAsksAtMostTransitionsPerRingCrossingTheCluster) {
+  const int psi = 12, track = 9;
+  ValidationOptions o;
+  EXPECT_EQ(track_boundary_bound(90, 5, psi, track, o), 8);   // ceil(1.5 * 5)
+  EXPECT_EQ(track_boundary_bound(90, 4, psi, track, o), 6);   // ceil(1.5 * 4)
+  EXPECT_EQ(track_boundary_bound(90, 2, psi, track, o), 3);   // never below psi / 4
+  EXPECT_EQ(track_boundary_bound(90, 10, psi, track, o), 9);  // many rings: the track bound
+  o.track_transitions_per_ring = 0.0f;
+  EXPECT_EQ(track_boundary_bound(90, 5, psi, track, o), track);
+}
+
+// The looser far-edge bound still asks for transitions a blank board never shows: a uniform
+// 1.2 m board turned 45 degrees at 20 m (VLP-32C) has no payload boundary point against its bound
+// of at least psi / 4.
+TEST(ClusterValidation, ABlankBoardStaysBelowTheTracksBoundaryBound) {
+  const int psi = 12, track = 9;
+  const Filled blank = fill_tag(20, 200, 200);
+  ASSERT_GT(testable_points(blank.points, {}), 0);
+  const int bound = track_boundary_bound(testable_points(blank.points, {}), rings_in(blank.points),
+                                         psi, track, {});
+  EXPECT_GE(bound, (psi + 3) / 4);
+  EXPECT_LT(count_boundary_points(blank.points, {}), bound);
 }
 
 TEST(ClusterValidation, NarrowRingsAboveAndBelowAreTrimmed) {

@@ -46,6 +46,18 @@ struct ValidationOptions {
   // and 45 degrees on a VLP-32C returns 35-50); a value at or above min_returns_per_cell turns
   // it off.
   float track_returns_per_cell = 0.5f;
+  // track_boundary_bound, the tracks' boundary bound: one payload boundary point asked per
+  // track_testable_per_transition points where eq. (5) can fire (testable_points). Default 8: a
+  // 1.2 m tag16h5 at 28 m and 45 degrees on a VLP-32C (8-11 rings, 29-45 testable points) shows
+  // 3-19 transitions, one per 3.5 testable points at the median, but fewer than one per 6 in 4 %
+  // of its clusters, which with 6 were no evidence at all (bench_tracker --cell vlp32c:28:45
+  // --trace).
+  float track_testable_per_transition = 8.0f;
+  // ... and at most track_transitions_per_ring per ring crossing the cluster: a ring shows the
+  // transitions of the rows it crosses, whatever its returns (a VLP-16's tag at 10 m and 45
+  // degrees: 5 rings of 20 returns, 8-17 transitions, against a bound of 9). Default 1.5; 0: no
+  // such cap.
+  float track_transitions_per_ring = 1.5f;
   // Rings at the top and bottom of a cluster whose run is narrower than this fraction of the
   // smallest tag size are dropped before the point counts: the post of an easel or a pole under
   // the tag (in the tag's plane, so the plane fit keeps it) would otherwise bend the outline and
@@ -87,16 +99,18 @@ int rings_in(std::span<const ClusterPoint> points);
 int testable_points(std::span<const ClusterPoint> points, const ValidationOptions& opt);
 
 // The track-only boundary bound of a cluster with `testable` points where eq. (5) can fire
-// (testable_points), for a family whose eq. (6) bound is psi = 2 (d + 2). Eq. (6) assumes each
-// payload row is crossed by a ring that shows its two transitions; a ring with few returns on a
-// turned tag (its white border one return or none, its end points untestable) shows fewer: at the
-// far edge (VLP-32C, 1.2 m tag at 28-32 m, 45 degrees: 4-6 returns per ring, 2-4 testable) about
-// one transition per ring, below that in half the rotations. The bound scales with the testable
-// points, one per kTestablePerStep of them, never above `track_bound` (the track_boundary_scale
-// bound, which a well-sampled cluster keeps) and never below psi / 4:
-// max(ceil(psi / 4), min(track_bound, ceil(testable / kTestablePerStep))).
-inline constexpr int kTestablePerStep = 6;
-int track_boundary_bound(int testable, int psi, int track_bound);
+// (testable_points) on `rings` rings (rings_in), for a family whose eq. (6) bound is
+// psi = 2 (d + 2). Eq. (6) assumes each payload row is crossed by a ring that shows its two
+// transitions; a ring with few returns on a turned tag (its white border one return or none, its
+// end points untestable) shows fewer: at the far edge (VLP-32C, 1.2 m tag at 28-32 m, 45 degrees:
+// 4-6 returns per ring, 2-4 testable) about one transition per ring, below that in half the
+// rotations; and a tag crossed by few rings shows only their rows' transitions. The bound asks for
+// one per opt.track_testable_per_transition testable points and at most
+// opt.track_transitions_per_ring per ring (when that is positive), never above `track_bound` (the
+// track_boundary_scale bound, which a well-sampled cluster keeps) and never below psi / 4:
+// max(ceil(psi / 4), min(track_bound, ceil(testable / rate), ceil(per_ring * rings))).
+int track_boundary_bound(int testable, int rings, int psi, int track_bound,
+                         const ValidationOptions& opt);
 
 // eq. (5) along each ring: grad I = |I_{i+l} - I_i| - |I_{i-l} - I_i|; a point whose gradient
 // exceeds the threshold is a payload boundary point. Returns their number.

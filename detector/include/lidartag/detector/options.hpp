@@ -119,6 +119,10 @@ void visit_options(V& v, DetectorOptions& o) {
     s.field("track_boundary_scale", o.validation.track_boundary_scale, at_least(0.0f), "");
     s.field("track_returns_per_cell", o.validation.track_returns_per_cell, at_least(0.0f),
             "points");
+    s.field("track_testable_per_transition", o.validation.track_testable_per_transition,
+            above(0.0f), "points");
+    s.field("track_transitions_per_ring", o.validation.track_transitions_per_ring, at_least(0.0f),
+            "boundary points");
     s.field("min_ring_width", o.validation.min_ring_width, half_open(0.0f, 1.0f), "tag sizes");
   });
   v.section("plane", [&](V& s) {
