@@ -9,7 +9,7 @@ ScanBatcher::ScanBatcher(const SensorLayout& layout, uint8_t return_mode, int re
       window_(layout_.max_payload_bytes),
       screen_(layout_, options.flush_timeout_s),
       assembler_(layout_, return_mode, returns, options, window_, stats_),
-      stash_(std::make_unique<HeldPacket>(layout_.max_payload_bytes)) {}
+      stash_(1, layout_.max_payload_bytes) {}
 
 ScanBatcher::~ScanBatcher() = default;
 
@@ -20,13 +20,13 @@ bool ScanBatcher::catch_up(Scan& scan) {
   if (!stashed_) return false;
   stashed_ = false;
   // add_one() copies what it keeps (window, candidates), so the stash is free again after it.
-  return add_one(stash_->columns(), scan);
+  return add_one(stash_[0].columns(), scan);
 }
 
 bool ScanBatcher::add(const ColumnPacket& pk, Scan& scan) {
   if (catch_up(scan)) {
     // This call delivers already (one rotation per call): the packet waits for the next.
-    stash_->hold(pk);
+    stash_[0].hold(pk);
     stashed_ = true;
     return true;
   }

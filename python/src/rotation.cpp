@@ -64,8 +64,8 @@ bool is_pcd(const std::string& path) {
 }
 
 // x (returns, rings, columns) arrays of one cell field.
-template <typename Out, typename In>
-py::array_t<Out> grid(const Scan& s, const std::vector<In>& field) {
+template <typename Out, typename Field>
+py::array_t<Out> grid(const Scan& s, const Field& field) {
   py::array_t<Out> out({s.returns, s.rings, s.columns});
   auto r = out.template mutable_unchecked<3>();
   for (int ret = 0; ret < s.returns; ++ret)

@@ -24,7 +24,7 @@ std::vector<Scan> rotations(velodyne::CaptureReader& reader) {
 
 // Every cell of every ring and return that the rotation filled, compared as bytes (NaN included).
 template <class T>
-bool same_cells(const Scan& a, const Scan& b, const std::vector<T> Scan::*field) {
+bool same_cells(const Scan& a, const Scan& b, const CellArray<T> Scan::*field) {
   const auto n = static_cast<size_t>(a.columns);
   for (int ret = 0; ret < a.returns; ++ret) {
     for (int ring = 0; ring < a.rings; ++ring) {

@@ -1,8 +1,11 @@
-// The parts of scan assembly, each alone: ReorderWindow, StreamScreen, RotationAssembler (with its
-// ColumnWriter). ScanBatcher, which joins them, is tested in test_scan_batcher.cpp.
+// The parts of scan assembly, each alone: the scan's storage, ReorderWindow, StreamScreen,
+// RotationAssembler (with its ColumnWriter). ScanBatcher, which joins them, is tested in
+// test_scan_batcher.cpp.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <thread>
 #include <vector>
 
 #include "lidartag/driver/assembly/reorder_window.hpp"
@@ -32,6 +35,107 @@ struct Parsed {
     }
   }
 };
+
+// Every cell field of `s` set to `v` (storage whose content is unknown: reused memory).
+void poison(Scan& s, float v) {
+  for (auto* f : {&s.x, &s.y, &s.z, &s.range, &s.azimuth_deg, &s.time_s})
+    std::fill(f->begin(), f->end(), v);
+  std::fill(s.intensity.begin(), s.intensity.end(), uint8_t{0xab});
+  std::fill(s.return_type.begin(), s.return_type.end(), ReturnType::kSecond);
+}
+
+// Cell (ret, ring, col) reads as zeroed storage (every field).
+bool zeroed(const Scan& s, int ret, int ring, int col) {
+  const size_t i = s.at(ret, ring, col);
+  return s.x[i] == 0.0f && s.y[i] == 0.0f && s.z[i] == 0.0f && s.range[i] == 0.0f &&
+         s.azimuth_deg[i] == 0.0f && s.time_s[i] == 0.0f && s.intensity[i] == 0 &&
+         s.return_type[i] == ReturnType::kNone;
+}
+
+TEST(ScanStorage, LazyStorageIsZeroedColumnByColumnButForTheCellsTheWriterWritesWhole) {
+  Scan s;
+  s.reserve_lazily(3, 2, 100);
+  ASSERT_EQ(s.x.size(), 600u);
+  poison(s, 7.0f);  // what unzeroed storage may hold
+  // Columns [0, 10): every cell zeroed.
+  s.prepare_columns(10);
+  // Columns [10, 20): those of return 0 from column 15 on are the writer's (left as they are).
+  s.prepare_columns(20, 15, 1);
+  for (int ret = 0; ret < 2; ++ret)
+    for (int ring = 0; ring < 3; ++ring)
+      for (int col = 0; col < 30; ++col) {
+        const bool writers = ret == 0 && col >= 15 && col < 20;
+        EXPECT_EQ(zeroed(s, ret, ring, col), col < 20 && !writers) << ret << ring << col;
+      }
+  // Prepared columns are not zeroed again (they hold what was written since).
+  s.range[s.at(1, 2, 5)] = 3.0f;
+  s.prepare_columns(15);
+  EXPECT_EQ(s.range[s.at(1, 2, 5)], 3.0f);
+  // A new shape first zeroes what the old one left unprepared, then keeps the storage (large
+  // enough) as it is: nothing of it is fresh.
+  s.reserve_lazily(2, 1, 300);
+  EXPECT_EQ(s.fresh_from, Scan::kNoFreshCells);
+  EXPECT_EQ(s.x.size(), 600u);
+  EXPECT_EQ(s.x[599], 0.0f);  // column 99 of return 1, ring 2 of the old shape
+  EXPECT_EQ(s.x[15], 7.0f);   // the writer's cell of the old shape, kept
+}
+
+TEST(ScanStorage, LazyStorageGrownFromAnotherShapeKeepsWhatItHad) {
+  // The storage that was there reads as it did (Scan::reserve never cleared it); only what the
+  // new shape adds is fresh, and zeroed when reached.
+  Scan s;
+  s.reserve(2, 1, 10);  // 20 cells, zeroed
+  std::fill(s.x.begin(), s.x.end(), 5.0f);
+  s.reserve_lazily(2, 1, 40);  // 80 cells: 60 fresh
+  EXPECT_EQ(s.fresh_from, 20u);
+  std::fill(s.x.begin() + 20, s.x.end(), 7.0f);  // unknown content
+  s.prepare_columns(40);
+  for (int ring = 0; ring < 2; ++ring)
+    for (int col = 0; col < 40; ++col) {
+      const size_t i = s.at(0, ring, col);
+      EXPECT_EQ(s.x[i], i < 20 ? 5.0f : 0.0f) << ring << " " << col;
+    }
+  EXPECT_EQ(s.fresh_from, Scan::kNoFreshCells);
+}
+
+TEST(ScanStorage, AScanReservedEagerlyReadsAsZero) {
+  Scan s;
+  s.reserve(4, 2, 50);
+  for (int ret = 0; ret < 2; ++ret)
+    for (int ring = 0; ring < 4; ++ring)
+      for (int col = 0; col < 50; ++col) ASSERT_TRUE(zeroed(s, ret, ring, col));
+  EXPECT_EQ(s.fresh_from, Scan::kNoFreshCells);
+}
+
+TEST(ScanStorage, TheBlocksOfAFreedScanAreReusedByTheNextOfTheSameShape) {
+  // A reader opened after another gets the pages the last one faulted in, not fresh ones.
+  const float* first = nullptr;
+  {
+    Scan a;
+    a.reserve_lazily(16, 2, 3979);
+    first = a.x.data();
+  }
+  Scan b;
+  b.reserve_lazily(16, 2, 3979);
+  const std::vector<const void*> blocks{b.x.data(),     b.y.data(),           b.z.data(),
+                                        b.range.data(), b.azimuth_deg.data(), b.time_s.data()};
+  EXPECT_NE(std::find(blocks.begin(), blocks.end(), first), blocks.end());
+  // Each thread keeps its own (freed when it ends).
+  bool reused = false;
+  std::thread([&] {
+    const float* was = nullptr;
+    {
+      Scan c;
+      c.reserve_lazily(16, 2, 3979);
+      was = c.x.data();
+    }
+    Scan d;
+    d.reserve_lazily(16, 2, 3979);
+    reused = d.x.data() == was || d.y.data() == was || d.z.data() == was || d.range.data() == was ||
+             d.azimuth_deg.data() == was || d.time_s.data() == was;
+  }).join();
+  EXPECT_TRUE(reused);
+}
 
 TEST(ReorderWindow, KeepsPacketsSortedByTimeAndSaysWhichCameLate) {
   Parsed p(6);

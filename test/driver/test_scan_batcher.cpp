@@ -633,6 +633,60 @@ TEST(ScanBatcher, EveryCellOfARotationIsWrittenSoAReusedScanNeedsNoClearing) {
   }
 }
 
+TEST(ScanBatcher, LazilyReservedStorageAssemblesAsZeroedStorage) {
+  // The batcher sizes a scan with Scan::reserve_lazily: the storage it adds is not zeroed (and
+  // may be blocks another scan used: CellAllocator reuses them) until the writer reaches each
+  // column, and the decoder's cells are not zeroed at all. Here that storage starts full of
+  // poison, and each rotation must equal, cell by cell, the same packets assembled into scans
+  // reserved (and zeroed) beforehand; dual, then single (the scan is reshaped), then dual.
+  const ModelSpec& spec = model_spec(Model::kVLP32C);
+  const int capacity = driver::ScanBatcher::column_capacity(velodyne::sensor_layout(spec));
+  Scan lazy;
+  lazy.reserve_lazily(spec.lasers, 2, capacity);
+  ASSERT_EQ(lazy.fresh_from, 0u);
+  for (auto* v : {&lazy.x, &lazy.y, &lazy.z, &lazy.range, &lazy.azimuth_deg, &lazy.time_s})
+    std::fill(v->begin(), v->end(), 12345.0f);
+  std::fill(lazy.intensity.begin(), lazy.intensity.end(), uint8_t{0xab});
+  std::fill(lazy.return_type.begin(), lazy.return_type.end(), ReturnType::kSecond);
+  for (ReturnMode mode : {ReturnMode::kDual, ReturnMode::kStrongest, ReturnMode::kDual}) {
+    const auto stream = testing::make_stream(spec, mode, 800);
+    Rig zeroed(Model::kVLP32C, mode, {}, capacity);
+    zeroed.feed_all(stream);
+    zeroed.flush();
+    Decoder decoder(Calibration::builtin(Model::kVLP32C));
+    SensorClock clock;
+    driver::ScanBatcher batcher = velodyne::make_batcher(spec, mode);
+    DecodedPacket pk;
+    size_t rotation = 0;
+    auto check = [&] {
+      ASSERT_LT(rotation, zeroed.scans.size());
+      const Scan& want = *zeroed.scans[rotation++];
+      ASSERT_EQ(lazy.returns, want.returns);
+      ASSERT_EQ(lazy.columns, want.columns);
+      for (int r = 0; r < want.returns; ++r)
+        for (int ring = 0; ring < want.rings; ++ring)
+          for (int c = 0; c < want.columns; ++c) {
+            const size_t i = lazy.at(r, ring, c), j = want.at(r, ring, c);
+            ASSERT_EQ(lazy.range[i], want.range[j]) << r << " " << ring << " " << c;
+            ASSERT_EQ(lazy.x[i], want.x[j]);
+            ASSERT_EQ(lazy.y[i], want.y[j]);
+            ASSERT_EQ(lazy.z[i], want.z[j]);
+            ASSERT_EQ(lazy.azimuth_deg[i], want.azimuth_deg[j]);
+            ASSERT_EQ(lazy.time_s[i], want.time_s[j]);
+            ASSERT_EQ(lazy.intensity[i], want.intensity[j]);
+            ASSERT_EQ(lazy.return_type[i], want.return_type[j]);
+          }
+    };
+    for (const auto& p : stream) {
+      ASSERT_EQ(decoder.decode(p.bytes, clock, p.time_ns, pk), DecodeStatus::kOk);
+      if (batcher.add(pk, lazy)) check();
+    }
+    while (batcher.flush(lazy)) check();
+    EXPECT_EQ(rotation, zeroed.scans.size());
+    EXPECT_GE(rotation, 2u);
+  }
+}
+
 TEST(ScanBatcher, ANewStreamThatMixesReturnModesLeavesNoCellUnwritten) {
   // A restart whose first packets disagree on the return mode (garbage, or a sensor switched
   // during the restart): the dual-return packet lands in a single-return scan, where the decoder

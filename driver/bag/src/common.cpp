@@ -8,6 +8,7 @@
 #include <cmath>
 #include <filesystem>
 #include <limits>
+#include <span>
 
 #include "internal.hpp"
 #include "lidartag/driver/bag/message_reader.hpp"
@@ -193,13 +194,24 @@ constexpr std::string_view kRos1Magic = "#ROSBAG V2.0\n";
 constexpr std::string_view kMcapMagic = "\x89MCAP0\r\n";
 constexpr std::string_view kSqliteMagic{"SQLite format 3\0", 16};
 
-bool starts_with(const std::string& path, std::string_view magic) {
+// The file's first `n` bytes, or all of it when shorter; empty when it cannot be read. (Read once
+// for every format's magic: a capture opened by content was opened three times to tell.)
+std::vector<uint8_t> head_of(const std::string& path, size_t n) {
   detail::File f(path);
   std::vector<uint8_t> head;
-  if (!f.is_open() || !f.read(0, magic.size(), head)) return false;
-  return std::equal(magic.begin(), magic.end(), head.begin(),
+  if (!f.is_open() || !f.read(0, std::min<uint64_t>(n, f.size()), head)) head.clear();
+  return head;
+}
+
+bool starts_with(std::span<const uint8_t> head, std::string_view magic) {
+  return head.size() >= magic.size() &&
+         std::equal(magic.begin(), magic.end(), head.begin(),
                     [](char a, uint8_t b) { return static_cast<uint8_t>(a) == b; });
 }
+
+constexpr std::string_view kRos2Metadata = "rosbag2_bagfile_information";
+constexpr size_t kHeadBytes =
+    std::max({kRos1Magic.size(), kMcapMagic.size(), kSqliteMagic.size(), kRos2Metadata.size()});
 }  // namespace
 
 BagFormat detect_bag_format(const std::string& path) {
@@ -208,17 +220,19 @@ BagFormat detect_bag_format(const std::string& path) {
   if (std::filesystem::is_directory(p, ec)) {
     if (std::filesystem::is_regular_file(p / "metadata.yaml", ec)) return BagFormat::kRosbag2;
     for (const auto& entry : std::filesystem::directory_iterator(p, ec)) {
-      if (entry.is_regular_file(ec) && starts_with(entry.path().string(), kSqliteMagic))
+      if (entry.is_regular_file(ec) &&
+          starts_with(head_of(entry.path().string(), kSqliteMagic.size()), kSqliteMagic))
         return BagFormat::kRosbag2;
     }
     return BagFormat::kNone;
   }
   if (!std::filesystem::is_regular_file(p, ec)) return BagFormat::kNone;
-  if (starts_with(path, kRos1Magic)) return BagFormat::kRos1;
-  if (starts_with(path, kMcapMagic)) return BagFormat::kMcap;
-  if (starts_with(path, kSqliteMagic)) return BagFormat::kRosbag2;
+  const std::vector<uint8_t> head = head_of(path, kHeadBytes);
+  if (starts_with(head, kRos1Magic)) return BagFormat::kRos1;
+  if (starts_with(head, kMcapMagic)) return BagFormat::kMcap;
+  if (starts_with(head, kSqliteMagic)) return BagFormat::kRosbag2;
   // A rosbag2 metadata.yaml named directly: its folder.
-  if (p.filename() == "metadata.yaml" && starts_with(path, "rosbag2_bagfile_information"))
+  if (p.filename() == "metadata.yaml" && starts_with(head, kRos2Metadata))
     return BagFormat::kRosbag2;
   return BagFormat::kNone;
 }

@@ -50,6 +50,9 @@ void ColumnWriter::write_batch(Scan& s) {
   const int n = batch_.columns;
   if (n > 0 && decoder_ != nullptr && batch_.returns <= s.returns &&
       batch_column_ + n <= s.column_capacity) {
+    // Storage the scan has not zeroed yet (Scan::reserve_lazily) is zeroed before its first
+    // write, but for the cells the decoder writes whole.
+    s.prepare_columns(batch_column_ + n, batch_column_, batch_.returns);
     // The decoder writes the batch straight into the scan's ring-major storage.
     const size_t cell = s.at(0, 0, batch_column_);
     const auto ring_stride = static_cast<size_t>(s.column_capacity);
@@ -71,6 +74,7 @@ void ColumnWriter::write_batch(Scan& s) {
     // Columns the decoder cannot write here (dual-return packets in a single-return scan: a new
     // stream whose first packets mixed modes, counted in mode_changes) hold no return rather
     // than what the scan held before: a scan's storage is reused without being cleared.
+    s.prepare_columns(batch_column_ + n);
     clear_cells(s, 0, batch_column_, n);
   }
   batch_.clear();

@@ -7,10 +7,31 @@
 
 namespace lidartag::driver {
 
-HeldPacket::HeldPacket(size_t max_payload_bytes)
-    : packet_(new (object_.data()) ColumnPacket{}),
-      bytes_(std::make_unique<uint8_t[]>(max_payload_bytes)),
+namespace {
+
+// A held packet's bytes start at kMaxObjectBytes (a multiple of any alignment), and the next
+// packet's object after them, rounded up to keep it aligned.
+constexpr size_t kAlign = alignof(std::max_align_t);
+static_assert(ColumnPacket::kMaxObjectBytes % kAlign == 0);
+
+}  // namespace
+
+size_t HeldPacket::storage_bytes(size_t max_payload_bytes) {
+  return ColumnPacket::kMaxObjectBytes + (max_payload_bytes + kAlign - 1) / kAlign * kAlign;
+}
+
+HeldPacket::HeldPacket(std::byte* storage, size_t max_payload_bytes)
+    : object_(storage, ColumnPacket::kMaxObjectBytes),
+      packet_(new (storage) ColumnPacket{}),
+      bytes_(reinterpret_cast<uint8_t*>(storage + ColumnPacket::kMaxObjectBytes)),
       capacity_(max_payload_bytes) {}
+
+HeldPackets::HeldPackets(int count, size_t max_payload_bytes) {
+  const size_t stride = HeldPacket::storage_bytes(max_payload_bytes);
+  storage_.resize(static_cast<size_t>(count) * stride);
+  for (int i = 0; i < count; ++i)
+    packets_.emplace_back(storage_.data() + static_cast<size_t>(i) * stride, max_payload_bytes);
+}
 
 void HeldPacket::hold(const ColumnPacket& packet) {
   // The decoder copies its own type (what it later reads to decode the points); a packet without
@@ -18,8 +39,8 @@ void HeldPacket::hold(const ColumnPacket& packet) {
   packet_ = packet.decoder != nullptr ? packet.decoder->copy_packet(packet, object_)
                                       : new (object_.data()) ColumnPacket(packet);
   const size_t n = std::min(packet.payload_size, capacity_);
-  if (packet.payload != nullptr) std::copy_n(packet.payload, n, bytes_.get());
-  packet_->payload = bytes_.get();
+  if (packet.payload != nullptr) std::copy_n(packet.payload, n, bytes_);
+  packet_->payload = bytes_;
   packet_->payload_size = n;
 }
 
@@ -28,16 +49,14 @@ int64_t last_stamp(const ColumnPacket& packet) {
   return packet.stamp_ns + round_half_away(packet.column_time_us[last] * 1e3);
 }
 
-ReorderWindow::ReorderWindow(size_t max_payload_bytes) {
-  for (auto& slot : slots_) slot = std::make_unique<HeldPacket>(max_payload_bytes);
-}
+ReorderWindow::ReorderWindow(size_t max_payload_bytes) : slots_(kSlots, max_payload_bytes) {}
 
 bool ReorderWindow::insert(const ColumnPacket& packet, bool& reordered) {
   int slot = 0;
   while (slot < kSlots && taken_[static_cast<size_t>(slot)]) ++slot;
   if (slot == kSlots) return false;
   taken_[static_cast<size_t>(slot)] = true;
-  slots_[static_cast<size_t>(slot)]->hold(packet);
+  slots_[slot].hold(packet);
   last_ns_[static_cast<size_t>(slot)] = last_stamp(packet);
   // Sorted by time, oldest first; a packet placed before a later one arrived out of order.
   int i = size_;

@@ -50,9 +50,11 @@ int RotationAssembler::frame_step() const {
 }
 
 void RotationAssembler::begin(Scan& scan, int64_t stamp_ns) {
-  // A fresh scan, or one last filled in another return mode: sized here, once.
+  // A fresh scan, or one last filled in another return mode: sized here, once. Lazily: the
+  // writer zeroes each column's new storage when it first reaches the column (a scan is sized for
+  // 300 rpm, and a short capture may fill a few of its columns).
   if (scan.rings != layout_.rings || scan.returns != returns_ || scan.column_capacity <= 0) {
-    scan.reserve(layout_.rings, returns_, column_capacity(layout_));
+    scan.reserve_lazily(layout_.rings, returns_, column_capacity(layout_));
   }
   scan.clear();
   scan.sequence = sequence_++;
@@ -68,6 +70,9 @@ void RotationAssembler::begin(Scan& scan, int64_t stamp_ns) {
 void RotationAssembler::finish(Scan& scan, bool ends_at_cut) {
   writer_.queue_run(scan, open_);
   writer_.write_batch(scan);
+  // Columns counted but never written (a packet the writer could not take) read as zero, as in
+  // a scan reserved eagerly.
+  scan.prepare_columns(scan.columns);
   next_starts_at_cut_ = ends_at_cut;
   if (!open_) return;
   open_ = false;

@@ -26,9 +26,9 @@ double azimuth_diff(double a, double b) {
 }  // namespace
 
 StreamScreen::StreamScreen(const SensorLayout& layout, double flush_timeout_s)
-    : layout_(layout), flush_timeout_s_(flush_timeout_s) {
-  for (auto& c : candidates_) c = std::make_unique<HeldPacket>(layout.max_payload_bytes);
-}
+    : layout_(layout),
+      flush_timeout_s_(flush_timeout_s),
+      candidates_(kNewStreamPackets, layout.max_payload_bytes) {}
 
 StreamScreen::Ref StreamScreen::ref_of(const ColumnPacket& pk) {
   const auto last = static_cast<size_t>(std::max(pk.columns - 1, 0));
@@ -109,21 +109,20 @@ void StreamScreen::drop_head() {
 StreamScreen::Candidate StreamScreen::add_candidate(const ColumnPacket& pk) {
   auto& c = candidates_;
   if (candidate_count_ == kNewStreamPackets) return Candidate::kDropped;  // adopted before this
-  if (candidate_count_ == 0 ||
-      fits(ref_of(c[static_cast<size_t>(candidate_count_ - 1)]->columns()), pk)) {
-    c[static_cast<size_t>(candidate_count_++)]->hold(pk);
+  if (candidate_count_ == 0 || fits(ref_of(c[candidate_count_ - 1].columns()), pk)) {
+    c[candidate_count_++].hold(pk);
     return Candidate::kHeld;
   }
   if (candidate_count_ == 1) {
     // One odd packet then another that disagrees with it: the first was the stray one.
-    c[0]->hold(pk);
+    c[0].hold(pk);
     return Candidate::kReplacedStray;
   }
   return Candidate::kDropped;
 }
 
 void StreamScreen::start_candidates(const ColumnPacket& pk) {
-  candidates_[0]->hold(pk);
+  candidates_[0].hold(pk);
   candidate_count_ = 1;
 }
 

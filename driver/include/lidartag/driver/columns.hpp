@@ -132,7 +132,9 @@ class ColumnDecoder {
   // to set.
   virtual ColumnPacket* copy_packet(const ColumnPacket& packet,
                                     std::span<std::byte> storage) const = 0;
-  // The points of a batch of columns into `sink` (its time_offset unused: each run has one).
+  // The points of a batch of columns into `sink` (its time_offset unused: each run has one):
+  // every field of every cell of the batch's returns, whatever the storage held (a scan's new
+  // storage is not zeroed before the decoder writes it: Scan::reserve_lazily).
   virtual void write_batch(const ColumnBatch& batch, const PointSink& sink) const = 0;
 };
 

@@ -105,7 +105,7 @@ class ScanBatcher {
   // jump; a packet that came while a call delivered is stashed for the next call.
   bool closing_ = false, closing_jump_ = false;
   bool stashed_ = false;
-  std::unique_ptr<HeldPacket> stash_;
+  HeldPackets stash_;  // one packet
 };
 
 }  // namespace lidartag::driver

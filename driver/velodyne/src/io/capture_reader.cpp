@@ -179,7 +179,7 @@ bool CaptureReader::take(const driver::RawPacket& p, Scan& scan) {
   if (p.destination_port == options_.source.data_port) {
     check_.add(p.payload);
     if (decided_) watch_model(p.payload);
-    last_data_ = std::chrono::steady_clock::now();
+    data_unstamped_ = true;  // read() stamps it with its next reading of the clock
   }
   if (decided_) return handle(p.payload, p.receive_time_ns, p.destination_port, scan);
   // Traffic that never completes the probe (position packets only, datagrams of another size on
@@ -248,7 +248,16 @@ bool CaptureReader::handle(std::span<const uint8_t> payload, int64_t time_ns, ui
 
 CaptureReader::ReadResult CaptureReader::read(Scan& scan, std::chrono::milliseconds timeout) {
   using Clock = std::chrono::steady_clock;
-  const auto deadline = Clock::now() + timeout;
+  // The clock is read once per packet (after it is handled: that reading also stamps a data
+  // packet's host time) and once per rotation; reading it three times a packet cost 60 ns of a
+  // packet's 1 to 2 us on a VM.
+  auto now = Clock::now();
+  const auto deadline = now + timeout;
+  auto stamp_data = [this](Clock::time_point t) {
+    if (!data_unstamped_) return;
+    last_data_ = t;
+    data_unstamped_ = false;
+  };
   for (;;) {
     if (finished_) return ReadResult::kEnd;
     if (switch_to_) {
@@ -266,6 +275,7 @@ CaptureReader::ReadResult CaptureReader::read(Scan& scan, std::chrono::milliseco
         if (decided_) held_.shrink_to_fit();  // else the next probe reuses the room
         held_next_ = 0;
         draining_ = false;
+        now = Clock::now();  // the source's wait is measured from here
       }
       if (done) return ReadResult::kRotation;
       continue;
@@ -276,7 +286,6 @@ CaptureReader::ReadResult CaptureReader::read(Scan& scan, std::chrono::milliseco
       finished_ = true;
       return ReadResult::kEnd;
     }
-    const auto now = Clock::now();
     // Rounded up: a source that waits the whole timeout returns after the deadline, not just
     // before it (which would take another call).
     const auto left = std::chrono::ceil<std::chrono::milliseconds>(deadline - now);
@@ -284,7 +293,10 @@ CaptureReader::ReadResult CaptureReader::read(Scan& scan, std::chrono::milliseco
     const driver::ReadStatus status =
         source_->next(packet, std::max(left, std::chrono::milliseconds::zero()));
     if (status == driver::ReadStatus::kPacket) {
-      if (take(packet, scan)) return ReadResult::kRotation;
+      if (take(packet, scan)) {
+        stamp_data(Clock::now());
+        return ReadResult::kRotation;
+      }
     } else if (status == driver::ReadStatus::kEnd || status == driver::ReadStatus::kError) {
       if (!decided_ && !draining_) decide();
       source_ended_ = true;
@@ -294,7 +306,9 @@ CaptureReader::ReadResult CaptureReader::read(Scan& scan, std::chrono::milliseco
       const double silent_s = std::chrono::duration<double>(Clock::now() - last_data_).count();
       if (batcher_->idle(silent_s, scan)) return ReadResult::kRotation;
     }
-    if (Clock::now() >= deadline) return ReadResult::kTimeout;
+    now = Clock::now();
+    stamp_data(now);
+    if (now >= deadline) return ReadResult::kTimeout;
   }
 }
 

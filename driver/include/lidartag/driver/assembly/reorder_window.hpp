@@ -6,17 +6,24 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
-#include <memory>
+#include <deque>
+#include <span>
+#include <vector>
 
 #include "lidartag/driver/columns.hpp"
+#include "lidartag/driver/reusing_allocator.hpp"
 
 namespace lidartag::driver {
 
 // A copy of a parsed packet (of its vendor's type, made by its decoder), pointing at this copy of
-// its bytes. Storage for packets of up to `max_payload_bytes`, allocated once.
+// its bytes, in storage of HeldPackets.
 class HeldPacket {
  public:
-  explicit HeldPacket(size_t max_payload_bytes);
+  // The storage one held packet takes: the packet object (aligned for any type), then its bytes.
+  static size_t storage_bytes(size_t max_payload_bytes);
+
+  // Over `storage` (storage_bytes(max_payload_bytes), aligned for any type), which outlives it.
+  HeldPacket(std::byte* storage, size_t max_payload_bytes);
   HeldPacket(const HeldPacket&) = delete;
   HeldPacket& operator=(const HeldPacket&) = delete;
 
@@ -26,10 +33,25 @@ class HeldPacket {
   const ColumnPacket& columns() const { return *packet_; }
 
  private:
-  alignas(std::max_align_t) std::array<std::byte, ColumnPacket::kMaxObjectBytes> object_{};
+  std::span<std::byte> object_;
   ColumnPacket* packet_;
-  std::unique_ptr<uint8_t[]> bytes_;
+  uint8_t* bytes_;
   size_t capacity_;
+};
+
+// Storage for `count` held packets, allocated once, in one block: neither zero-filled (a packet's
+// bytes are written before they are read) nor given back to the system when freed (the next
+// batcher of the thread reuses it: ReusingAllocator), so that a reader opened after another
+// faults in no new pages for it.
+class HeldPackets {
+ public:
+  HeldPackets(int count, size_t max_payload_bytes);
+  HeldPacket& operator[](int i) { return packets_[static_cast<size_t>(i)]; }
+  const HeldPacket& operator[](int i) const { return packets_[static_cast<size_t>(i)]; }
+
+ private:
+  std::vector<std::byte, ReusingAllocator<std::byte>> storage_;
+  std::deque<HeldPacket> packets_;  // not movable: each points into storage_
 };
 
 class ReorderWindow {
@@ -49,9 +71,7 @@ class ReorderWindow {
 
   int size() const { return size_; }
   const ColumnPacket& oldest(int i) const { return packet(order_[static_cast<size_t>(i)]); }
-  const ColumnPacket& packet(int slot) const {
-    return slots_[static_cast<size_t>(slot)]->columns();
-  }
+  const ColumnPacket& packet(int slot) const { return slots_[slot].columns(); }
   // Puts a copy of `packet` in place by time. False when no slot is free (cannot happen: the
   // batcher keeps the window at its depth); else `reordered` says whether it went before a
   // packet that arrived earlier.
@@ -67,7 +87,7 @@ class ReorderWindow {
   bool overlaps(int64_t first_ns, int64_t last_ns) const;
 
  private:
-  std::array<std::unique_ptr<HeldPacket>, kSlots> slots_;
+  HeldPackets slots_;
   std::array<int, kSlots> order_{};        // slots of the window, oldest first
   std::array<int64_t, kSlots> last_ns_{};  // per slot: its packet's last column's time
   int size_ = 0;

@@ -51,9 +51,7 @@ class StreamScreen {
   // A packet that starts a new stream by itself (another return mode).
   void start_candidates(const ColumnPacket& packet);
   int candidates() const { return candidate_count_; }
-  const ColumnPacket& candidate(int i) const {
-    return candidates_[static_cast<size_t>(i)]->columns();
-  }
+  const ColumnPacket& candidate(int i) const { return candidates_[i].columns(); }
   // Forgets the candidates; returns how many there were.
   int clear_candidates();
 
@@ -71,7 +69,7 @@ class StreamScreen {
   std::array<int64_t, kHistory> released_stamp_{};
   std::array<float, kHistory> released_azimuth_{};
   int released_count_ = 0;
-  std::array<std::unique_ptr<HeldPacket>, kNewStreamPackets> candidates_;
+  HeldPackets candidates_;
   int candidate_count_ = 0;
 };
 

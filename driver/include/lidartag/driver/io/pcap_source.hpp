@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <span>
 #include <string>
@@ -92,6 +93,9 @@ class PcapSource final : public PacketSource {
   bool restart();
   std::string cut_short_text() const;
 
+  // The file's stdio buffer (it outlives the pcap_t that reads through it).
+  static constexpr size_t kReadBufferBytes = 64 * 1024;
+  std::unique_ptr<char[]> read_buffer_;
   std::string path_;
   PcapSourceOptions options_;
   void* pcap_ = nullptr;  // pcap_t*

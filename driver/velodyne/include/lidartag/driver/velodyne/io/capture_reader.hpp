@@ -173,7 +173,8 @@ class CaptureReader final : public driver::ScanReader {
   std::vector<Held> held_;  // packets read while probing
   size_t held_next_ = 0;    // the first held packet not handled yet (after the decision)
   std::chrono::steady_clock::time_point last_data_;  // host time of the last data packet
-  Scan own_;                                         // next()'s scan
+  bool data_unstamped_ = false;  // a data packet came that last_data_ does not stamp yet
+  Scan own_;                     // next()'s scan
 };
 
 }  // namespace lidartag::velodyne
