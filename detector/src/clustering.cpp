@@ -65,8 +65,11 @@ void split_cluster(std::span<const Feature> features, float tau, int ring_gap, i
   auto feature = [&](size_t i) -> const Feature& {
     return features[static_cast<size_t>(members[i])];
   };
+  // The fast path needs the rings in order and x that sorts (no NaN, which a partner link can
+  // bring in).
   bool ascending = true;
-  for (size_t i = 1; i < m && ascending; ++i) ascending = feature(i - 1).ring <= feature(i).ring;
+  for (size_t i = 0; i < m && ascending; ++i)
+    ascending = !std::isnan(feature(i).x) && (i == 0 || feature(i - 1).ring <= feature(i).ring);
   if (ascending) {
     // Features come ring by ring: a feature links to those of its own and the ring_gap rings
     // below whose x is within tau, found by binary search in each ring's members sorted by x (a
@@ -153,7 +156,7 @@ class AzimuthIndex {
     hi_.clear();
   }
 
-  // The bin of a feature at (x, y), -1 when not finite.
+  // The bin of a feature at (x, y), -1 when not finite (no azimuth).
   static int bin_of(float x, float y) {
     if (!std::isfinite(x) || !std::isfinite(y)) return -1;
     if (x == 0.0f && y == 0.0f) return 0;  // only boxes that hold the sensor (every bin) hold it
@@ -280,8 +283,15 @@ void cluster_features(std::span<const Feature> features, float tau, float max_ex
         if (links(cl)) linked.push_back(c);
       }
       bin.resize(kept);
+    } else {
+      // Not finite: no azimuth. Every comparison with a NaN fails, but an infinite coordinate may
+      // pass against a box that reaches infinity: test every live cluster.
+      for (size_t c = 0; c < clusters.size(); ++c) {
+        const Cluster& cl = clusters[c];
+        if (cl.parent < 0 && cl.max_ring + gap >= f.ring && links(cl))
+          linked.push_back(static_cast<int>(c));
+      }
     }
-    // (A feature that is not finite fails every comparison: it links to no cluster.)
     int target = -1;
     float box[4] = {0, 0, 0, 0};  // the target's box before the feature
     auto link = [&](int c) {

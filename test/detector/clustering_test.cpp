@@ -339,21 +339,36 @@ TEST(Clustering, OutputIsThatOfTestingEveryLiveCluster) {
   }
 }
 
-// Features that are not finite link to nothing (every comparison fails) and do not disturb the
-// others.
-TEST(Clustering, NonFiniteFeaturesStandAlone) {
+// Features that are not finite link as the comparisons of eq. (2) say: one with a NaN to nothing,
+// one at infinity to a box that reaches infinity; the others are not disturbed.
+TEST(Clustering, NonFiniteFeaturesLinkAsTheComparisonsSay) {
   const float nan = std::numeric_limits<float>::quiet_NaN();
   const float inf = std::numeric_limits<float>::infinity();
-  const std::vector<Feature> f = {at(5, 0, 3),    at(nan, 0, 3), at(inf, 0, 3),
-                                  at(5, 0.3f, 4), at(0, nan, 4), at(5, 0.5f, 5)};
+  const std::vector<Feature> f = {at(5, 0, 3),    at(nan, 0, 3),    at(inf, 0, 3), at(5, 0.3f, 4),
+                                  at(0, nan, 4),  at(5, 0.5f, 5),   at(inf, 0, 4), at(nan, nan, 5),
+                                  at(-inf, 1, 5), at(-inf, 1.2f, 6)};
   std::vector<Cluster> cs, ref;
   std::vector<int> labels, ref_labels;
   cluster_features(f, 0.42f, 0.0f, ClusterOptions{}, cs, labels);
   reference_clustering(f, 0.42f, 1, 0.0f, ref, ref_labels);
   EXPECT_EQ(labels, ref_labels);
-  EXPECT_EQ(live(cs), 4);
+  EXPECT_EQ(live(cs), 6);
   EXPECT_EQ(labels[0], labels[3]);
   EXPECT_EQ(labels[0], labels[5]);
+  EXPECT_EQ(labels[2], labels[6]);  // both at +infinity, adjacent rings
+  EXPECT_EQ(labels[8], labels[9]);  // both at -infinity, y within tau
+  EXPECT_NE(labels[1], labels[0]);
+  EXPECT_NE(labels[4], labels[0]);
+  EXPECT_NE(labels[7], labels[0]);
+  // A NaN feature brought into an oversized cluster by its partner: the split keeps it there.
+  std::vector<Feature> chain;
+  for (int k = 0; k < 12; ++k) chain.push_back(at(6.0f + 0.3f * static_cast<float>(k), 0.0f, 3));
+  chain.push_back(at(nan, 0, 3, 0));
+  chain.push_back(at(9.0f, 0.1f, 4));
+  cluster_features(chain, 0.35f, 1.0f, ClusterOptions{}, cs, labels);
+  reference_clustering(chain, 0.35f, 1, 1.0f, ref, ref_labels);
+  EXPECT_EQ(labels, ref_labels);
+  EXPECT_EQ(labels[12], labels[0]);
 }
 
 TEST(Clustering, FeaturesGroupedByClusterInTheirOrder) {
