@@ -227,9 +227,11 @@ void parse_ouster(const YAML::Node& node, const std::string& path, driver::ouste
     o.profile = Profile::kRng19Rfl8Sig16Nir16Dual;
   else if (profile == "rng15" || profile == "RNG15_RFL8_NIR8")
     o.profile = Profile::kRng15Rfl8Nir8;
+  else if (profile == "fusa_dual" || profile == "FUSA_RNG15_RFL8_NIR8_DUAL")
+    o.profile = Profile::kFusaRng15Rfl8Nir8Dual;
   else
     fail(join(path, "profile"),
-         "unknown profile '" + profile + "' (rng19, rng19_dual, legacy, rng15)");
+         "unknown profile '" + profile + "' (rng19, rng19_dual, legacy, rng15, fusa_dual)");
   s.ouster = o;
   s.noise = NoiseOptions{};
 }
