@@ -242,22 +242,7 @@ TEST(VendorPcds, EachDriversLayoutInEachDataKindGivesTheTagsOfTheRotationItself)
       if (!layout.organized) {
         EXPECT_EQ(written, returns);
       }
-      // Point times: seconds from the sweep's start, within the sweep (0.1 s at 600 rpm).
-      double latest = 0;
-      for (size_t i = 0; i < scan.range.size(); ++i)
-        if (scan.valid(i)) latest = std::max(latest, double{scan.time_s[i]});
-      EXPECT_GT(latest, 0.09);
-      EXPECT_LT(latest, 0.11);
-
-      detector::ScanResult got;
-      detector.detect(scan, got);
-      ASSERT_EQ(got.detections.size(), direct.detections.size());
-      for (const auto& want : direct.detections) {
-        const auto it = std::find_if(got.detections.begin(), got.detections.end(),
-                                     [&](const auto& d) { return d.id == want.id; });
-        ASSERT_NE(it, got.detections.end()) << "tag " << want.id;
-        EXPECT_LT((it->position - want.position).norm(), 0.02) << "tag " << want.id;
-      }
+      expect_sweep_times_and_the_rotations_tags(detector, scan, direct);
     }
   }
 }

@@ -5,6 +5,9 @@
 // types; the points are a VLP-32C's, not the sensors' scan patterns.
 #pragma once
 
+#include <gtest/gtest.h>
+
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -229,6 +232,28 @@ inline detector::DetectorOptions demo_options() {
   o.tag_sizes_m = {0.8, 0.6};
   o.families = {"tag16h5"};
   return o;
+}
+
+// What both tests ask of a vendor cloud read back as `scan`: point times in seconds from the
+// sweep's start, within the sweep (0.1 s at 600 rpm), and every tag of the rotation's own
+// detections (`direct`) found by `detector` within 2 cm, and no other.
+inline void expect_sweep_times_and_the_rotations_tags(detector::Detector& detector,
+                                                      const Scan& scan,
+                                                      const detector::ScanResult& direct) {
+  double latest = 0;
+  for (size_t i = 0; i < scan.range.size(); ++i)
+    if (scan.valid(i)) latest = std::max(latest, double{scan.time_s[i]});
+  EXPECT_GT(latest, 0.09);
+  EXPECT_LT(latest, 0.11);
+  detector::ScanResult got;
+  detector.detect(scan, got);
+  ASSERT_EQ(got.detections.size(), direct.detections.size());
+  for (const auto& want : direct.detections) {
+    const auto it = std::find_if(got.detections.begin(), got.detections.end(),
+                                 [&](const auto& d) { return d.id == want.id; });
+    ASSERT_NE(it, got.detections.end()) << "tag " << want.id;
+    EXPECT_LT((it->position - want.position).norm(), 0.02) << "tag " << want.id;
+  }
 }
 
 }  // namespace lidartag::clouds
