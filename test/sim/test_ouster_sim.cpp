@@ -599,8 +599,10 @@ TEST(OusterSimFusa, FramesAreTheRng19DualOnesInEightMillimetreStepsAndTheTagIsFo
   detector::DetectorOptions options;
   options.tag_sizes_m = {1.2};
   options.families = {"tag16h5"};
+  // One detector for both: a Detection's family names the detector's own dictionary, so the
+  // detector outlives the detections kept.
+  detector::Detector det(options);
   auto detect_all = [&](const Simulator& sim) {
-    detector::Detector det(options);
     detector::ScanResult result;
     std::vector<std::vector<detector::Detection>> found;
     eval::SimScans scans(sim);
