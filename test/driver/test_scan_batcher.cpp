@@ -205,6 +205,34 @@ std::vector<Scan*> complete_of(const Rig& rig) {
   return v;
 }
 
+// Every cell of `got` equals `want`'s, field by field (the two may differ in capacity), and the
+// shapes agree.
+void expect_same_cells(const Scan& got, const Scan& want) {
+  ASSERT_EQ(got.returns, want.returns);
+  ASSERT_EQ(got.columns, want.columns);
+  for (int r = 0; r < want.returns; ++r)
+    for (int ring = 0; ring < want.rings; ++ring)
+      for (int c = 0; c < want.columns; ++c) {
+        const size_t i = got.at(r, ring, c), j = want.at(r, ring, c);
+        ASSERT_EQ(got.range[i], want.range[j]) << r << " " << ring << " " << c;
+        ASSERT_EQ(got.x[i], want.x[j]);
+        ASSERT_EQ(got.y[i], want.y[j]);
+        ASSERT_EQ(got.z[i], want.z[j]);
+        ASSERT_EQ(got.azimuth_deg[i], want.azimuth_deg[j]);
+        ASSERT_EQ(got.time_s[i], want.time_s[j]);
+        ASSERT_EQ(got.intensity[i], want.intensity[j]);
+        ASSERT_EQ(got.return_type[i], want.return_type[j]);
+      }
+}
+
+// Storage full of values no decoder writes, so that a cell left unwritten shows.
+void poison(Scan& scan) {
+  for (auto* v : {&scan.x, &scan.y, &scan.z, &scan.range, &scan.azimuth_deg, &scan.time_s})
+    std::fill(v->begin(), v->end(), 12345.0f);
+  std::fill(scan.intensity.begin(), scan.intensity.end(), uint8_t{0xab});
+  std::fill(scan.return_type.begin(), scan.return_type.end(), ReturnType::kSecond);
+}
+
 // Cell-by-cell equality of two rotations (the disturbance must leave no trace).
 void expect_same_rotation(const Scan& a, const Scan& b) {
   ASSERT_EQ(a.columns, b.columns);
@@ -591,11 +619,7 @@ TEST(ScanBatcher, EveryCellOfARotationIsWrittenSoAReusedScanNeedsNoClearing) {
   Scan reused;
   reused.reserve(spec.lasers, 2,
                  driver::ScanBatcher::column_capacity(velodyne::sensor_layout(spec)));
-  for (auto* v :
-       {&reused.x, &reused.y, &reused.z, &reused.range, &reused.azimuth_deg, &reused.time_s})
-    std::fill(v->begin(), v->end(), 12345.0f);
-  std::fill(reused.intensity.begin(), reused.intensity.end(), uint8_t{0xab});
-  std::fill(reused.return_type.begin(), reused.return_type.end(), ReturnType::kSecond);
+  poison(reused);
   const float* storage = reused.x.data();
   for (ReturnMode mode : {ReturnMode::kDual, ReturnMode::kStrongest, ReturnMode::kDual}) {
     const auto stream = testing::make_stream(spec, mode, 800);
@@ -610,22 +634,7 @@ TEST(ScanBatcher, EveryCellOfARotationIsWrittenSoAReusedScanNeedsNoClearing) {
       ASSERT_EQ(decoder.decode(p.bytes, clock, p.time_ns, pk), DecodeStatus::kOk);
       if (!batcher.add(pk, reused)) continue;
       ASSERT_LT(rotation, fresh.scans.size());
-      const Scan& want = *fresh.scans[rotation++];
-      ASSERT_EQ(reused.returns, want.returns);
-      ASSERT_EQ(reused.columns, want.columns);
-      for (int r = 0; r < want.returns; ++r)
-        for (int ring = 0; ring < want.rings; ++ring)
-          for (int c = 0; c < want.columns; ++c) {
-            const size_t i = reused.at(r, ring, c), j = want.at(r, ring, c);
-            ASSERT_EQ(reused.range[i], want.range[j]) << r << " " << ring << " " << c;
-            ASSERT_EQ(reused.x[i], want.x[j]);
-            ASSERT_EQ(reused.y[i], want.y[j]);
-            ASSERT_EQ(reused.z[i], want.z[j]);
-            ASSERT_EQ(reused.azimuth_deg[i], want.azimuth_deg[j]);
-            ASSERT_EQ(reused.time_s[i], want.time_s[j]);
-            ASSERT_EQ(reused.intensity[i], want.intensity[j]);
-            ASSERT_EQ(reused.return_type[i], want.return_type[j]);
-          }
+      ASSERT_NO_FATAL_FAILURE(expect_same_cells(reused, *fresh.scans[rotation++]));
     }
     EXPECT_EQ(rotation, fresh.scans.size());
     EXPECT_GE(rotation, 2u);
@@ -644,10 +653,7 @@ TEST(ScanBatcher, LazilyReservedStorageAssemblesAsZeroedStorage) {
   Scan lazy;
   lazy.reserve_lazily(spec.lasers, 2, capacity);
   ASSERT_EQ(lazy.fresh_from, 0u);
-  for (auto* v : {&lazy.x, &lazy.y, &lazy.z, &lazy.range, &lazy.azimuth_deg, &lazy.time_s})
-    std::fill(v->begin(), v->end(), 12345.0f);
-  std::fill(lazy.intensity.begin(), lazy.intensity.end(), uint8_t{0xab});
-  std::fill(lazy.return_type.begin(), lazy.return_type.end(), ReturnType::kSecond);
+  poison(lazy);
   for (ReturnMode mode : {ReturnMode::kDual, ReturnMode::kStrongest, ReturnMode::kDual}) {
     const auto stream = testing::make_stream(spec, mode, 800);
     Rig zeroed(Model::kVLP32C, mode, {}, capacity);
@@ -660,22 +666,7 @@ TEST(ScanBatcher, LazilyReservedStorageAssemblesAsZeroedStorage) {
     size_t rotation = 0;
     auto check = [&] {
       ASSERT_LT(rotation, zeroed.scans.size());
-      const Scan& want = *zeroed.scans[rotation++];
-      ASSERT_EQ(lazy.returns, want.returns);
-      ASSERT_EQ(lazy.columns, want.columns);
-      for (int r = 0; r < want.returns; ++r)
-        for (int ring = 0; ring < want.rings; ++ring)
-          for (int c = 0; c < want.columns; ++c) {
-            const size_t i = lazy.at(r, ring, c), j = want.at(r, ring, c);
-            ASSERT_EQ(lazy.range[i], want.range[j]) << r << " " << ring << " " << c;
-            ASSERT_EQ(lazy.x[i], want.x[j]);
-            ASSERT_EQ(lazy.y[i], want.y[j]);
-            ASSERT_EQ(lazy.z[i], want.z[j]);
-            ASSERT_EQ(lazy.azimuth_deg[i], want.azimuth_deg[j]);
-            ASSERT_EQ(lazy.time_s[i], want.time_s[j]);
-            ASSERT_EQ(lazy.intensity[i], want.intensity[j]);
-            ASSERT_EQ(lazy.return_type[i], want.return_type[j]);
-          }
+      ASSERT_NO_FATAL_FAILURE(expect_same_cells(lazy, *zeroed.scans[rotation++]));
     };
     for (const auto& p : stream) {
       ASSERT_EQ(decoder.decode(p.bytes, clock, p.time_ns, pk), DecodeStatus::kOk);
