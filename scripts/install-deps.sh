@@ -8,8 +8,8 @@ packages=(
   libspdlog-dev libfmt-dev libyaml-cpp-dev libcli11-dev nlohmann-json3-dev
   # VeloView XML calibration files; PCD binary_compressed (LZF)
   libtinyxml2-dev liblzf-dev
-  # camera-LiDAR calibration: PNG and JPEG images (libapriltag-dev below finds the tags in them)
-  libpng-dev libjpeg-dev
+  # camera-LiDAR calibration: PNG and JPEG images (libapriltag-dev: AprilTag 3 finds the tags in them)
+  libpng-dev libjpeg-dev libapriltag-dev
   # ROS bags and MCAP (driver/bag): rosbag2 sqlite3 storage; bz2, lz4 and zstd chunks
   libsqlite3-dev libbz2-dev liblz4-dev libzstd-dev
   # MCAP chunk CRC-32 at memory speed (ISA-L's crc32_gzip_refl)
