@@ -28,6 +28,7 @@
 #include "lidartag/driver/velodyne/io/capture_reader.hpp"
 #include "lidartag/driver/velodyne/io/pcd.hpp"
 #include "lidartag/driver/velodyne/sensor_model.hpp"
+#include "lidartag/pcd_scan.hpp"
 
 namespace lidartag::python {
 namespace {
@@ -121,21 +122,8 @@ py::dict arrays_of(const Scan& s) {
 // A PCD file as one rotation (what `lidartag detect` does with one).
 Rotation rotation_of_pcd(const std::string& path, const std::optional<velodyne::Model>& model,
                          int rings, double resolution_deg) {
-  const velodyne::PcdCloud pcd = velodyne::read_pcd_points(path);
-  driver::CloudColumns columns;  // another driver's field names read as a bag's clouds are
-  velodyne::pcd_cloud_columns(pcd, columns);
-  const detector::CloudFields fields =
-      detector::cloud_fields_by_name(columns.names, columns.columns, columns.width, columns.height);
-  const detector::CloudScanOptions options = detector::cloud_scan_options(
-      fields, velodyne::beam_elevations_deg(model), rings, resolution_deg);
   Rotation r;
-  try {
-    detector::cloud_to_scan(fields, options, r.scan);
-  } catch (const detector::CloudError& e) {
-    throw detector::CloudError(path + ": " + e.what());
-  }
-  velodyne::apply_pcd_rotation(pcd.rotation, r.scan);
-  if (!pcd.rotation.model && model) r.scan.model = static_cast<uint8_t>(*model);
+  clouds::read_pcd_scan(path, model, rings, resolution_deg, r.scan);
   return r;
 }
 

@@ -76,14 +76,9 @@ syn::Bytes cloud_message(const Layout& layout, const Scan& scan) {
   return b;
 }
 
-TEST(VendorClouds, EachDriversLayoutGivesTheTagsOfTheRotationItself) {
-  Scan rotation;
-  ASSERT_TRUE(first_rotation(rotation));
-  detector::Detector detector(demo_options());
-  detector::ScanResult direct;
-  detector.detect(rotation, direct);
-  ASSERT_EQ(direct.detections.size(), 2u);
+using VendorClouds = DemoRotation;
 
+TEST_F(VendorClouds, EachDriversLayoutGivesTheTagsOfTheRotationItself) {
   test::ProcessTempDir dir("vendor_clouds");
   for (const Layout& layout : layouts()) {
     SCOPED_TRACE(layout.name);

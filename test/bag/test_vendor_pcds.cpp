@@ -25,7 +25,9 @@
 #include "bag/vendor_layouts.hpp"
 #include "lidartag/detector/cloud_scan.hpp"
 #include "lidartag/detector/detector.hpp"
+#include "lidartag/driver/bag/message_reader.hpp"
 #include "lidartag/driver/velodyne/io/pcd.hpp"
+#include "lidartag/pcd_scan.hpp"
 #include "temp_dir.hpp"
 #include "tools/run_tool.hpp"
 
@@ -201,13 +203,9 @@ constexpr velodyne::PcdFormat kFormats[] = {velodyne::PcdFormat::kBinary,
                                             velodyne::PcdFormat::kBinaryCompressed,
                                             velodyne::PcdFormat::kAscii};
 
-TEST(VendorPcds, EachDriversLayoutInEachDataKindGivesTheTagsOfTheRotationItself) {
-  Scan rotation;
-  ASSERT_TRUE(first_rotation(rotation));
-  detector::Detector detector(demo_options());
-  detector::ScanResult direct;
-  detector.detect(rotation, direct);
-  ASSERT_EQ(direct.detections.size(), 2u);
+using VendorPcdsOfTheDemo = DemoRotation;
+
+TEST_F(VendorPcdsOfTheDemo, EachDriversLayoutInEachDataKindGivesTheTagsOfTheRotationItself) {
   const size_t returns = first_returns(rotation);
 
   test::ProcessTempDir dir("vendor_pcds");
@@ -225,13 +223,12 @@ TEST(VendorPcds, EachDriversLayoutInEachDataKindGivesTheTagsOfTheRotationItself)
       for (const char* name : {"x", "y", "z", "intensity", "time"})
         EXPECT_NE(std::find(columns.names.begin(), columns.names.end(), name), columns.names.end())
             << name;
-      const detector::CloudFields fields = detector::cloud_fields_by_name(
-          columns.names, columns.columns, columns.width, columns.height);
-      EXPECT_FALSE(fields.ring.empty());  // every layout has a ring field of some name
-      const detector::CloudScanOptions options =
-          detector::cloud_scan_options(fields, {}, layout.rings, 0.2);
+      // The conversion the tools and Python run (pcd_scan.hpp).
       Scan scan;
-      const detector::CloudScanReport report = detector::cloud_to_scan(fields, options, scan);
+      const PcdScan read = read_pcd_scan(path, std::nullopt, layout.rings, 0.2, scan);
+      EXPECT_FALSE(read.ring_field.empty());  // every layout has a ring field of some name
+      EXPECT_EQ(read.file_points, written);
+      const detector::CloudScanReport& report = read.report;
       EXPECT_EQ(scan.rings, rotation.rings);
       EXPECT_EQ(report.regressed, layout.rings > 0);  // Livox's lines are not rings
       EXPECT_EQ(report.rings_not_level, layout.rings > 0);
@@ -253,14 +250,7 @@ const Layout& layout_named(const std::string& prefix) {
   throw std::runtime_error("no layout " + prefix);
 }
 
-TEST(VendorPcds, LidartagDetectReadsAHesaiPcd) {
-  Scan rotation;
-  ASSERT_TRUE(first_rotation(rotation));
-  detector::Detector detector(demo_options());
-  detector::ScanResult direct;
-  detector.detect(rotation, direct);
-  ASSERT_EQ(direct.detections.size(), 2u);
-
+TEST_F(VendorPcdsOfTheDemo, LidartagDetectReadsAHesaiPcd) {
   test::ProcessTempDir dir("vendor_pcds_cli");
   const std::string path = dir.path() + "/hesai.pcd";
   write_vendor_pcd(path, layout_named("Hesai"), rotation, velodyne::PcdFormat::kBinaryCompressed);
@@ -295,6 +285,87 @@ TEST(VendorPcds, LidartagDetectReadsAHesaiPcd) {
   ASSERT_EQ(l.exit_code, 0) << l.out;
   EXPECT_EQ(nlohmann::json::parse(l.out.substr(0, l.out.find('\n')))["detections"].size(), 2u)
       << l.out;
+}
+
+// `lidartag info` describes any PCD (its header, fields and the scan the detector gets from it,
+// or why it gets none) and `lidartag dump` converts it (organised, or into MCAP) as it converts a
+// capture's rotations.
+TEST_F(VendorPcdsOfTheDemo, LidartagInfoAndDumpTakeAnotherDriversPcd) {
+  test::ProcessTempDir dir("vendor_pcds_info");
+  const std::string hesai = dir.path() + "/hesai.pcd";
+  const size_t written =
+      write_vendor_pcd(hesai, layout_named("Hesai"), rotation, velodyne::PcdFormat::kBinary);
+  auto r = testing::run_tool("info --json " + hesai, false);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto info = nlohmann::json::parse(r.out);
+  EXPECT_EQ(info["container"], "pcd");
+  EXPECT_EQ(info["format"], "binary");
+  EXPECT_EQ(info["points"].get<size_t>(), written);
+  EXPECT_EQ(info["height"].get<size_t>(), 1u);
+  EXPECT_EQ(info["fields"], "x y z intensity timestamp ring");
+  EXPECT_TRUE(info["rotation"].empty()) << "no lidartag header comments in another driver's file";
+  const auto& scan = info["scan"];
+  EXPECT_EQ(scan["rings"].get<int>(), rotation.rings);
+  EXPECT_EQ(scan["rings_from"], "field 'ring'");
+  EXPECT_EQ(scan["columns"].get<int>(), 1800);  // 0.2 degree columns
+  EXPECT_EQ(scan["points"].get<size_t>() + scan["merged"].get<size_t>(), written);
+  EXPECT_FALSE(scan["organised"].get<bool>());
+
+  // Without a ring field: described, with what would give it rings; --model regresses them.
+  Layout no_ring = layout_named("Hesai");
+  no_ring.fields.pop_back();
+  ASSERT_EQ(no_ring.fields.back().name, "timestamp");
+  const std::string bare = dir.path() + "/bare.pcd";
+  write_vendor_pcd(bare, no_ring, rotation, velodyne::PcdFormat::kAscii);
+  r = testing::run_tool("info " + bare);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("container:      PCD (ascii), unorganised"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("scan:           none: "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("no ring field"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("(--model or --rings N)"), std::string::npos) << r.out;
+  r = testing::run_tool("info --json --model vlp32c " + bare, false);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto regressed = nlohmann::json::parse(r.out)["scan"];
+  EXPECT_EQ(regressed["rings"].get<int>(), 32);
+  EXPECT_EQ(regressed["rings_from"], "regressed from elevations");
+  EXPECT_EQ(regressed["points"].get<size_t>() + regressed["merged"].get<size_t>(), written);
+
+  // dump --organized: the cloud as the detector reads it, rings x columns, its points every one
+  // the scan holds; detect on it finds the rotation's tags.
+  const std::string out = dir.path() + "/dumped";
+  r = testing::run_tool("dump --organized " + hesai + " --out " + out);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const std::string dumped = out + "/rotation_000000.pcd";
+  EXPECT_NE(
+      r.out.find("wrote 1 PCD file (" + std::to_string(scan["points"].get<size_t>()) + " points)"),
+      std::string::npos)
+      << r.out;
+  const velodyne::PcdCloud organised = velodyne::read_pcd(dumped);
+  EXPECT_EQ(organised.height, static_cast<size_t>(rotation.rings));
+  EXPECT_EQ(organised.width, 1800u);
+  Scan back;
+  read_pcd_scan(dumped, std::nullopt, 0, 0.2, back);
+  expect_sweep_times_and_the_rotations_tags(detector, back, direct);
+
+  // dump --format mcap: one cloud of the scan's points (18 bytes a point, docs/foxglove.md).
+  const std::string mcap = dir.path() + "/hesai.mcap";
+  r = testing::run_tool("dump " + hesai + " --format mcap --out " + mcap);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("wrote 1 cloud to"), std::string::npos) << r.out;
+  auto reader = driver::bag::open_bag(mcap);
+  driver::bag::BagMessage m;
+  size_t clouds = 0;
+  while (reader->next(m)) {
+    if (reader->connections()[m.connection].topic != "/lidartag/cloud") continue;
+    ++clouds;
+    const auto cloud = nlohmann::json::parse(m.data.begin(), m.data.end());
+    EXPECT_EQ(cloud["point_stride"].get<size_t>(), 18u);
+    // base64: 4 characters per 3 bytes.
+    const size_t bytes = cloud["data"].get<std::string>().size() / 4 * 3;
+    EXPECT_NEAR(static_cast<double>(bytes), scan["points"].get<double>() * 18, 2.0);
+  }
+  EXPECT_EQ(clouds, 1u);
+  EXPECT_TRUE(reader->error().empty()) << reader->error();
 }
 
 // The columns of a cloud of `n` points whose fields hold `values` (one vector per field).

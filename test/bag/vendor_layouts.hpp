@@ -234,6 +234,21 @@ inline detector::DetectorOptions demo_options() {
   return o;
 }
 
+// The demo's first complete rotation and its two tags as the detector finds them on the rotation
+// itself: what every vendor layout of that rotation is checked against.
+class DemoRotation : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ASSERT_TRUE(first_rotation(rotation));
+    detector.detect(rotation, direct);
+    ASSERT_EQ(direct.detections.size(), 2u);
+  }
+
+  Scan rotation;
+  detector::Detector detector{demo_options()};
+  detector::ScanResult direct;
+};
+
 // What both tests ask of a vendor cloud read back as `scan`: point times in seconds from the
 // sweep's start, within the sweep (0.1 s at 600 rpm), and every tag of the rotation's own
 // detections (`direct`) found by `detector` within 2 cm, and no other.

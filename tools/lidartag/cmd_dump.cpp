@@ -1,7 +1,9 @@
 // `lidartag dump CAPTURE --out DIR [--organized] [--force]`: one binary PCD per rotation, its
 // stamp in the header (pcd.hpp); `--format mcap --out FILE`: the clouds in one MCAP file for
 // Foxglove (mcap_output.hpp). Any capture the source seam opens (common.hpp open_capture): Ouster
-// captures one per frame, destaggered. A bag's PointCloud2 topic: one per cloud.
+// captures one per frame, destaggered. A bag's PointCloud2 topic: one per cloud. A PCD file
+// (another driver's too): its cloud as the detector reads it, rewritten (e.g. organised) or into
+// MCAP.
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
@@ -144,7 +146,29 @@ int dump_rotations(const DumpArgs& args, Reader& reader) {
   return 0;
 }
 
+// A PCD file: its one cloud, as the detector reads it (rings, columns, header), rewritten as
+// a rotation is (organised with --organized) or into an MCAP file; any PCD, another driver's too.
+int dump_pcd(const DumpArgs& args) {
+  Scan scan;
+  load_pcd_scan(args.capture, args.rings, args.resolution_deg, scan);
+  if (args.format == "mcap") {
+    McapOutput out(mcap_args(args), args.capture.capture);
+    out.rotation(scan, {}, "", false);
+    out.close();
+    fmt::print("wrote 1 cloud to {}\n", args.out);
+    return 0;
+  }
+  prepare_output(args);
+  const std::string path =
+      (fs::path(args.out) / fmt::format("rotation_{:06d}.pcd", scan.sequence)).string();
+  const size_t points =
+      velodyne::write_pcd(path, scan, {velodyne::PcdFormat::kBinary, args.organized});
+  fmt::print("wrote 1 PCD file ({} points) to {}\n", points, args.out);
+  return 0;
+}
+
 int run_dump(const DumpArgs& args) {
+  if (is_pcd(args.capture.capture)) return dump_pcd(args);
   if (is_point_cloud_bag(args.capture)) {  // a bag's PointCloud2 topic: one file per cloud
     if (args.format == "mcap") {  // each cloud as a rotation's, as the packets' path writes them
       McapOutput out(mcap_args(args), args.capture.capture);
@@ -196,9 +220,9 @@ const Registrar kDump(
                    "scan_*.pcd) are deleted first, "
                    "other files are kept");
       app.add_option("--rings", args->rings,
-                     "PointCloud2 without a ring field: beams to estimate (or --model)");
+                     "PointCloud2 or PCD without a ring field: beams to estimate (or --model)");
       app.add_option("--resolution", args->resolution_deg,
-                     "PointCloud2: horizontal resolution (column width), degrees")
+                     "PointCloud2 or PCD: horizontal resolution (column width), degrees")
           ->capture_default_str();
       return [args] { return run_dump(*args); };
     });

@@ -1,7 +1,7 @@
 // `lidartag info CAPTURE`: what a capture holds: sensor, return mode, rate, packets by kind,
 // rotations, losses, GPS state. An Ouster capture (--metadata FILE.json, or NAME.json beside
 // NAME.pcap when that is an Ouster sensor's metadata): profile, frames, packets, refusals. A bag's
-// PointCloud2 topic: clouds, points, stamps.
+// PointCloud2 topic: clouds, points, stamps. A PCD file: its header, fields and the scan it makes.
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
+#include <string_view>
 
 #include "lidartag/bag_clouds.hpp"
 #include "lidartag/commands.hpp"
@@ -17,6 +18,8 @@
 #include "lidartag/driver/ouster/io/capture_reader.hpp"
 #include "lidartag/driver/velodyne/decoder.hpp"
 #include "lidartag/driver/velodyne/io/capture_reader.hpp"
+#include "lidartag/driver/velodyne/io/pcd.hpp"
+#include "lidartag/pcd_scan.hpp"
 
 namespace lidartag::cli {
 namespace {
@@ -26,8 +29,99 @@ using velodyne::DecodeStatus;
 struct InfoArgs {
   CaptureArgs capture;
   bool json = false;
-  OusterArgs ouster;  // --metadata only
+  OusterArgs ouster;            // --metadata only
+  int rings = 0;                // a PCD file without a ring field: beams to estimate (or --model)
+  double resolution_deg = 0.2;  // a PCD file's unorganised cloud: column width, degrees
 };
+
+// A PCD file: its header, its fields and the scan the detector would get from it (the same
+// conversion as detect and render; a cloud that cannot become one is described, not an error).
+int run_info_pcd(const InfoArgs& args) {
+  Scan scan;
+  std::optional<clouds::PcdScan> pcd;
+  std::string problem;
+  try {
+    pcd = load_pcd_scan(args.capture, args.rings, args.resolution_deg, scan);
+  } catch (const driver::IoError& e) {
+    // Unreadable files are errors; a readable cloud without rings is described.
+    if (std::string_view(e.what()).find("no ring field") == std::string_view::npos) throw;
+    problem = e.what();
+    pcd = clouds::describe_pcd(velodyne::read_pcd_points(args.capture.capture));
+  }
+  const velodyne::PcdRotation& r = pcd->rotation;
+  const detector::CloudScanReport& rep = pcd->report;
+  std::string fields;
+  for (const std::string& f : pcd->fields) fields += (fields.empty() ? "" : " ") + f;
+  const std::string model =
+      r.model ? std::string(velodyne::model_spec(*r.model).name)
+              : (!args.capture.model.empty() ? args.capture.model + " (--model)" : "");
+  // The header's return mode by name; empty when absent (or a byte of no mode).
+  std::string mode;
+  if (r.return_mode)
+    if (const auto m = velodyne::return_mode_from_byte(*r.return_mode))
+      mode = velodyne::return_mode_name(*m);
+  const std::string rings_from = !problem.empty()          ? ""
+                                 : rep.regressed           ? "regressed from elevations"
+                                 : pcd->ring_field.empty() ? ""
+                                                           : "field '" + pcd->ring_field + "'";
+  if (args.json) {
+    nlohmann::json j = {{"capture", args.capture.capture},
+                        {"container", "pcd"},
+                        {"format", std::string(velodyne::pcd_format_name(pcd->format))},
+                        {"width", pcd->width},
+                        {"height", pcd->height},
+                        {"points", pcd->file_points},
+                        {"fields", fields}};
+    nlohmann::json rot = nlohmann::json::object();
+    if (r.sequence) rot["sequence"] = *r.sequence;
+    if (r.stamp_ns) rot["stamp_ns"] = *r.stamp_ns;
+    if (r.model) rot["model"] = std::string(velodyne::model_spec(*r.model).name);
+    if (!mode.empty()) rot["return_mode"] = mode;
+    if (r.complete) rot["complete"] = *r.complete;
+    if (r.rpm) rot["rpm"] = *r.rpm;
+    j["rotation"] = rot;
+    if (problem.empty()) {
+      j["scan"] = {{"rings", scan.rings},
+                   {"rings_from", rings_from},
+                   {"columns", scan.columns},
+                   {"points", scan.point_count()},
+                   {"organised", rep.grid},
+                   {"merged", rep.merged},
+                   {"skipped_coordinates", rep.skipped_coordinates},
+                   {"skipped_rings", rep.skipped_rings},
+                   {"rings_not_level", rep.rings_not_level},
+                   {"intensity_scaled", rep.intensity_scaled}};
+    } else {
+      j["scan"] = {{"error", problem}};
+    }
+    fmt::print("{}\n", j.dump(2));
+    return 0;
+  }
+  fmt::print("capture:        {}\n", args.capture.capture);
+  fmt::print(
+      "container:      PCD ({}), {}\n", velodyne::pcd_format_name(pcd->format),
+      pcd->height > 1 ? fmt::format("{} x {} organised", pcd->width, pcd->height) : "unorganised");
+  fmt::print("points:         {}\n", pcd->file_points);
+  fmt::print("fields:         {}\n", fields);
+  std::string rot;
+  const auto add = [&rot](const std::string& item) { rot += (rot.empty() ? "" : ", ") + item; };
+  if (r.sequence) add(fmt::format("number {}", *r.sequence));
+  if (r.stamp_ns) add(fmt::format("stamp {} ns", *r.stamp_ns));
+  if (!model.empty()) add(model);
+  if (!mode.empty()) add(mode);
+  if (r.complete) add(*r.complete ? "complete" : "incomplete");
+  if (r.rpm) add(fmt::format("{:.1f} rpm", *r.rpm));
+  fmt::print("rotation:       {}\n", rot.empty() ? "(no lidartag header comments)" : rot);
+  if (!problem.empty()) {
+    fmt::print("scan:           none: {}\n", problem);
+    return 0;
+  }
+  fmt::print("scan:           {} rings ({}), {} columns{}, {} points\n", scan.rings, rings_from,
+             scan.columns, rep.grid ? " (the file's grid)" : "", scan.point_count());
+  fmt::print("dropped:        {} sharing a cell, {} bad coordinates, {} bad rings\n", rep.merged,
+             rep.skipped_coordinates, rep.skipped_rings);
+  return 0;
+}
 
 int run_info_ouster(const InfoArgs& args, OpenedCapture& opened) {
   namespace ou = driver::ouster;
@@ -107,6 +201,7 @@ constexpr DecodeStatus kDecodeErrors[] = {DecodeStatus::kWrongSize, DecodeStatus
                                           DecodeStatus::kBadAzimuth, DecodeStatus::kBadReturnMode};
 
 int run_info(const InfoArgs& args) {
+  if (is_pcd(args.capture.capture)) return run_info_pcd(args);
   if (is_point_cloud_bag(args.capture)) return info_bag_clouds(args.capture, args.json);
   OpenedCapture opened = open_capture(args.capture, args.ouster);
   if (opened.ouster != nullptr) return run_info_ouster(args, opened);
@@ -233,6 +328,11 @@ const Registrar kInfo("info", "Summarise a capture: sensor, mode, rotations, los
                         add_capture_options(app, args->capture);
                         app.add_flag("--json", args->json, "Print JSON instead of text");
                         add_ouster_options(app, args->ouster, false);
+                        app.add_option("--rings", args->rings,
+                                       "PCD without a ring field: beams to estimate (or --model)");
+                        app.add_option("--resolution", args->resolution_deg,
+                                       "PCD: horizontal resolution (column width), degrees")
+                            ->capture_default_str();
                         return [args] { return run_info(*args); };
                       });
 

@@ -133,28 +133,22 @@ bool is_pcd(const std::string& path) {
 // are binned by azimuth, rings come from a `ring` field or are regressed from the elevations (the
 // --model's beam table, or --rings beams estimated from the cloud). The stamp and the rotation's
 // other fields come from the header comments `lidartag dump` writes.
-void load_pcd_scan(const CaptureArgs& args, int rings, double resolution_deg, Scan& scan) {
+clouds::PcdScan load_pcd_scan(const CaptureArgs& args, int rings, double resolution_deg,
+                              Scan& scan) {
   if (args.windowed())
     throw UsageError(fmt::format(
         "--start/--duration take a capture or a bag; {} is a PCD file (one cloud)", args.capture));
   const std::string& path = args.capture;
-  const velodyne::PcdCloud pcd = velodyne::read_pcd_points(path);
-  driver::CloudColumns columns;  // another driver's field names read as a bag's clouds are
-  velodyne::pcd_cloud_columns(pcd, columns);
-  const detector::CloudFields fields =
-      detector::cloud_fields_by_name(columns.names, columns.columns, columns.width, columns.height);
   const auto model = args.model.empty() ? std::nullopt : velodyne::model_from_name(args.model);
-  const detector::CloudScanOptions options = detector::cloud_scan_options(
-      fields, velodyne::beam_elevations_deg(model), rings, resolution_deg);
-  detector::CloudScanReport report;
+  clouds::PcdScan pcd;
   try {
-    report = detector::cloud_to_scan(fields, options, scan);
+    pcd = clouds::read_pcd_scan(path, model, rings, resolution_deg, scan);
   } catch (const detector::CloudError& e) {
-    std::string hint;
-    if (fields.ring.empty() && !model && rings == 0) hint = " (--model or --rings N)";
-    throw driver::IoError(path + ": " + e.what() + hint);
+    // A cloud without a ring field: the tool's options that give it rings.
+    const bool no_rings = std::string_view(e.what()).find("no ring field") != std::string::npos;
+    throw driver::IoError(std::string(e.what()) + (no_rings ? " (--model or --rings N)" : ""));
   }
-  velodyne::apply_pcd_rotation(pcd.rotation, scan);
+  const detector::CloudScanReport& report = pcd.report;
   if (report.skipped_coordinates > 0)
     spdlog::warn("{}: {} points with infinite or out-of-range coordinates skipped", path,
                  report.skipped_coordinates);
@@ -168,8 +162,7 @@ void load_pcd_scan(const CaptureArgs& args, int rings, double resolution_deg, Sc
         path, report.merged, report.merged + report.points, resolution_deg);
   }
   if (report.rings_not_level) {
-    const std::string field = columns.source[static_cast<size_t>(
-        std::find(columns.names.begin(), columns.names.end(), "ring") - columns.names.begin())];
+    const std::string& field = pcd.ring_field;
     if (report.regressed)
       spdlog::info(
           "{}: the rings of field '{}' are not level (points of one ring at many "
@@ -184,6 +177,7 @@ void load_pcd_scan(const CaptureArgs& args, int rings, double resolution_deg, Sc
   }
   if (report.intensity_scaled)
     spdlog::warn("{}: every intensity is within [0, 1]: read as 0..1 and scaled to 0..255", path);
+  return pcd;
 }
 
 bool worth_explaining(const detector::ClusterDiagnostic& c, std::span<const double> tag_sizes_m) {

@@ -17,6 +17,7 @@
 #include "lidartag/driver/sources/open_reader.hpp"
 #include "lidartag/driver/velodyne/io/capture_reader.hpp"
 #include "lidartag/driver/velodyne/sensor_model.hpp"
+#include "lidartag/pcd_scan.hpp"
 
 namespace lidartag::cli {
 
@@ -63,8 +64,10 @@ bool is_pcd(const std::string& path);
 // A PCD file (`args.capture`) as one scan, for detect and render (detector/cloud_scan.hpp):
 // organised dumps keep their cells, other clouds are binned by azimuth (`resolution_deg`); rings
 // come from a `ring` field or are regressed from the elevations (--model's beam table, or `rings`
-// beams estimated from the cloud). Throws driver::IoError naming the file.
-void load_pcd_scan(const CaptureArgs& args, int rings, double resolution_deg, Scan& scan);
+// beams estimated from the cloud), clouds::read_pcd_scan with the tool's warnings. Throws
+// driver::IoError naming the file.
+clouds::PcdScan load_pcd_scan(const CaptureArgs& args, int rings, double resolution_deg,
+                              Scan& scan);
 
 // " (tag36h11 fits better)" after a rejection of other_family that names the family
 // (Detector::other_family_of); "" when it names none.

@@ -1,0 +1,44 @@
+#include "lidartag/pcd_scan.hpp"
+
+#include <algorithm>
+
+#include "lidartag/driver/cloud_fields.hpp"
+#include "lidartag/driver/velodyne/sensor_model.hpp"
+
+namespace lidartag::clouds {
+
+PcdScan describe_pcd(const velodyne::PcdCloud& pcd) {
+  PcdScan out;
+  out.fields = pcd.fields;
+  out.file_points = pcd.size();
+  out.width = pcd.width;
+  out.height = pcd.height;
+  out.format = pcd.format;
+  out.rotation = pcd.rotation;
+  return out;
+}
+
+PcdScan read_pcd_scan(const std::string& path, const std::optional<velodyne::Model>& model,
+                      int rings, double resolution_deg, Scan& scan) {
+  const velodyne::PcdCloud pcd = velodyne::read_pcd_points(path);
+  driver::CloudColumns columns;  // another driver's field names read as a bag's clouds are
+  velodyne::pcd_cloud_columns(pcd, columns);
+  const detector::CloudFields fields =
+      detector::cloud_fields_by_name(columns.names, columns.columns, columns.width, columns.height);
+  const detector::CloudScanOptions options = detector::cloud_scan_options(
+      fields, velodyne::beam_elevations_deg(model), rings, resolution_deg);
+  PcdScan out = describe_pcd(pcd);
+  if (const auto ring = std::find(columns.names.begin(), columns.names.end(), "ring");
+      ring != columns.names.end())
+    out.ring_field = columns.source[static_cast<size_t>(ring - columns.names.begin())];
+  try {
+    out.report = detector::cloud_to_scan(fields, options, scan);
+  } catch (const detector::CloudError& e) {
+    throw detector::CloudError(path + ": " + e.what());
+  }
+  velodyne::apply_pcd_rotation(pcd.rotation, scan);
+  if (!pcd.rotation.model && model) scan.model = static_cast<uint8_t>(*model);
+  return out;
+}
+
+}  // namespace lidartag::clouds
