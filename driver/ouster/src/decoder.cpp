@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <cstddef>
+#include <cstdint>
 #include <new>
 #include <numbers>
 #include <numeric>
@@ -388,7 +390,10 @@ void Decoder::write_batch(const ColumnBatch& batch, const PointSink& sink) const
   bool fast_path = fast_fields_ && near_azimuths_;
   for (int c = 0; c < columns && fast_path; ++c) {
     const auto uc = static_cast<size_t>(c);
-    const std::ptrdiff_t d = col[uc] - first;
+    // Addresses as integers: the packets are separate objects, whose pointers C++ does not
+    // subtract.
+    const auto d = static_cast<std::ptrdiff_t>(reinterpret_cast<std::uintptr_t>(col[uc]) -
+                                               reinterpret_cast<std::uintptr_t>(first));
     fast_path = d > -(std::ptrdiff_t{1} << 30) && d < (std::ptrdiff_t{1} << 30);
     off[uc] = static_cast<int32_t>(d);
   }
