@@ -69,6 +69,58 @@ constexpr double kMinNoiseM = 0.002;
 // The widest angle gate that the pose noise opens (quarter turns, 90 degrees apart, stay apart).
 constexpr double kMaxGateDeg = 30.0;
 
+// A beam's footprint on the tag, in cells of the track's grid: its half-extent across a column
+// border (along the track frame's y) and across a row border (along its z). 0: a point.
+struct Footprint {
+  double across_column = 0.0, across_row = 0.0;
+};
+
+// The footprint of the beam to `point` (sensor's frame; an ellipse of full divergences div_h_rad
+// across the scan and div_v_rad along it) laid on the tag's plane (normal `normal`) and turned
+// into the track's frame (`to_track`; cells_per_m the grid's cells per metre). Across a border its
+// half-extent is the ellipse's support along the border's normal. At 28 m and 45 degrees a
+// VLP-32C's 3 mrad footprint is 0.12 m wide on the tag, 0.8 of a 1.2 m tag16h5's cell.
+Footprint footprint_on_tag(const Eigen::Vector3d& point, const Eigen::Vector3d& normal,
+                           const Eigen::Matrix3d& to_track, double div_h_rad, double div_v_rad,
+                           double cells_per_m) {
+  const double r = point.norm();
+  if (!(r > 0.0) || !(div_h_rad > 0.0 || div_v_rad > 0.0)) return {};
+  const Eigen::Vector3d b = point / r;
+  Eigen::Vector3d h = Eigen::Vector3d::UnitZ().cross(b);
+  if (!(h.norm() > 1e-9)) return {};
+  h.normalize();
+  const Eigen::Vector3d v = b.cross(h);
+  // A ray offset by e from the beam's axis meets the plane at e - b (e . n) / (b . n) from the
+  // point (grazing incidence capped at about 87 degrees).
+  const double bn =
+      b.dot(normal) < 0.0 ? std::min(b.dot(normal), -0.05) : std::max(b.dot(normal), 0.05);
+  const Eigen::Vector3d eh =
+      to_track * (h - b * (h.dot(normal) / bn)) * (r * div_h_rad / 2.0 * cells_per_m);
+  const Eigen::Vector3d ev =
+      to_track * (v - b * (v.dot(normal) / bn)) * (r * div_v_rad / 2.0 * cells_per_m);
+  return {std::hypot(eh.y(), ev.y()), std::hypot(eh.z(), ev.z())};
+}
+
+// How purely a return's intensity is its cell's colour, from its footprint and its place in its
+// cell (uc, ur: fractions of the cell along the grid's columns and rows): a footprint of
+// half-extent e centred d inside a border covers the cell with (e + d) / 2e of its width, and its
+// return is the cell's colour less the neighbour's share, min(1, d / e) over both axes: 1 for a
+// footprint inside its cell, 0 on a border. A ring that crosses a cell only at its corner reads
+// mostly its neighbours.
+double footprint_purity(const Footprint& fp, double uc, double ur) {
+  double purity = 1.0;
+  if (fp.across_column > 0.0) purity = std::min(purity, std::min(uc, 1.0 - uc) / fp.across_column);
+  if (fp.across_row > 0.0) purity = std::min(purity, std::min(ur, 1.0 - ur) / fp.across_row);
+  return std::clamp(purity, 0.0, 1.0);
+}
+
+// A cell's mean vote for the scores: its votes weighted by their purity (footprint_purity), over
+// their weight, times min(votes, full_cell_votes) / full_cell_votes (a cell with fewer votes
+// counts proportionally less). 0 for a cell whose returns all straddle its borders.
+float cell_value(float votes, float purity, float counts, float full) {
+  return purity > 0.0f ? votes / purity * (counts / std::max(counts, full)) : 0.0f;
+}
+
 }  // namespace
 
 namespace {
@@ -95,10 +147,11 @@ struct Tracker::Track {
   int rotations = 0;  // rotations seen
   int64_t last_seen_ns = 0;
   // Per function of the family in the track's frame (4 code + quarter turns): summed normalised
-  // scores. Per cell of the marker in the track's frame: summed votes (+1 white, -1 black) of the
-  // points well inside it, and their number.
+  // scores. Per cell of the marker in the track's frame: the votes (+1 white, -1 black) of the
+  // points well inside it, each times its purity (footprint_purity), summed; their purities
+  // summed; and their number.
   std::vector<double> score_sum;
-  std::vector<float> votes, counts;  // kShifts grids of W x W cells (kCentre unshifted)
+  std::vector<float> votes, purity, counts;  // kShifts grids of W x W cells (kCentre unshifted)
   // The axis of the track's frame along which its tag's place is searched (1: y, 2: z; 0: none,
   // every side seen), from its first candidate whose shift decoding searched; the extent of the
   // voted points along it (track frame, metres), and the grid that leads.
@@ -170,10 +223,12 @@ Tracker::Tracker(TrackerOptions options, const DetectorOptions& detector)
   best_.reserve(static_cast<size_t>(most));
   best_grid_.reserve(static_cast<size_t>(most));
   values_.reserve(static_cast<size_t>(cells));
+  fused_votes_.reserve(static_cast<size_t>(cells));
   tables_.reserve(static_cast<size_t>(cells / 8 + 1) * 256);
   for (Track& t : tracks_) {
     t.score_sum.assign(static_cast<size_t>(most), 0.0);
     t.votes.assign(static_cast<size_t>(kShifts * cells), 0.0f);
+    t.purity.assign(static_cast<size_t>(kShifts * cells), 0.0f);
     t.counts.assign(static_cast<size_t>(kShifts * cells), 0.0f);
     t.window.resize(static_cast<size_t>(opt_.window));
     t.window_points.assign(static_cast<size_t>(opt_.window), 0);
@@ -423,6 +478,7 @@ void Tracker::start(Track& t, const Candidate& c) {
   const size_t n = static_cast<size_t>(families_[static_cast<size_t>(c.family_index)].functions);
   std::fill(t.score_sum.begin(), t.score_sum.begin() + static_cast<std::ptrdiff_t>(n), 0.0);
   std::fill(t.votes.begin(), t.votes.end(), 0.0f);
+  std::fill(t.purity.begin(), t.purity.end(), 0.0f);
   std::fill(t.counts.begin(), t.counts.end(), 0.0f);
   t.axis = 0;
   t.square = false;
@@ -561,9 +617,19 @@ void Tracker::add_evidence(Track& t, const Candidate& c, const ScanResult& resul
     t.hi = -t.lo;
   }
   const int first_grid = t.axis == 0 ? kCentre : 0, last_grid = t.axis == 0 ? kCentre : kShifts - 1;
+  // Each vote weighted by how purely its return is its cell's colour (footprint_purity; the
+  // beam's footprint from the candidate's own pose in the sensor's frame, seen in the track's).
+  const Eigen::Matrix3d frame = c.undecoded_orientation.normalized().toRotationMatrix();
+  const Eigen::Matrix3d sensor_to_track = m * frame.transpose();
+  const double div_h = opt_.beam_divergence_h_mrad * 1e-3,
+               div_v = opt_.beam_divergence_v_mrad * 1e-3;
+  const double cells_per_m = W / t.size_m;
   {
     for (const VotePoint& p : result.vote_points_of(c)) {
-      const Eigen::Vector3d q = m * Eigen::Vector3d(p.x, p.y, p.z) + offset;
+      const Eigen::Vector3d local(p.x, p.y, p.z);
+      const Eigen::Vector3d q = m * local + offset;
+      const Footprint fp = footprint_on_tag(frame * local + c.position, frame.col(0),
+                                            sensor_to_track, div_h, div_v, cells_per_m);
       if (t.axis != 0) {
         t.lo = std::min(t.lo, q[t.axis]);
         t.hi = std::max(t.hi, q[t.axis]);
@@ -574,8 +640,12 @@ void Tracker::add_evidence(Track& t, const Candidate& c, const ScanResult& resul
         const double y = q.y() - (t.axis == 1 ? sh : 0.0), z = q.z() - (t.axis == 2 ? sh : 0.0);
         const int i = vote_cell(y / t.size_m, z / t.size_m, W, vote_inset_);
         if (i < 0) continue;
+        const double fc = (y / t.size_m + 0.5) * W, fr = (0.5 - z / t.size_m) * W;
+        const auto w =
+            static_cast<float>(footprint_purity(fp, fc - std::floor(fc), fr - std::floor(fr)));
         const size_t k = static_cast<size_t>(g) * cells + static_cast<size_t>(i);
-        t.votes[k] += vote;
+        t.votes[k] += w * vote;
+        t.purity[k] += w;
         t.counts[k] += 1.0f;
       }
     }
@@ -596,7 +666,7 @@ void Tracker::add_evidence(Track& t, const Candidate& c, const ScanResult& resul
     const size_t base = static_cast<size_t>(g) * cells;
     for (size_t k = 0; k < vary.size(); ++k) {
       const auto i = base + static_cast<size_t>(vary[k]);
-      values_[k] = t.votes[i] / std::max(t.counts[i], full);
+      values_[k] = cell_value(t.votes[i], t.purity[i], t.counts[i], full);
     }
     score_functions(fam.dict, values_, tables_, scores_);
     for (int f = 0; f < n; ++f) {
@@ -626,8 +696,13 @@ void Tracker::add_evidence(Track& t, const Candidate& c, const ScanResult& resul
   // The score: the rotations' mean, or the fused grid's under a stricter margin (the far edge,
   // where each rotation's own fit scores low: fused_grid_confirms), on the leader's own grid (the
   // unshifted one unless the track searches its place).
-  const auto lead_grid =
-      std::span<const float>(t.votes).subspan(static_cast<size_t>(t.shift) * cells, cells);
+  // The fused grid's votes: each cell's purity-weighted mean vote times its number of votes.
+  fused_votes_.resize(cells);
+  for (size_t i = 0; i < cells; ++i) {
+    const size_t k = static_cast<size_t>(t.shift) * cells + i;
+    fused_votes_[i] = cell_value(t.votes[k], t.purity[k], t.counts[k], 0.0f) * t.counts[k];
+  }
+  const auto lead_grid = std::span<const float>(fused_votes_);
   const auto lead_counts =
       std::span<const float>(t.counts).subspan(static_cast<size_t>(t.shift) * cells, cells);
   const bool scored =

@@ -51,6 +51,12 @@ struct Cand {
   // candidate's points are given in its own frame, as the detector gives them, so a tag that is
   // not where the candidate's pose says puts its points in other cells of that frame.
   std::optional<Eigen::Vector3d> tag_at;
+  // Returns near a cell's corner whose footprints lie mostly on its neighbours: in each cell
+  // `blurred` marks, `blurred_votes` points 0.06 cell inside its upper left corner, labelled with
+  // function `blurred_function`'s colour of the cell (what a far beam reads there).
+  std::vector<bool> blurred;
+  int blurred_votes = 0;
+  int blurred_function = -1;
 };
 
 // Appends a candidate as the detector reports one: the normalised score of every function (the
@@ -101,6 +107,16 @@ void add(ScanResult& r, const RkhsDictionary& dict, const Cand& c) {
     const Eigen::Vector3d q = c.frame.transpose() * (p - c.position);
     const float label = dict.signs(f)[i] > 0 ? 1.0f : 0.0f;
     for (int k = 0; k < c.votes; ++k)
+      r.vote_points.push_back(
+          {static_cast<float>(q.x()), static_cast<float>(q.y()), static_cast<float>(q.z()), label});
+  }
+  for (int i = 0; i < W * W && c.blurred_function >= 0; ++i) {
+    if (c.blurred.empty() || !c.blurred[static_cast<size_t>(i)]) continue;
+    const double y = ((i % W + 0.06) / W - 0.5) * c.size, z = (0.5 - (i / W + 0.06) / W) * c.size;
+    const Eigen::Vector3d q =
+        c.frame.transpose() * (centre + c.frame * Eigen::Vector3d(0.0, y, z) - c.position);
+    const float label = dict.signs(c.blurred_function)[i] > 0 ? 1.0f : 0.0f;
+    for (int k = 0; k < c.blurred_votes; ++k)
       r.vote_points.push_back(
           {static_cast<float>(q.x()), static_cast<float>(q.y()), static_cast<float>(q.z()), label});
   }
@@ -772,6 +788,50 @@ TEST_F(TrackerTest, WithEgoMotionATagIsAveragedInTheOdometryFrameWithoutAllocati
   EXPECT_FALSE(out.seen[0].odometry);
 }
 
+// The beam's footprint (TrackerOptions::beam_divergence_*): a tag at 28 m whose cells that tell
+// its code from the nearest other function are each read by 2 returns at their centre and by 6
+// near a corner whose footprints (42 mm across, 0.28 of a 0.15 m cell) lie mostly on neighbours of
+// the other function's colour there. Weighted by how much of each footprint stays in its cell
+// (0.2 for the corner returns), the cell centres decide and the right code leads and confirms;
+// with every vote counted fully (divergences 0) the corners outvote them and the other function
+// leads, rotation after rotation.
+TEST_F(TrackerTest, VotesAreWeightedByTheShareOfTheirFootprintInsideTheirCell) {
+  const int f = 12;  // code 3, no quarter turn
+  int rival = -1, fewest = 1 << 30;
+  for (int g = 0; g < dict.functions(); ++g) {
+    if (g == f) continue;
+    int differ = 0;
+    for (int i = 0; i < 64; ++i) differ += dict.signs(f)[i] != dict.signs(g)[i] ? 1 : 0;
+    if (differ < fewest) fewest = differ, rival = g;
+  }
+  ASSERT_GE(rival, 0);
+  Cand c;
+  c.position = {28.0, 0.0, 0.0};
+  c.points = 60;
+  c.votes = 2;
+  c.blurred = std::vector<bool>(64);  // each set below (assign() trips GCC 12 at -O3)
+  for (int i = 0; i < 64; ++i)
+    c.blurred[static_cast<size_t>(i)] = dict.signs(f)[i] != dict.signs(rival)[i];
+  c.blurred_votes = 6;
+  c.blurred_function = rival;
+  {
+    Tracker tracker({}, det_opt);
+    for (int k = 0; k < 10; ++k) step(tracker, {c});
+    ASSERT_EQ(out.seen.size(), 1u);
+    EXPECT_EQ(out.seen[0].id, c.code);
+    EXPECT_GE(out.seen[0].margin_cells, TrackerOptions{}.min_margin_cells);
+    EXPECT_TRUE(out.seen[0].confirmed);
+  }
+  TrackerOptions full;
+  full.beam_divergence_h_mrad = full.beam_divergence_v_mrad = 0.0;
+  Tracker tracker(full, det_opt);
+  for (int k = 0; k < 10; ++k) {
+    step(tracker, {c});
+    ASSERT_EQ(out.seen.size(), 1u);
+    EXPECT_NE(out.seen[0].id, c.code);
+  }
+}
+
 TEST(TrackerOptionsTest, EveryRuleOfTheTableIsChecked) {
   const DetectorOptions det;
   EXPECT_NO_THROW(Tracker({}, det));
@@ -798,6 +858,8 @@ TEST(TrackerOptionsTest, EveryRuleOfTheTableIsChecked) {
   broken([](TrackerOptions& o) { o.fused_min_score = 0.4; });
   broken([](TrackerOptions& o) { o.fused_min_score = 1.1; });
   broken([](TrackerOptions& o) { o.fused_min_margin_cells = 0.0; });
+  broken([](TrackerOptions& o) { o.beam_divergence_h_mrad = -1.0; });
+  broken([](TrackerOptions& o) { o.beam_divergence_v_mrad = 101.0; });
   try {
     TrackerOptions o;
     o.window = 0;

@@ -107,6 +107,17 @@ struct TrackerOptions {
   // clutter of the tests stay below 0.66. Raising either trades far tags for caution.
   double fused_min_score = 0.88;
   double fused_min_margin_cells = 1.0;
+  // The beam's full divergence across the scan (horizontal on a spinning sensor) and along it,
+  // milliradians: each vote is weighted by how purely its return is its cell's colour, the share
+  // of its footprint, laid on the tag, that stays on its side of the cell's nearest border (1 for
+  // a footprint inside the cell, 0 on a border; a cell's mean vote is the weighted mean, its
+  // number of votes unchanged). Defaults 3 and 1.5 (Velodyne's VLP-16 and VLP-32C; an Ouster
+  // OS1's is about 3 both ways). At 28 m and 45 degrees a VLP-32C's footprint is 0.8 of a 1.2 m
+  // tag16h5's cell wide: a ring crossing a white cell only at its corner among black neighbours
+  // reads it black, a bias that no number of rotations averages out. 0 and 0: every vote counts
+  // fully (before 2026-12-05).
+  double beam_divergence_h_mrad = 3.0;
+  double beam_divergence_v_mrad = 1.5;
   // Rotations (the latest) in the smoothed pose and its spread. Default 10 (1 s at 600 rpm).
   int window = 10;
   // A track not seen for longer than this is dropped, seconds of scan time (at most 1e6). Default
@@ -139,6 +150,8 @@ void visit_tracker_options(V& v, TrackerOptions& o) {
   v.field("min_rotations", o.min_rotations, at_least(1), "rotations");
   v.field("fused_min_score", o.fused_min_score, closed(0.5, 1.0), "");
   v.field("fused_min_margin_cells", o.fused_min_margin_cells, above(0.0), "cells");
+  v.field("beam_divergence_h_mrad", o.beam_divergence_h_mrad, closed(0.0, 100.0), "mrad");
+  v.field("beam_divergence_v_mrad", o.beam_divergence_v_mrad, closed(0.0, 100.0), "mrad");
   v.field("window", o.window, closed(1, 1000), "rotations");
   v.field("max_age_s", o.max_age_s, open_closed(0.0, 1e6), "s");
   v.field("max_tracks", o.max_tracks, closed(1, 4096), "tracks");
@@ -291,6 +304,7 @@ class Tracker {
   std::vector<int> assigned_;   // per candidate of the rotation: the track it joined, or -1
   std::vector<Placed> placed_;  // per candidate of the rotation
   std::vector<float> values_, tables_, scores_;  // scoring scratch
+  std::vector<float> fused_votes_;               // the leading grid's votes for fused_grid_score
   std::vector<float> best_;                      // per function: its best score over the grids
   std::vector<int> best_grid_;                   // ... and that grid
   std::vector<TimedPose> ordered_;               // a window, oldest first
