@@ -2,7 +2,9 @@
 // costs.
 //
 //   bench_tracker [--runs N] [--rotations R] [--quick] [--trace] [--fixed-height]
-//                 [--cell MODEL:DISTANCE:ANGLE ...] [--extras] [--motion] [--deskew] [--out DIR]
+//                 [--cell MODEL:DISTANCE:ANGLE ...] [--first-run K] [--extras] [--motion]
+//                 [--deskew]
+//                 [--out DIR]
 //
 // Static scenes, the target grid: a 1.2 m tag16h5 on an easel, diamond mount, centre near
 // the sensor's height (run k raised or lowered by a share of the spacing of the beams there, so
@@ -22,11 +24,13 @@
 // wrong ID (a tag of its own, not a detection of the rotation), or anything at all on the boards or
 // the clutter; the detector's own wrong IDs are counted and shown (bench_accuracy fails on them).
 // --cell (repeatable, e.g. `--cell vlp16:10:45`) runs only those cells of the static grid and
-// nothing else, to study one cell with --trace; no report is written. --motion runs only the
-// moving-sensor rows, printed (no report). --deskew runs only the deskew rows: the moving rows'
-// motions and a fast yaw (90 deg/s) detected as fired, deskewed with the tracker's motion model
-// and with the odometry, side by side on the same rotations: tracked rate, wrong IDs, and the
-// centre, orientation and measured-size errors of the decoded detections (median, p95).
+// nothing else, to study one cell with --trace; no report is written; --first-run K starts its
+// runs at run K (runs K to N-1: one run of a long series again, e.g. `--runs 87 --first-run 86`).
+// --motion runs only the moving-sensor rows, printed (no report). --deskew runs only the deskew
+// rows: the moving rows' motions and a fast yaw (90 deg/s) detected as fired, deskewed with the
+// tracker's motion model and with the odometry, side by side on the same rotations: tracked rate,
+// wrong IDs, and the centre, orientation and measured-size errors of the decoded detections
+// (median, p95).
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -68,6 +72,7 @@ struct Args {
   bool trace = false;             // print each static run's tracks and each rotation it missed
   bool fixed_height = false;      // every run's tag centre exactly at its cell's height
   std::vector<std::string> only;  // --cell: "vlp16:10:45", the static cells to run (empty: all)
+  int first_run = 0;              // --first-run: with --cell, runs first_run to runs - 1
   bool extras = false;  // --extras: only the square-mount and ego-motion sections, printed
   bool motion = false;  // --motion: only the moving-sensor rows, printed
   bool deskew = false;  // --deskew: only the deskew rows (off, tracker's model, odometry), printed
@@ -673,7 +678,8 @@ int run(const Args& args) {
   int never = 0;
   if (args.motion) cells.clear();
   for (Cell& c : cells) {
-    for (int r = 0; r < runs; ++r) run_cell(c, r, rotations, args.trace, args.fixed_height);
+    for (int r = args.first_run; r < runs; ++r)
+      run_cell(c, r, rotations, args.trace, args.fixed_height);
     // The tracker must add no wrong ID; the detector's own are bench_accuracy's to fail on, and
     // are shown here.
     never += c.wrong_by_track;
@@ -900,6 +906,8 @@ int main(int argc, char** argv) {
       args.deskew = true;
     } else if (a == "--cell") {
       args.only.push_back(value("--cell"));
+    } else if (a == "--first-run") {
+      args.first_run = count("--first-run", 0);
     } else if (a == "--out") {
       args.out = value("--out");
       args.command += " --out " + args.out;
@@ -907,13 +915,18 @@ int main(int argc, char** argv) {
       std::fprintf(
           stderr,
           "usage: bench_tracker [--runs N] [--rotations R] [--quick] [--trace] [--fixed-height] "
-          "[--cell MODEL:DISTANCE:ANGLE ...] [--extras] [--motion] [--deskew] [--out DIR]\n");
+          "[--cell MODEL:DISTANCE:ANGLE ...] [--first-run K] [--extras] [--motion] [--deskew] "
+          "[--out DIR]\n");
       return 2;
     }
   }
   if (!args.only.empty() && !args.out.empty()) {
     std::fprintf(stderr,
                  "bench_tracker: --cell runs part of the grid; it writes no report (--out)\n");
+    return 2;
+  }
+  if (args.first_run > 0 && (args.only.empty() || args.first_run >= args.runs)) {
+    std::fprintf(stderr, "bench_tracker: --first-run K takes --cell and K below --runs\n");
     return 2;
   }
   return bench_args::run_reporting_errors("bench_tracker", [&] { return run(args); });

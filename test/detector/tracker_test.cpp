@@ -648,14 +648,15 @@ TEST_F(TrackerTest, TrackOnlyCandidatesAreEvidenceButNeverDetectionsOfTheirOwn) 
   Cand weak;  // decodes code 3 well, but too few boundary points for a detection of its own
   weak.rejection = Rejection::kNone;
   weak.track_only = true;
-  // They start a track and confirm it like any candidate; the track's tag is reported, never as a
+  // They start a track and confirm it like any candidate, one rotation later than min_rotations
+  // (3) when no rotation of the track validated; the track's tag is reported, never as a
   // detection of the rotation.
-  for (int k = 0; k < 3; ++k) {
+  for (int k = 0; k < 4; ++k) {
     step(tracker, {weak});
     ASSERT_EQ(out.seen.size(), 1u) << "rotation " << k;
     EXPECT_EQ(out.seen[0].track_id, 0);
     EXPECT_EQ(out.seen[0].rotations, k + 1);
-    EXPECT_EQ(out.seen[0].confirmed, k == 2) << "rotation " << k;
+    EXPECT_EQ(out.seen[0].confirmed, k == 3) << "rotation " << k;
     EXPECT_TRUE(result.detections.empty());
   }
   ASSERT_EQ(out.tags.size(), 1u);
@@ -669,7 +670,7 @@ TEST_F(TrackerTest, TrackOnlyCandidatesAreEvidenceButNeverDetectionsOfTheirOwn) 
   weak.position.x() += 0.01;
   step(tracker, {weak});
   ASSERT_EQ(out.seen.size(), 1u);
-  EXPECT_EQ(out.seen[0].rotations, 4);
+  EXPECT_EQ(out.seen[0].rotations, 5);
   EXPECT_EQ(out.seen[0].id, 3);
   EXPECT_LT(out.seen[0].margin_cells, margin);
   for (int k = 0; k < 5; ++k) step(tracker, {weak});
@@ -682,6 +683,29 @@ TEST_F(TrackerTest, TrackOnlyCandidatesAreEvidenceButNeverDetectionsOfTheirOwn) 
   ASSERT_EQ(out.seen.size(), 1u);
   EXPECT_EQ(out.seen[0].track_id, 1);
   EXPECT_EQ(out.tracks, 2);
+}
+
+// Track-only rotations alone confirm at min_rotations + 1; one validated rotation among them (a
+// candidate that passed validation, here ambiguous in its own decoding) confirms at
+// min_rotations, as before.
+TEST_F(TrackerTest, ATrackOfTrackOnlyRotationsAloneConfirmsOneRotationLater) {
+  Cand weak;
+  weak.rejection = Rejection::kNone;
+  weak.track_only = true;
+  Cand validated = weak;
+  validated.track_only = false;
+  validated.rejection = Rejection::kAmbiguous;
+  for (const bool with_validated : {false, true}) {
+    SCOPED_TRACE(with_validated ? "one validated rotation" : "track-only rotations alone");
+    Tracker tracker({}, det_opt);
+    for (int k = 0; k < 4; ++k) {
+      step(tracker, {with_validated && k == 1 ? validated : weak});
+      ASSERT_EQ(out.seen.size(), 1u) << "rotation " << k;
+      EXPECT_EQ(out.seen[0].rotations, k + 1);
+      EXPECT_EQ(out.seen[0].id, 3);
+      EXPECT_EQ(out.seen[0].confirmed, k >= (with_validated ? 2 : 3)) << "rotation " << k;
+    }
+  }
 }
 
 TEST_F(TrackerTest, DetectionsKeepTheirOwnFieldsAndGetTheirTrack) {

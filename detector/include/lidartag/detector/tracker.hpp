@@ -79,7 +79,8 @@ struct TrackerOptions {
   // +1 white, -1 black, by the point's intensity between the cluster's black and white levels.
   // Each cell's mean vote (its sum over max(votes, full_cell_votes)) scores every function; the
   // leading function (code and quarter turns) must beat the best other one by min_margin_cells
-  // cells, over at least min_rotations rotations, and its mean normalised decoding score must
+  // cells, over at least min_rotations rotations (one more when none of them validated: every
+  // candidate track-only, Candidate::track_only), and its mean normalised decoding score must
   // reach the detector's decode.min_score (and beat the families that are not configured). Cells
   // no point fell well inside have no vote: codes that differ only there are never told apart,
   // however many rotations are summed (a static VLP-16 at 6 m sees only half the payload cells
