@@ -153,6 +153,17 @@ class TrackerTest : public ::testing::Test {
       if ((i.position - p).norm() < 0.2) return &i;
     return nullptr;
   }
+  // The function of the family that differs from function `f` in the fewest cells.
+  int closest_other(int f) const {
+    int rival = -1, fewest = 1 << 30;
+    for (int g = 0; g < dict.functions(); ++g) {
+      if (g == f) continue;
+      int differ = 0;
+      for (int i = 0; i < 64; ++i) differ += dict.signs(f)[i] != dict.signs(g)[i] ? 1 : 0;
+      if (differ < fewest) fewest = differ, rival = g;
+    }
+    return rival;
+  }
 };
 
 TEST_F(TrackerTest, CandidatesAtTwoPlacesKeepTheirOwnTracksOverRotations) {
@@ -222,13 +233,7 @@ TEST_F(TrackerTest, CodesThatDifferOnlyOnUnobservedCellsAreNeverConfirmed) {
   // The closest other function of code 3 (quarter turn 0): observe every cell but those where the
   // two differ, as a sparse sensor's rings miss them.
   const int f = 12;
-  int rival = -1, fewest = 1 << 30;
-  for (int g = 0; g < dict.functions(); ++g) {
-    if (g == f) continue;
-    int differ = 0;
-    for (int i = 0; i < 64; ++i) differ += dict.signs(f)[i] != dict.signs(g)[i] ? 1 : 0;
-    if (differ < fewest) fewest = differ, rival = g;
-  }
+  const int rival = closest_other(f);
   ASSERT_GE(rival, 0);
   Cand c;
   c.observed = std::vector<bool>(64);  // each set below (assign() trips GCC 12 at -O3)
@@ -821,13 +826,7 @@ TEST_F(TrackerTest, WithEgoMotionATagIsAveragedInTheOdometryFrameWithoutAllocati
 // leads, rotation after rotation.
 TEST_F(TrackerTest, VotesAreWeightedByTheShareOfTheirFootprintInsideTheirCell) {
   const int f = 12;  // code 3, no quarter turn
-  int rival = -1, fewest = 1 << 30;
-  for (int g = 0; g < dict.functions(); ++g) {
-    if (g == f) continue;
-    int differ = 0;
-    for (int i = 0; i < 64; ++i) differ += dict.signs(f)[i] != dict.signs(g)[i] ? 1 : 0;
-    if (differ < fewest) fewest = differ, rival = g;
-  }
+  const int rival = closest_other(f);
   ASSERT_GE(rival, 0);
   Cand c;
   c.position = {28.0, 0.0, 0.0};
