@@ -282,7 +282,7 @@ CloudScanReport cloud_to_scan(const CloudFields& f, const CloudScanOptions& opti
   ro.elevations_deg = options.elevations_deg;
   ro.rings = options.rings;
   if (ro.elevations_deg.empty() && ro.rings <= 0) {
-    throw CloudError(
+    throw NoRingFieldError(
         "no ring field: give the sensor model (its beam elevations) or the number of rings to "
         "regress");
   }

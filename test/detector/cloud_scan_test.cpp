@@ -221,11 +221,11 @@ TEST(CloudScan, WithoutRingNumbersRingsAreRegressed) {
   CloudScanOptions by_count;
   by_count.rings = 32;
   EXPECT_TRUE(cloud_to_scan(c.fields(false), by_count, out).regressed);
-  // Neither: one clear error saying what to give.
+  // Neither: one clear error saying what to give, of its own type (the tools add their options).
   try {
     cloud_to_scan(c.fields(false), {}, out);
-    FAIL() << "expected CloudError";
-  } catch (const CloudError& e) {
+    FAIL() << "expected NoRingFieldError";
+  } catch (const NoRingFieldError& e) {
     EXPECT_NE(std::string(e.what()).find("no ring field"), std::string::npos) << e.what();
   }
 }
@@ -238,6 +238,8 @@ TEST(CloudScan, AMissingIntensityIsAClearErrorNotZeroTags) {
     FAIL() << "expected CloudError";
   } catch (const CloudError& e) {
     EXPECT_NE(std::string(e.what()).find("no intensity field"), std::string::npos) << e.what();
+    // Not the error a ring count or a model would mend.
+    EXPECT_EQ(dynamic_cast<const NoRingFieldError*>(&e), nullptr);
   }
 }
 

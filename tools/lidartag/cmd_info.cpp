@@ -42,9 +42,8 @@ int run_info_pcd(const InfoArgs& args) {
   std::string problem;
   try {
     pcd = load_pcd_scan(args.capture, args.rings, args.resolution_deg, scan);
-  } catch (const driver::IoError& e) {
+  } catch (const PcdWithoutRings& e) {
     // Unreadable files are errors; a readable cloud without rings is described.
-    if (std::string_view(e.what()).find("no ring field") == std::string_view::npos) throw;
     problem = e.what();
     pcd = clouds::describe_pcd(velodyne::read_pcd_points(args.capture.capture));
   }

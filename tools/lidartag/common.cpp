@@ -143,10 +143,11 @@ clouds::PcdScan load_pcd_scan(const CaptureArgs& args, int rings, double resolut
   clouds::PcdScan pcd;
   try {
     pcd = clouds::read_pcd_scan(path, model, rings, resolution_deg, scan);
+  } catch (const detector::NoRingFieldError& e) {
+    // The tool's options that give a cloud without a ring field its rings.
+    throw PcdWithoutRings(std::string(e.what()) + " (--model or --rings N)");
   } catch (const detector::CloudError& e) {
-    // A cloud without a ring field: the tool's options that give it rings.
-    const bool no_rings = std::string_view(e.what()).find("no ring field") != std::string::npos;
-    throw driver::IoError(std::string(e.what()) + (no_rings ? " (--model or --rings N)" : ""));
+    throw driver::IoError(e.what());
   }
   const detector::CloudScanReport& report = pcd.report;
   if (report.skipped_coordinates > 0)

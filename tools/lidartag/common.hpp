@@ -11,6 +11,7 @@
 
 #include "lidartag/cli11.hpp"
 #include "lidartag/detector/result.hpp"
+#include "lidartag/driver/io/errors.hpp"
 #include "lidartag/driver/ouster/io/capture_reader.hpp"
 #include "lidartag/driver/scan.hpp"
 #include "lidartag/driver/scan_reader.hpp"
@@ -65,7 +66,11 @@ bool is_pcd(const std::string& path);
 // organised dumps keep their cells, other clouds are binned by azimuth (`resolution_deg`); rings
 // come from a `ring` field or are regressed from the elevations (--model's beam table, or `rings`
 // beams estimated from the cloud), clouds::read_pcd_scan with the tool's warnings. Throws
-// driver::IoError naming the file.
+// driver::IoError naming the file, PcdWithoutRings when the cloud needs --model or --rings.
+class PcdWithoutRings : public driver::IoError {
+ public:
+  using driver::IoError::IoError;
+};
 clouds::PcdScan load_pcd_scan(const CaptureArgs& args, int rings, double resolution_deg,
                               Scan& scan);
 

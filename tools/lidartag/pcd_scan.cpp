@@ -33,6 +33,8 @@ PcdScan read_pcd_scan(const std::string& path, const std::optional<velodyne::Mod
     out.ring_field = columns.source[static_cast<size_t>(ring - columns.names.begin())];
   try {
     out.report = detector::cloud_to_scan(fields, options, scan);
+  } catch (const detector::NoRingFieldError& e) {
+    throw detector::NoRingFieldError(path + ": " + e.what());
   } catch (const detector::CloudError& e) {
     throw detector::CloudError(path + ": " + e.what());
   }

@@ -34,7 +34,8 @@ PcdScan describe_pcd(const velodyne::PcdCloud& pcd);
 // are set where present; `model` names the scan's model when the file does not, and its beam
 // table places a cloud without a ring field. Throws driver::IoError (unreadable, corrupt, no x, y
 // or z field) or detector::CloudError prefixed with the path (a cloud that cannot become a scan:
-// no intensity, no ring field with neither a model nor `rings`, rings that cannot be regressed).
+// no intensity, rings that cannot be regressed), detector::NoRingFieldError when it has no ring
+// field and neither `model` nor `rings` is given.
 PcdScan read_pcd_scan(const std::string& path, const std::optional<velodyne::Model>& model,
                       int rings, double resolution_deg, Scan& scan);
 

@@ -20,6 +20,13 @@ class CloudError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// The cloud has no ring field and the options give no way to regress one (neither beam
+// elevations nor a ring count): callers that can supply either (a --model, --rings) say so.
+class NoRingFieldError : public CloudError {
+ public:
+  using CloudError::CloudError;
+};
+
 // The cloud's fields, one value per point (e.g. a PCD file's columns); an empty span: the cloud
 // has no such field.
 struct CloudFields {
