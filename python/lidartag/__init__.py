@@ -85,7 +85,9 @@ def read(path, model=None, calibration=None, cut_deg=180.0, partial=False, data_
     model: decode as this Velodyne model (vlp16, puck-hires, vlp32c, hdl32e, vls128); None: the
       packets' product byte, checked against their timing (Reader.model_mismatch says when they
       disagree). An Ouster model name (os0-128, os1-64, ...): the metadata must describe it
-      (MetadataError otherwise).
+      (MetadataError otherwise; ValueError for a pcap without metadata). For PCD files and
+      PointCloud2 clouds without a ring field, the model's beam elevations place the rings (an
+      Ouster model's nominal ones).
     calibration: a Velodyne calibration file (ros-drivers YAML or VeloView XML); None: the
       built-in table.
     metadata: an Ouster sensor's metadata JSON (either layout); the capture is then read as Ouster

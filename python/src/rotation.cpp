@@ -24,6 +24,7 @@
 #include "lidartag/driver/io/udp_frame.hpp"
 #include "lidartag/driver/ouster/io/capture_reader.hpp"
 #include "lidartag/driver/ouster/models.hpp"
+#include "lidartag/driver/sources/model_name.hpp"
 #include "lidartag/driver/sources/open_reader.hpp"
 #include "lidartag/driver/velodyne/io/capture_reader.hpp"
 #include "lidartag/driver/velodyne/io/pcd.hpp"
@@ -51,12 +52,12 @@ std::string lower(std::string s) {
   return s;
 }
 
-std::optional<velodyne::Model> model_option(const std::optional<std::string>& name) {
+// A model of either vendor (driver::model_from_name); ValueError listing the names otherwise.
+std::optional<driver::ModelName> model_option(const std::optional<std::string>& name) {
   if (!name || name->empty()) return std::nullopt;
-  const auto model = velodyne::model_from_name(lower(*name));
-  if (!model) {
-    throw py::value_error("unknown model '" + *name + "' (" + velodyne::model_names() + ")");
-  }
+  const auto model = driver::model_from_name(*name);
+  if (!model)
+    throw py::value_error("unknown model '" + *name + "' (" + driver::model_names() + ")");
   return model;
 }
 
@@ -120,7 +121,7 @@ py::dict arrays_of(const Scan& s) {
 }
 
 // A PCD file as one rotation (what `lidartag detect` does with one).
-Rotation rotation_of_pcd(const std::string& path, const std::optional<velodyne::Model>& model,
+Rotation rotation_of_pcd(const std::string& path, const std::optional<driver::ModelName>& model,
                          int rings, double resolution_deg) {
   Rotation r;
   clouds::read_pcd_scan(path, model, rings, resolution_deg, r.scan);
@@ -181,15 +182,16 @@ Rotation Rotation::from_points(const py::object& points, int rings,
   }
   const detector::CloudFields fields =
       detector::cloud_fields_by_name(found.names, found.columns, found.columns.front().size(), 1);
-  const std::optional<velodyne::Model> m = model_option(model);
-  const detector::CloudScanOptions options =
-      detector::cloud_scan_options(fields, velodyne::beam_elevations_deg(m), rings, resolution_deg);
+  const std::optional<driver::ModelName> m = model_option(model);
+  const driver::RingSource ring_source = driver::ring_source(m, rings);
+  const detector::CloudScanOptions options = detector::cloud_scan_options(
+      fields, ring_source.elevations_deg, ring_source.rings, resolution_deg);
   Rotation r;
   detector::cloud_to_scan(fields, options, r.scan);
   r.scan.stamp_ns = stamp_ns;
   r.scan.sequence = sequence;
   r.scan.complete = true;  // a whole cloud, as the caller's driver assembled it
-  if (m) r.scan.model = static_cast<uint8_t>(*m);
+  if (m && m->velodyne) r.scan.model = static_cast<uint8_t>(*m->velodyne);
   return r;
 }
 
@@ -198,15 +200,9 @@ namespace {
 // The model a capture is decoded as: a Velodyne model, or an Ouster model name the metadata must
 // describe ("os1-128"); ValueError naming both vendors' names otherwise.
 void capture_model(const std::optional<std::string>& name, driver::ScanSourceOptions& o) {
-  if (!name || name->empty()) return;
-  const std::string n = lower(*name);
-  if (const auto model = velodyne::model_from_name(n)) {
-    o.velodyne_model = model;
-  } else if (driver::ouster::is_model_name(n)) {
-    o.ouster_model = n;
-  } else {
-    throw py::value_error("unknown model '" + *name + "' (" + velodyne::model_names() +
-                          "; Ouster: os0, os1, os2 with -16, -32, -64, -128)");
+  if (const auto model = model_option(name)) {
+    o.velodyne_model = model->velodyne;
+    o.ouster_model = model->ouster;
   }
 }
 
@@ -270,11 +266,12 @@ class Reader {
       c.topic = topic;
       c.start_s = o.start_s;
       c.duration_s = o.duration_s;
-      c.elevations_deg = velodyne::beam_elevations_deg(model);
-      c.rings = o.rings;
+      driver::RingSource ring_source = driver::ring_source(model, o.rings);
+      c.elevations_deg = std::move(ring_source.elevations_deg);
+      c.rings = ring_source.rings;
       c.resolution_deg = o.resolution_deg;
       clouds_ = std::make_unique<clouds::BagCloudReader>(path, c);
-      cloud_model_ = model;
+      if (model) cloud_model_ = model->velodyne;
       return;
     }
     driver::ScanSourceOptions so;
@@ -669,8 +666,8 @@ points: a numpy structured array or a dict of equal-length arrays with fields x,
 sensor frame), intensity (0-255; 0-1 is scaled) and optionally ring (0 = lowest beam), azimuth
 (degrees clockwise from +x), time (seconds from the rotation's start), return_type -- the names
 Rotation.points uses, so rotation.points round-trips. Without ring, the rings come from the model's
-beam elevations (model="vlp32c", ...) or are estimated (rings=N beams). Points are binned into
-columns of resolution_deg of azimuth. Raises CloudError (no intensity, sizes that disagree, rings
+beam elevations (model="vlp32c", "os1-128", ...) or are estimated (rings=N beams). Points are
+binned into columns of resolution_deg of azimuth. Raises CloudError (no intensity, sizes that disagree, rings
 that cannot be told).)")
       .def("__len__", [](const Rotation& r) { return r.scan.point_count(); })
       .def("__repr__", [](const Rotation& r) {

@@ -234,3 +234,22 @@ def test_simulate_writes_an_ouster_capture_with_its_metadata_or_decodes_it_in_me
         assert a.stamp_ns == b.stamp_ns and np.array_equal(a.points, b.points)
     with pytest.raises(ValueError, match="metadata goes"):
         lidartag.simulate(scene, out=tmp_path / "os1.json")
+
+
+def test_an_ouster_cloud_without_rings_takes_them_from_the_ouster_model(demo):
+    # Another driver's OS1-64 cloud (no ring field): model="os1-64" places its rings from the
+    # model's beam table; the tag is found where the rotation itself shows it.
+    rotations, truth = lidartag.simulate(SCENE.format(model="os1-64", profile="rng19"))
+    rotation, expected = rotations[0], truth["rotations"][0]
+    p = rotation.points
+    cloud = {k: p[k].astype(np.float64) for k in ("x", "y", "z", "intensity")}
+    detector = lidartag.Detector({"tag_sizes_m": [1.2], "families": ["tag16h5"]})
+    rebuilt = lidartag.Rotation.from_points(cloud, model="OS1-64")
+    assert rebuilt.rings == 64 and len(rebuilt) > 0.95 * len(rotation)  # a few share a cell
+    expect_matches_truth(detector.detect(rebuilt), expected)
+    expect_matches_truth(detector.detect(cloud, model="os1-64"), expected)
+    with pytest.raises(lidartag.CloudError, match="no ring field"):
+        lidartag.Rotation.from_points(cloud)
+    # An Ouster model for a capture without Ouster metadata: refused, not read as Velodyne.
+    with pytest.raises(ValueError, match="has no Ouster metadata"):
+        lidartag.read(demo, model="os1-128")

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -11,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "lidartag/driver/velodyne/io/pcd.hpp"
 #include "run_tool.hpp"
 
 namespace {
@@ -287,6 +289,102 @@ TEST(CliOuster, AnotherJsonBesideAVelodyneCaptureIsNotTakenForMetadata) {
   const auto j = nlohmann::json::parse(r.out);
   EXPECT_EQ(j["model"], "vlp16");
   EXPECT_FALSE(j.contains("vendor"));
+}
+
+// --model takes Ouster names too (any case): the metadata must describe that sensor.
+TEST(CliOuster, ModelNamesTheOusterSensorTheMetadataMustDescribe) {
+  if (!fs::exists(kDir)) GTEST_SKIP() << "Ouster captures not found at " << kDir;
+  // Each capture's model as its product line names it, in capitals, and one it is not.
+  const char* models[][2] = {{"OS1-32", "os1-64"},   {"OS2-32", "os0-32"},  {"OS0-32", "os2-32"},
+                             {"OS0-128", "os1-128"}, {"OS2-128", "os2-64"}, {"os1-128", "os1-64"},
+                             {"OS1-128", "os0-128"}};
+  static_assert(std::size(models) == std::size(kCaptures));
+  for (size_t i = 0; i < std::size(kCaptures); ++i) {
+    SCOPED_TRACE(kCaptures[i].pcap);
+    const auto right = run_tool(
+        std::string("info --json --model ") + models[i][0] + capture_args(kCaptures[i]), false);
+    ASSERT_EQ(right.exit_code, 0) << right.out;
+    EXPECT_EQ(nlohmann::json::parse(right.out)["frames"]["total"], kCaptures[i].frames);
+    for (const char* command : {"info", "detect"}) {
+      const auto wrong =
+          run_tool(std::string(command) + " --model " + models[i][1] + capture_args(kCaptures[i]));
+      EXPECT_EQ(wrong.exit_code, 2) << wrong.out;
+      EXPECT_NE(
+          wrong.out.find(std::string("model ") + models[i][1] + " is configured but the metadata"),
+          std::string::npos)
+          << wrong.out;
+    }
+  }
+  // A name of neither vendor lists both vendors' names.
+  const auto unknown = run_tool("info --model os3-128" + capture_args(kCaptures[0]));
+  EXPECT_EQ(unknown.exit_code, 2) << unknown.out;
+  EXPECT_NE(unknown.out.find("Ouster: os0, os1, os2"), std::string::npos) << unknown.out;
+}
+
+// An Ouster model for a capture without Ouster metadata is refused, not read as Velodyne packets.
+TEST(CliOuster, AnOusterModelForAVelodyneCaptureIsRefused) {
+  const std::string demo = std::string(LIDARTAG_SOURCE_DIR) + "/pcaps/demo.pcap";
+  for (const char* command : {"info", "detect", "dump --out /nonexistent-never-created"}) {
+    SCOPED_TRACE(command);
+    const auto r = run_tool(std::string(command) + " --model os1-128 '" + demo + "'");
+    EXPECT_EQ(r.exit_code, 2) << r.out;
+    EXPECT_NE(r.out.find("model os1-128 is an Ouster sensor but"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("has no Ouster metadata"), std::string::npos) << r.out;
+  }
+}
+
+// A cloud of an Ouster sensor without its ring field (another driver's PCD): --model os1-64 places
+// its rings from the model's beam table, and the tag the capture shows is found there.
+TEST(CliOuster, AnOusterModelPlacesTheRingsOfACloudWithoutARingField) {
+  TempDir dir("ringless");
+  fs::create_directories(dir.path);
+  const std::string pcap = (dir.path / "os.pcap").string();
+  auto r =
+      run_tool("sim '" + std::string(LIDARTAG_SOURCE_DIR) + "/test/sim/ouster_scene.yaml' --out '" +
+               pcap + "' --truth '" + (dir.path / "truth.json").string() + "'");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  r = run_tool("detect --json '" + pcap + "'", false);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto frames = json_lines(r.out);
+  ASSERT_FALSE(frames.empty());
+  ASSERT_EQ(frames[0]["detections"].size(), 1u) << r.out;
+  const auto& tag = frames[0]["detections"][0];
+  r = run_tool("dump '" + pcap + "' --out '" + (dir.path / "dump").string() + "'");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  // The first whole frame's points (the PCD of the lowest number; detect's first line) as x y z
+  // intensity only, in ascii.
+  std::vector<fs::path> dumped;
+  for (const auto& f : fs::directory_iterator(dir.path / "dump")) dumped.push_back(f.path());
+  ASSERT_FALSE(dumped.empty());
+  std::sort(dumped.begin(), dumped.end());
+  const auto cloud = lidartag::velodyne::read_pcd_points(dumped.front().string());
+  const fs::path ringless = dir.path / "ringless.pcd";
+  {
+    std::ofstream out(ringless);
+    out << "FIELDS x y z intensity\nSIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 1\nWIDTH "
+        << cloud.size() << "\nHEIGHT 1\nPOINTS " << cloud.size() << "\nDATA ascii\n";
+    out.precision(9);
+    for (size_t k = 0; k < cloud.size(); ++k)
+      out << cloud.field("x")[k] << ' ' << cloud.field("y")[k] << ' ' << cloud.field("z")[k] << ' '
+          << cloud.field("intensity")[k] << '\n';
+  }
+  const std::string file = " '" + ringless.string() + "'";
+  r = run_tool("detect" + file);
+  EXPECT_EQ(r.exit_code, 1) << r.out;
+  EXPECT_NE(r.out.find("no ring field"), std::string::npos) << r.out;
+  r = run_tool("info --json --model os1-64" + file, false);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto info = nlohmann::json::parse(r.out);
+  EXPECT_EQ(info["scan"]["rings"], 64) << r.out;
+  r = run_tool("detect --json --model OS1-64" + file, false);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto found = json_lines(r.out);
+  ASSERT_EQ(found.size(), 1u) << r.out;
+  ASSERT_EQ(found[0]["detections"].size(), 1u) << r.out;
+  const auto& again = found[0]["detections"][0];
+  EXPECT_EQ(again["id"], tag["id"]);
+  for (size_t a = 0; a < 3; ++a)
+    EXPECT_NEAR(again["position"][a].get<double>(), tag["position"][a].get<double>(), 0.02);
 }
 
 }  // namespace

@@ -54,9 +54,11 @@ BagCloudReader::Step BagCloudReader::next(Scan& scan) {
       columns_.names, columns_.columns, columns_.width, columns_.height);
   const detector::CloudScanOptions scan_options = detector::cloud_scan_options(
       fields, options_.elevations_deg, options_.rings, options_.resolution_deg);
+  needs_rings_ = false;
   try {
     report_ = detector::cloud_to_scan(fields, scan_options, scan);
   } catch (const detector::CloudError& e) {
+    needs_rings_ = dynamic_cast<const detector::NoRingFieldError*>(&e) != nullptr;
     problem_ = e.what();
     ++skipped_;
     return Step::kSkipped;

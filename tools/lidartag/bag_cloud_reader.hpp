@@ -52,6 +52,8 @@ class BagCloudReader {
 
   const std::string& topic() const { return options_.topic; }
   const std::string& problem() const { return problem_; }
+  // The last skipped cloud had no ring field and the options give neither elevations nor rings.
+  bool needs_rings() const { return needs_rings_; }
   const detector::CloudScanReport& report() const { return report_; }
   size_t cloud_points() const { return cloud_.points(); }  // of the last cloud read
   size_t scans() const { return scans_; }
@@ -68,6 +70,7 @@ class BagCloudReader {
   driver::bag::CloudColumns columns_;
   detector::CloudScanReport report_;
   std::string problem_;
+  bool needs_rings_ = false;
   size_t scans_ = 0, skipped_ = 0;
 };
 

@@ -7,10 +7,11 @@
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <utility>
 
 #include "lidartag/bag_cloud_reader.hpp"
+#include "lidartag/driver/sources/model_name.hpp"
 #include "lidartag/driver/velodyne/io/pcd.hpp"
-#include "lidartag/driver/velodyne/sensor_model.hpp"
 #include "lidartag/exit_codes.hpp"
 
 namespace lidartag::cli {
@@ -25,9 +26,10 @@ size_t for_each_bag_cloud(const CaptureArgs& args, int rings, double resolution_
   options.topic = args.topic;
   options.start_s = args.start_s;
   options.duration_s = args.duration_s;
-  const auto model = args.model.empty() ? std::nullopt : velodyne::model_from_name(args.model);
-  options.elevations_deg = velodyne::beam_elevations_deg(model);
-  options.rings = rings;
+  const auto model = args.model.empty() ? std::nullopt : driver::model_from_name(args.model);
+  driver::RingSource ring_source = driver::ring_source(model, rings);
+  options.elevations_deg = std::move(ring_source.elevations_deg);
+  options.rings = ring_source.rings;
   options.resolution_deg = resolution_deg;
   clouds::BagCloudReader reader(args.capture, options);
   Scan scan;
@@ -38,9 +40,8 @@ size_t for_each_bag_cloud(const CaptureArgs& args, int rings, double resolution_
     const std::string name = fmt::format("{}: cloud {} on {}", args.capture,
                                          reader.scans() + reader.skipped() - 1, reader.topic());
     if (step == clouds::BagCloudReader::Step::kSkipped) {
-      const bool hint = reader.problem().find("ring") != std::string::npos && !model && rings == 0;
       spdlog::warn("{}: {}{}, skipped", name, reader.problem(),
-                   hint ? " (--model or --rings N)" : "");
+                   reader.needs_rings() ? " (--model or --rings N)" : "");
       continue;
     }
     if (reader.report().merged > 0)

@@ -457,7 +457,8 @@ const Registrar kCalibrate(
           ->capture_default_str();
       app.add_option("--camera-frame", args->camera_frame, "the camera's optical frame name")
           ->capture_default_str();
-      app.add_option("--model", args->model, "the captures' model, when their packets do not say");
+      app.add_option("--model", args->model, "the captures' model, when their packets do not say")
+          ->check(model_validator());
       app.add_option("--pictures", args->pictures,
                      "PREFIX: write PREFIX-pairN.png per pair: the image with the LiDAR's points "
                      "and both sensors' tag corners");

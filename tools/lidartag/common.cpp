@@ -40,6 +40,18 @@ CLI::Validator length_in_metres() {
       "LENGTH");
 }
 
+CLI::Validator model_validator() {
+  std::string set = velodyne::model_names();
+  set.erase(std::remove(set.begin(), set.end(), ' '), set.end());
+  return CLI::Validator(
+      [](std::string& name) -> std::string {
+        return driver::model_from_name(name)
+                   ? std::string()
+                   : "unknown model '" + name + "' (" + driver::model_names() + ")";
+      },
+      "{" + set + ",os0-32,os1-64,os1-128,...}");
+}
+
 void add_capture_options(CLI::App& app, CaptureArgs& args) {
   app.add_option("capture", args.capture,
                  "pcap or pcapng file of Velodyne or Ouster packets, or a ROS 1 bag, ROS 2 bag "
@@ -47,18 +59,12 @@ void add_capture_options(CLI::App& app, CaptureArgs& args) {
                  "(recognised by content)")
       ->required()
       ->check(CLI::ExistingPath);
-  const std::string names = velodyne::model_names();
-  std::string set = names;
-  set.erase(std::remove(set.begin(), set.end(), ' '), set.end());
   app.add_option("--model", args.model,
-                 "Decode as this model (any case, '-' optional: VLP-32C; ultra-puck, "
-                 "alpha-prime, puck are names too)")
-      ->check(CLI::Validator(
-          [names](std::string& name) -> std::string {
-            return velodyne::model_from_name(name) ? std::string()
-                                                   : "unknown model '" + name + "' (" + names + ")";
-          },
-          "{" + set + "}"));
+                 "Sensor model (any case): a Velodyne model to decode as ('-' optional: "
+                 "VLP-32C; ultra-puck, alpha-prime, puck are names too), or an Ouster model that "
+                 "the metadata must describe (os1-128, os0-32, ...); for clouds without a ring "
+                 "field, its beam elevations")
+      ->check(model_validator());
   app.add_option("--calibration", args.calibration,
                  "Calibration file (ros-drivers YAML or VeloView XML)")
       ->check(CLI::ExistingFile);
@@ -139,7 +145,7 @@ clouds::PcdScan load_pcd_scan(const CaptureArgs& args, int rings, double resolut
     throw UsageError(fmt::format(
         "--start/--duration take a capture or a bag; {} is a PCD file (one cloud)", args.capture));
   const std::string& path = args.capture;
-  const auto model = args.model.empty() ? std::nullopt : velodyne::model_from_name(args.model);
+  const auto model = args.model.empty() ? std::nullopt : driver::model_from_name(args.model);
   clouds::PcdScan pcd;
   try {
     pcd = clouds::read_pcd_scan(path, model, rings, resolution_deg, scan);
@@ -215,7 +221,11 @@ OpenedCapture open_capture(const CaptureArgs& args, const OusterArgs& ouster) {
   o.topic = args.topic;
   o.start_s = args.start_s;
   o.duration_s = args.duration_s;
-  if (!args.model.empty()) o.velodyne_model = velodyne::model_from_name(args.model);
+  const auto model = args.model.empty() ? std::nullopt : driver::model_from_name(args.model);
+  if (model) {
+    o.velodyne_model = model->velodyne;
+    o.ouster_model = model->ouster;  // the metadata must describe it (open_capture checks)
+  }
   o.calibration_file = args.calibration;
   o.batcher.cut_azimuth_deg = args.cut_deg;
   if (ouster.intensity == "signal") o.ouster_decoder.intensity = ou::IntensitySource::kSignal;
@@ -229,7 +239,9 @@ OpenedCapture open_capture(const CaptureArgs& args, const OusterArgs& ouster) {
     o.metadata = driver::ouster_metadata_beside(args.capture).value_or("");
   // Velodyne's options have no meaning for Ouster: the metadata describes the sensor, frames end
   // where the frame id changes.
-  const char* velodyne_only = !args.model.empty()         ? "--model"
+  const std::string model_option =
+      "--model " + args.model + " (a Velodyne model; Ouster models: os1-128, os0-32, ...)";
+  const char* velodyne_only = model && model->velodyne    ? model_option.c_str()
                               : !args.calibration.empty() ? "--calibration"
                               : args.cut_deg != driver::BatcherOptions{}.cut_azimuth_deg ? "--cut"
                                                                                          : nullptr;

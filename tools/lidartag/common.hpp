@@ -41,6 +41,9 @@ struct CaptureArgs {
   }
 };
 
+// --model's check: a model of either vendor (driver::model_from_name), the names listed otherwise.
+CLI::Validator model_validator();
+
 // Adds CAPTURE, --model, --calibration, --cut, --data-port, --position-port, --sensor, --topic,
 // --start, --duration to `app`.
 void add_capture_options(CLI::App& app, CaptureArgs& args);

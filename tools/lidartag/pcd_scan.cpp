@@ -3,7 +3,6 @@
 #include <algorithm>
 
 #include "lidartag/driver/cloud_fields.hpp"
-#include "lidartag/driver/velodyne/sensor_model.hpp"
 
 namespace lidartag::clouds {
 
@@ -18,15 +17,16 @@ PcdScan describe_pcd(const velodyne::PcdCloud& pcd) {
   return out;
 }
 
-PcdScan read_pcd_scan(const std::string& path, const std::optional<velodyne::Model>& model,
+PcdScan read_pcd_scan(const std::string& path, const std::optional<driver::ModelName>& model,
                       int rings, double resolution_deg, Scan& scan) {
   const velodyne::PcdCloud pcd = velodyne::read_pcd_points(path);
   driver::CloudColumns columns;  // another driver's field names read as a bag's clouds are
   velodyne::pcd_cloud_columns(pcd, columns);
   const detector::CloudFields fields =
       detector::cloud_fields_by_name(columns.names, columns.columns, columns.width, columns.height);
+  const driver::RingSource ring_source = driver::ring_source(model, rings);
   const detector::CloudScanOptions options = detector::cloud_scan_options(
-      fields, velodyne::beam_elevations_deg(model), rings, resolution_deg);
+      fields, ring_source.elevations_deg, ring_source.rings, resolution_deg);
   PcdScan out = describe_pcd(pcd);
   if (const auto ring = std::find(columns.names.begin(), columns.names.end(), "ring");
       ring != columns.names.end())
@@ -39,7 +39,8 @@ PcdScan read_pcd_scan(const std::string& path, const std::optional<velodyne::Mod
     throw detector::CloudError(path + ": " + e.what());
   }
   velodyne::apply_pcd_rotation(pcd.rotation, scan);
-  if (!pcd.rotation.model && model) scan.model = static_cast<uint8_t>(*model);
+  if (!pcd.rotation.model && model && model->velodyne)
+    scan.model = static_cast<uint8_t>(*model->velodyne);
   return out;
 }
 

@@ -13,6 +13,7 @@
 
 #include "lidartag/detector/cloud_scan.hpp"
 #include "lidartag/driver/scan.hpp"
+#include "lidartag/driver/sources/model_name.hpp"
 #include "lidartag/driver/velodyne/io/pcd.hpp"
 
 namespace lidartag::clouds {
@@ -31,12 +32,12 @@ struct PcdScan {
 PcdScan describe_pcd(const velodyne::PcdCloud& pcd);
 
 // Reads `path` into `scan`: the header comments' rotation fields (stamp, sequence, model, ...)
-// are set where present; `model` names the scan's model when the file does not, and its beam
-// table places a cloud without a ring field. Throws driver::IoError (unreadable, corrupt, no x, y
-// or z field) or detector::CloudError prefixed with the path (a cloud that cannot become a scan:
-// no intensity, rings that cannot be regressed), detector::NoRingFieldError when it has no ring
-// field and neither `model` nor `rings` is given.
-PcdScan read_pcd_scan(const std::string& path, const std::optional<velodyne::Model>& model,
+// are set where present; `model` (either vendor's) places a cloud without a ring field (its beam
+// table, driver::ring_source), and a Velodyne model names the scan's model when the file does not.
+// Throws driver::IoError (unreadable, corrupt, no x, y or z field) or detector::CloudError prefixed
+// with the path (a cloud that cannot become a scan: no intensity, rings that cannot be regressed),
+// detector::NoRingFieldError when it has no ring field and neither `model` nor `rings` is given.
+PcdScan read_pcd_scan(const std::string& path, const std::optional<driver::ModelName>& model,
                       int rings, double resolution_deg, Scan& scan);
 
 }  // namespace lidartag::clouds

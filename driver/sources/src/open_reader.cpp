@@ -290,6 +290,10 @@ OpenedReader open_capture(const std::string& path, const ScanSourceOptions& o,
   if (metadata.empty() && !o.velodyne_model && o.calibration_file.empty()) {
     if (auto beside = ouster_metadata_beside(path)) metadata = *beside;
   }
+  if (metadata.empty() && !o.ouster_model.empty())
+    throw std::invalid_argument(
+        "model " + o.ouster_model + " is an Ouster sensor but " + path +
+        " has no Ouster metadata (give its JSON file, or put NAME.json beside NAME.pcap)");
   if (metadata.empty()) {
     PcapSourceOptions po = o.replay;
     po.data_port = data_port_of(Vendor::kVelodyne, o);
