@@ -68,6 +68,35 @@ TEST(CliPlan, ABiggerTagReachesFarther) {
   EXPECT_EQ(cell(big, 12, 0)["detected"], 6);
 }
 
+TEST(CliPlan, AnOusterIsPlannedWithItsOwnBeams) {
+  // An OS1-64's beams are 0.71 degrees apart, an OS1-128's 0.35: at 20 m about 6 and 12 rings
+  // cross a 1.2 m tag; the OS1-128 sees it in most rotations, the OS1-64 in none by itself.
+  const auto os64 =
+      plan_json("--model OS1-64 --tag-size 1.2 --distances 5,20 --angles 0 --runs 2 --rotations 4");
+  const auto os128 = plan_json(
+      "--model os1-128 --tag-size 1.2 --distances 5,20 --angles 0 --runs 2 --rotations 4");
+  EXPECT_EQ(os64["model"], "os1-64");
+  EXPECT_EQ(os128["model"], "os1-128");
+  EXPECT_EQ(cell(os64, 5, 0)["detected"], 8);
+  EXPECT_EQ(cell(os128, 5, 0)["detected"], 8);
+  EXPECT_EQ(cell(os64, 20, 0)["detected"], 0);
+  // The misses' clusters at 20 m: the OS1-64's fewer rings than the OS1-128's.
+  EXPECT_LE(cell(os64, 20, 0)["missed_rings"][1].get<int>(), 6);
+  const auto& far128 = cell(os128, 20, 0);
+  EXPECT_GT(far128["tracked"].get<int>() + far128["detected"].get<int>(), 0);
+  EXPECT_EQ(far128["wrong_id_rotations"], 0);
+  // A model name without a beam table to simulate, and a rate an Ouster lacks: usage errors.
+  for (const char* args :
+       {"--model os1-32 --tag-size 1.2", "--model os1-64 --tag-size 1.2 --rpm 900"}) {
+    const ToolResult r = run_tool(std::string("plan ") + args);
+    EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.out;
+    EXPECT_NE(
+        r.out.find(std::string(args).find("rpm") != std::string::npos ? "--rpm" : "no beam table"),
+        std::string::npos)
+        << r.out;
+  }
+}
+
 TEST(CliPlan, TextNamesTheReachAndTheReason) {
   const ToolResult r = run_tool(
       "plan --model vlp16 --tag-size 1.2 --distances 4,16 --angles 0 --runs 1 --rotations 5");

@@ -19,6 +19,8 @@
 #include "bench/sim_scans.hpp"
 #include "lidartag/commands.hpp"
 #include "lidartag/detector/tracker.hpp"
+#include "lidartag/driver/ouster/models.hpp"
+#include "lidartag/driver/sources/model_name.hpp"
 #include "lidartag/exit_codes.hpp"
 #include "lidartag/progress.hpp"
 
@@ -40,6 +42,51 @@ struct PlanArgs {
   double rpm = 600.0;
   bool json = false;
 };
+
+// The simulated sensor: a Velodyne model, or an Ouster model (its nominal beam table) at 1024
+// columns and the rate --rpm gives (600: 10 Hz, 1200: 20 Hz).
+struct PlanSensor {
+  velodyne::Model model = velodyne::Model::kVLP32C;
+  std::optional<sim::OusterSensorOptions> ouster;
+
+  std::vector<double> elevations_deg() const {
+    return ouster ? driver::ouster::nominal_sensor_info(ouster->model, ouster->columns,
+                                                        ouster->rate_hz, ouster->profile)
+                        .beam_altitude_deg
+                  : velodyne::beam_elevations_deg(model);
+  }
+  std::string name() const {
+    return std::string(ouster ? driver::ouster::model_spec(ouster->model).name
+                              : velodyne::model_spec(model).name);
+  }
+  std::string display_name() const {
+    return ouster
+               ? fmt::format("Ouster {} {}x{}", driver::ouster::model_spec(ouster->model).prod_line,
+                             ouster->columns, ouster->rate_hz)
+               : std::string(velodyne::model_spec(model).display_name);
+  }
+};
+
+PlanSensor plan_sensor(const PlanArgs& args) {
+  const auto named = driver::model_from_name(args.model);
+  if (!named)
+    throw UsageError("--model: unknown model '" + args.model + "' (" + driver::model_names() + ")");
+  PlanSensor s;
+  if (named->velodyne) {
+    s.model = *named->velodyne;
+    return s;
+  }
+  const auto m = driver::ouster::model_from_name(named->ouster);
+  if (!m)
+    throw UsageError("--model " + named->ouster + ": no beam table to simulate (Ouster models: " +
+                     driver::ouster::model_names() + ")");
+  if (args.rpm != 600.0 && args.rpm != 1200.0)
+    throw UsageError(
+        fmt::format("--rpm {:g}: an Ouster spins at 600 (10 Hz) or 1200 (20 Hz)", args.rpm));
+  s.ouster = sim::OusterSensorOptions{*m, 1024, args.rpm == 600.0 ? 10 : 20,
+                                      driver::ouster::Profile::kRng19Rfl8Sig16Nir16};
+  return s;
+}
 
 // One simulated cell: a tag at `distance` straight ahead, turned `angle` about the vertical.
 struct Cell {
@@ -107,12 +154,16 @@ std::vector<int> parse_angles(const std::string& spec) {
 // Run `run` of a cell raises or lowers the tag by a share of the beams' spacing at its distance
 // (the shares spread evenly over one spacing), so that a cell's figure is no lucky or unlucky
 // crossing of the rings: users do not place tags at a chosen height to the millimetre.
-sim::Scene scene_of(const PlanArgs& args, velodyne::Model model, double distance, int angle,
+sim::Scene scene_of(const PlanArgs& args, const PlanSensor& sensor, double distance, int angle,
                     int run) {
   const double share = (run + 0.5) / args.runs - 0.5;
-  const double above = share * eval::beam_spacing_m(model, distance, 0.0);
-  sim::Scene s = eval::accuracy_scene(model, distance, angle, run % 30, args.size_m, above);
+  const double above = share * eval::beam_spacing_m(sensor.elevations_deg(), distance, 0.0);
+  sim::Scene s = eval::accuracy_scene(sensor.model, distance, angle, run % 30, args.size_m, above);
   s.sensor.rpm = args.rpm;
+  if (sensor.ouster) {
+    s.sensor.ouster = sensor.ouster;
+    s.sensor.noise = sim::NoiseOptions{};  // the Ouster simulation's own (as bench_tracker's)
+  }
   sim::TagOptions& t = s.tags.front();
   t.family = args.family;
   t.board.margin = args.margin_m;
@@ -150,9 +201,9 @@ std::string lacked(const Cell& c, const det::Detector& detector) {
   return s;
 }
 
-void run_cell(const PlanArgs& args, velodyne::Model model, const det::DetectorOptions& options,
+void run_cell(const PlanArgs& args, const PlanSensor& sensor, const det::DetectorOptions& options,
               int run, Cell& c) {
-  sim::Simulator simulator(scene_of(args, model, c.distance, c.angle, run));
+  sim::Simulator simulator(scene_of(args, sensor, c.distance, c.angle, run));
   eval::SimScans scans(simulator);
   det::Detector detector(options);
   det::Tracker tracker(det::TrackerOptions{}, options);
@@ -229,10 +280,7 @@ std::optional<double> reach(const std::vector<Cell>& cells, int angle, Ok ok) {
 }
 
 int run_plan(PlanArgs args) {
-  const auto model = velodyne::model_from_name(args.model);
-  if (!model)
-    throw UsageError("--model: unknown model '" + args.model + "' (" + velodyne::model_names() +
-                     ")");
+  const PlanSensor sensor = plan_sensor(args);
   if (args.mount != "diamond" && args.mount != "square")
     throw UsageError("--mount '" + args.mount + "': diamond or square");
   const std::vector<double> distances = parse_distances(args.distances);
@@ -253,16 +301,15 @@ int run_plan(PlanArgs args) {
     }
   Progress progress(static_cast<uint64_t>(cells.size()));
   for (size_t i = 0; i < cells.size(); ++i) {
-    for (int run = 0; run < args.runs; ++run) run_cell(args, *model, options, run, cells[i]);
+    for (int run = 0; run < args.runs; ++run) run_cell(args, sensor, options, run, cells[i]);
     progress.update(i + 1, fmt::format("{:g} m at {} deg", cells[i].distance, cells[i].angle));
   }
   progress.done();
 
-  const auto& spec = velodyne::model_spec(*model);
   const bool tracked = args.rotations >= 4;
   if (args.json) {
     nlohmann::json j;
-    j["model"] = spec.name;
+    j["model"] = sensor.name();
     j["family"] = args.family;
     j["tag_size_m"] = args.size_m;
     j["board_margin_m"] = args.margin_m;
@@ -295,7 +342,7 @@ int run_plan(PlanArgs args) {
       "{} at {:g} rpm, {} {:g} m ({} mount{}), sensor 1 m above the ground\n"
       "simulated: {} runs of {} rotations per cell, each run another code and its tag centre\n"
       "raised or lowered from the sensor's height by a share of the beams' spacing\n",
-      spec.display_name, args.rpm, args.family, args.size_m, args.mount,
+      sensor.display_name(), args.rpm, args.family, args.size_m, args.mount,
       args.margin_m > 0 ? fmt::format(", {:g} m board margin", args.margin_m) : "", args.runs,
       args.rotations);
   auto table = [&](const char* title, auto value) {
@@ -346,7 +393,10 @@ const Registrar kPlan(
     "plan", "Before printing a tag: at what distances and angles a sensor detects it (simulated)",
     [](CLI::App& app) {
       auto args = std::make_shared<PlanArgs>();
-      app.add_option("--model", args->model, "Velodyne model (vlp16, vlp32c, hdl32e, ...)")
+      app.add_option(
+             "--model", args->model,
+             "Velodyne model (vlp16, vlp32c, hdl32e, ...) or Ouster model (os1-64, "
+             "os1-128, os0-32, os0-128, os2-32, os2-128: the nominal sensor at 1024 columns)")
           ->required();
       app.add_option("--tag-size", args->size_m, "full marker size t, white ring included, metres")
           ->required()
