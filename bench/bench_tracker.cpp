@@ -2,9 +2,8 @@
 // costs.
 //
 //   bench_tracker [--runs N] [--rotations R] [--quick] [--trace] [--fixed-height]
-//                 [--cell MODEL:DISTANCE:ANGLE ...] [--first-run K] [--extras] [--motion]
-//                 [--deskew]
-//                 [--out DIR]
+//                 [--cell MODEL:DISTANCE:ANGLE ...] [--first-run K] [--board-margin M]
+//                 [--extras] [--motion] [--deskew] [--out DIR]
 //
 // Static scenes, the target grid: a 1.2 m tag16h5 on an easel, diamond mount, centre near
 // the sensor's height (run k raised or lowered by a share of the spacing of the beams there, so
@@ -73,6 +72,9 @@ struct Args {
   bool fixed_height = false;      // every run's tag centre exactly at its cell's height
   std::vector<std::string> only;  // --cell: "vlp16:10:45", the static cells to run (empty: all)
   int first_run = 0;              // --first-run: with --cell, runs first_run to runs - 1
+  // --board-margin: the static grid's tags on boards of this margin, m (else the simulator's
+  // default 5 cm); 0: a tag cut to its size.
+  std::optional<double> board_margin;
   bool extras = false;  // --extras: only the square-mount and ego-motion sections, printed
   bool motion = false;  // --motion: only the moving-sensor rows, printed
   bool deskew = false;  // --deskew: only the deskew rows (off, tracker's model, odometry), printed
@@ -86,9 +88,10 @@ struct Cell {
   std::optional<driver::ouster::Model> ouster;
   double distance = 0;
   int angle = 0;
-  double size = 1.2;            // tag side, m (the detector is given it)
-  double above = 0.0;           // tag centre above the sensor's height, m
-  int counted = 0;              // rotations from the 4th on
+  double size = 1.2;                   // tag side, m (the detector is given it)
+  double above = 0.0;                  // tag centre above the sensor's height, m
+  std::optional<double> board_margin;  // set: the tag's board margin, m (else the simulator's)
+  int counted = 0;                     // rotations from the 4th on
   int single = 0, tracked = 0;  // of them with the right ID: detector alone, with the tracker
   int wrong_single = 0, wrong_tracked = 0;
   int wrong_by_track = 0;  // wrong IDs the tracker added (reported by a track, not decoded)
@@ -159,6 +162,7 @@ void run_cell(Cell& c, int run, int rotations, bool trace, bool fixed_height) {
   scene.sensor.velocity = c.velocity;
   scene.sensor.angular_velocity = {0.0, 0.0, c.turn_deg_s};
   scene.tags.front().rotation_deg = c.rotation_deg;
+  if (c.board_margin) scene.tags.front().board.margin = *c.board_margin;
   const sim::Simulator simulator(scene);
   eval::SimScans scans(simulator);
   detector::DetectorOptions options;
@@ -677,6 +681,7 @@ int run(const Args& args) {
        << "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|\n";
   int never = 0;
   if (args.motion) cells.clear();
+  for (Cell& c : cells) c.board_margin = args.board_margin;
   for (Cell& c : cells) {
     for (int r = args.first_run; r < runs; ++r)
       run_cell(c, r, rotations, args.trace, args.fixed_height);
@@ -906,6 +911,16 @@ int main(int argc, char** argv) {
       args.deskew = true;
     } else if (a == "--cell") {
       args.only.push_back(value("--cell"));
+    } else if (a == "--board-margin") {
+      const std::string v = value("--board-margin");
+      char* end = nullptr;
+      const double m = std::strtod(v.c_str(), &end);
+      if (end == v.c_str() || *end != '\0' || !(m >= 0.0 && m <= 1.0)) {
+        std::fprintf(stderr, "bench_tracker: --board-margin %s: metres from 0 to 1\n", v.c_str());
+        return 2;
+      }
+      args.board_margin = m;
+      args.command += " --board-margin " + v;
     } else if (a == "--first-run") {
       args.first_run = count("--first-run", 0);
     } else if (a == "--out") {
@@ -915,8 +930,8 @@ int main(int argc, char** argv) {
       std::fprintf(
           stderr,
           "usage: bench_tracker [--runs N] [--rotations R] [--quick] [--trace] [--fixed-height] "
-          "[--cell MODEL:DISTANCE:ANGLE ...] [--first-run K] [--extras] [--motion] [--deskew] "
-          "[--out DIR]\n");
+          "[--cell MODEL:DISTANCE:ANGLE ...] [--first-run K] [--board-margin M] [--extras] "
+          "[--motion] [--deskew] [--out DIR]\n");
       return 2;
     }
   }
