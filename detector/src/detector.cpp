@@ -330,7 +330,7 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, const Senso
   // The coverage gate's upper bound first: a cluster that cannot pass it is not fitted (most of
   // the boards and walls of a configured size that reach this stage).
   const double bound = coverage_bound(b.corners.hull, t);
-  if (bound < opt_.pose.min_coverage) {
+  if (!track_only && bound < opt_.pose.min_coverage) {
     diag.coverage = bound;
     return finish(Stage::kPose, Rejection::kCoverage);
   }
@@ -342,7 +342,15 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, const Senso
   if (diag.mean_cost_m > opt_.pose.max_mean_cost_m)
     return finish(Stage::kPose, Rejection::kFitCost);
   diag.coverage = coverage_ratio(b.pose.subset, fit.pose, t, b.hull_in, b.hull);
-  if (diag.coverage < opt_.pose.min_coverage) return finish(Stage::kPose, Rejection::kCoverage);
+  // A cluster for a track alone (the far edge) is held to the share of the gate that its sampling
+  // lets a whole tag show: sparse rings and columns leave the hull of a whole tag well short of
+  // t^2 (0.65 at a VLP-32C's 28 m and 45 degrees), and only a board's margin made up for it. Its
+  // pre-fit bound above is skipped for the same reason.
+  const double min_coverage =
+      track_only
+          ? opt_.pose.min_coverage * sampled_coverage(b.points, fit.pose, t, b.hull_in, b.hull)
+          : opt_.pose.min_coverage;
+  if (diag.coverage < min_coverage) return finish(Stage::kPose, Rejection::kCoverage);
   IntensityLevels levels;
   if (opt_.pose.border_refine)
     levels = outline.on_board

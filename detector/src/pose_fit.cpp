@@ -6,6 +6,8 @@
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
+#include <limits>
 #include <numbers>
 #include <stdexcept>
 
@@ -354,6 +356,92 @@ double coverage_ratio(std::span<const ClusterPoint> points, const RigidPose& pos
   geometry::convex_hull(buffer, hull);
   if (hull.size() < 3) return 0.0;
   return geometry::polygon_area(hull) / (t * t);
+}
+
+namespace {
+
+// The median of the first components of buffer[from, end) (reordered); 0 when empty.
+double median_x(std::vector<Eigen::Vector2d>& buffer, size_t from) {
+  if (buffer.size() <= from) return 0.0;
+  const auto begin = buffer.begin() + static_cast<std::ptrdiff_t>(from);
+  const auto mid = begin + static_cast<std::ptrdiff_t>((buffer.size() - from) / 2);
+  std::nth_element(
+      begin, mid, buffer.end(),
+      [](const Eigen::Vector2d& a, const Eigen::Vector2d& b) { return a.x() < b.x(); });
+  return mid->x();
+}
+
+}  // namespace
+
+double sampled_coverage(std::span<const ClusterPoint> points, const RigidPose& pose, double t,
+                        std::vector<Eigen::Vector2d>& buffer, std::vector<Eigen::Vector2d>& hull) {
+  const auto at = [&](const ClusterPoint& p) {
+    const Eigen::Vector3d q = pose.apply(Eigen::Vector3d(p.x, p.y, p.z));
+    return Eigen::Vector2d(q.y(), q.z());
+  };
+  // Each ring's run [i, j]: the rings' direction from the longest one.
+  const auto run_end = [&](size_t i) {
+    size_t j = i;
+    while (j + 1 < points.size() && points[j + 1].ring == points[i].ring) ++j;
+    return j;
+  };
+  Eigen::Vector2d dir = Eigen::Vector2d::Zero();
+  double longest = 0.0;
+  for (size_t i = 0; i < points.size(); i = run_end(i) + 1) {
+    const Eigen::Vector2d d = at(points[run_end(i)]) - at(points[i]);
+    if (d.norm() > longest) {
+      longest = d.norm();
+      dir = d / longest;
+    }
+  }
+  if (!(longest > 0.0)) return 1.0;
+  const Eigen::Vector2d across(-dir.y(), dir.x());
+  // The column step: the median gap between neighbouring points of a ring, along the rings.
+  buffer.clear();
+  for (size_t i = 1; i < points.size(); ++i)
+    if (points[i].ring == points[i - 1].ring)
+      buffer.emplace_back(std::abs((at(points[i]) - at(points[i - 1])).dot(dir)), 0.0);
+  const double step = median_x(buffer, 0);
+  // The ring spacing: the median gap between neighbouring rings' mean offsets across them.
+  buffer.clear();
+  for (size_t i = 0; i < points.size(); i = run_end(i) + 1) {
+    const size_t j = run_end(i);
+    double sum = 0.0;
+    for (size_t k = i; k <= j; ++k) sum += at(points[k]).dot(across);
+    buffer.emplace_back(sum / static_cast<double>(j - i + 1), 0.0);
+  }
+  std::sort(buffer.begin(), buffer.end(),
+            [](const Eigen::Vector2d& a, const Eigen::Vector2d& b) { return a.x() < b.x(); });
+  const size_t rings = buffer.size();
+  for (size_t k = 1; k < rings; ++k) buffer.emplace_back(buffer[k].x() - buffer[k - 1].x(), 0.0);
+  const double spacing = median_x(buffer, rings);
+  const double h = t / 2.0;
+  const double reach = h * (std::abs(across.x()) + std::abs(across.y()));
+  // No sampling to speak of, or rings too close to be a LiDAR's (duplicates): nothing lost.
+  if (rings < 2 || !(step > 0.0) || !(spacing > 0.0) || 2.0 * reach / spacing > 4096.0) return 1.0;
+  // The square [-t/2, t/2]^2 sampled on that grid: each line's first and last point.
+  buffer.clear();
+  for (double o = -reach + spacing / 2.0; o <= reach; o += spacing) {
+    double a0 = -std::numeric_limits<double>::infinity(), a1 = -a0;
+    for (int c = 0; c < 2; ++c) {
+      const double base = o * across[c];
+      if (std::abs(dir[c]) < 1e-12) {
+        if (std::abs(base) > h) a0 = a1 + 1.0;  // the line misses the square
+        continue;
+      }
+      const double lo = (-h - base) / dir[c], hi = (h - base) / dir[c];
+      a0 = std::max(a0, std::min(lo, hi));
+      a1 = std::min(a1, std::max(lo, hi));
+    }
+    const double first = a0 + step / 2.0;
+    if (!(first <= a1)) continue;
+    const double last = first + std::floor((a1 - first) / step) * step;
+    buffer.push_back(o * across + first * dir);
+    buffer.push_back(o * across + last * dir);
+  }
+  geometry::convex_hull(buffer, hull);
+  if (hull.size() < 3) return 1.0;
+  return std::min(1.0, geometry::polygon_area(hull) / (t * t));
 }
 
 double coverage_bound(const std::vector<Eigen::Vector2d>& plane_hull, double t) {

@@ -157,6 +157,69 @@ TEST(PoseFit, CoverageOfAWholeAndAHalfTag) {
   EXPECT_NEAR(coverage_ratio(half, RigidPose{}, 1.2, buf, hull), 0.45, 0.05);
 }
 
+// A t x t tag (tag frame, x = 0) sampled by rings `spacing` apart that run at `angle_deg` to its
+// sides (45: a diamond mount), points `step` apart along each, the grid shifted by the phases
+// (fractions of a spacing and a step); rings whose offset is below `top` (a fraction of the
+// tag's reach across them, 1: all) only. Ring by ring, by column, as fill_cluster emits them.
+std::vector<ClusterPoint> sampled_tag(double t, double spacing, double step, double angle_deg,
+                                      double phase_ring, double phase_col, double top = 1.0) {
+  const double a = angle_deg * std::numbers::pi / 180.0;
+  const Eigen::Vector2d dir(std::cos(a), std::sin(a)), across(-dir.y(), dir.x());
+  const double h = t / 2, reach = h * (std::abs(across.x()) + std::abs(across.y()));
+  std::vector<ClusterPoint> pts;
+  int ring = 0;
+  for (double o = -reach + phase_ring * spacing; o <= -reach + top * 2 * reach; o += spacing) {
+    ++ring;
+    for (double u = -2 * t + phase_col * step; u <= 2 * t; u += step) {
+      const Eigen::Vector2d q = o * across + u * dir;
+      if (std::abs(q.x()) > h || std::abs(q.y()) > h) continue;
+      ClusterPoint p;
+      p.y = static_cast<float>(q.x());
+      p.z = static_cast<float>(q.y());
+      p.ring = ring;
+      pts.push_back(p);
+    }
+  }
+  return pts;
+}
+
+TEST(PoseFit, SampledCoverageIsWhatAWholeTagShowsWhenSampledAsItsPointsAre) {
+  std::vector<Eigen::Vector2d> buf, hull;
+  const double t = 1.2;
+  // Densely sampled, a whole tag covers its square.
+  EXPECT_GT(sampled_coverage(sampled_tag(t, 0.01, 0.01, 45, 0.5, 0.5), RigidPose{}, t, buf, hull),
+            0.97);
+  // A VLP-32C's at 28 m and 45 degrees (rings 0.16 m apart, points 0.14 m): both the whole tag's
+  // own hull and what sampled_coverage expects of it are well short of 1, and whatever the grid's
+  // phase the whole tag passes the pose gate held to that share (pose.min_coverage 0.75 of it),
+  // which the hull alone against t^2 would fail.
+  bool below_absolute = false;  // some phase of a whole tag fails 0.75 of t^2
+  for (double angle : {0.0, 20.0, 45.0}) {
+    double sum = 0.0;
+    int n = 0;
+    for (double pr : {0.1, 0.4, 0.7})
+      for (double pc : {0.2, 0.5, 0.9}) {
+        const auto pts = sampled_tag(t, 0.16, 0.14, angle, pr, pc);
+        const double expected = sampled_coverage(pts, RigidPose{}, t, buf, hull);
+        const double seen = coverage_ratio(pts, RigidPose{}, t, buf, hull);
+        EXPECT_LT(expected, 0.9) << angle;
+        EXPECT_GE(seen, 0.75 * expected) << angle << " " << pr << " " << pc;
+        below_absolute = below_absolute || seen < 0.75;
+        sum += std::abs(seen - expected);
+        ++n;
+      }
+    EXPECT_LT(sum / n, 0.1) << angle;
+  }
+  EXPECT_TRUE(below_absolute);
+  // Half a tag stays below 0.75 of what a whole one would show at the same sampling.
+  const auto half = sampled_tag(t, 0.16, 0.14, 45, 0.5, 0.5, 0.5);
+  EXPECT_LT(coverage_ratio(half, RigidPose{}, t, buf, hull),
+            0.75 * sampled_coverage(half, RigidPose{}, t, buf, hull));
+  // One ring shows no sampling: nothing to make up for.
+  const auto one = sampled_tag(t, 10.0, 0.14, 45, 0.5, 0.5);
+  EXPECT_EQ(sampled_coverage(one, RigidPose{}, t, buf, hull), 1.0);
+}
+
 TEST(PoseFit, CoverageBoundIsNeverBelowTheCoverageOfAnyPullBack) {
   // A tag seen by rings (one row of points per ring, 0.2 m apart) turned and tilted; the bound
   // from the ring ends' hull in the plane against coverage_ratio of every point after pull-backs

@@ -173,6 +173,18 @@ PoseFitResult polish_tag_pose(PoseSolver& solver, std::span<const ClusterPoint> 
 double coverage_ratio(std::span<const ClusterPoint> points, const RigidPose& pose, double t,
                       std::vector<Eigen::Vector2d>& buffer, std::vector<Eigen::Vector2d>& hull);
 
+// The coverage_ratio a whole tag of side t shows when sampled as `points` (ring by ring, by
+// column, as fill_cluster emits them) sample it. A hull of sparse rings misses up to a column step
+// at each ring's ends and up to a ring spacing at the top and bottom: at a VLP-32C's 28 m and 45
+// degrees a whole 1.2 m tag covers about 0.65 of t^2. Measured in the tag's y-z plane: the rings'
+// direction (the longest ring's ends), their spacing (the median gap between neighbouring rings
+// across it) and the column step (the median gap between neighbouring points of a ring); the
+// tag's square is then sampled on that grid, half a spacing and half a step in from its edges,
+// and that sample's hull area is divided by t^2. 1 when the points show no sampling (fewer than
+// two rings of two points). `buffer` and `hull` are scratch space.
+double sampled_coverage(std::span<const ClusterPoint> points, const RigidPose& pose, double t,
+                        std::vector<Eigen::Vector2d>& buffer, std::vector<Eigen::Vector2d>& hull);
+
 // An upper bound of coverage_ratio before the pose fit, from the hull of the ring ends in the
 // cluster's own plane (CornerWorkspace::hull): its area over t^2, divided by kCoverageBoundSlack.
 // A rigid pull-back projects the points onto the tag's y-z plane, which cannot enlarge the hull
