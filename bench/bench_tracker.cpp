@@ -817,7 +817,10 @@ int run(const Args& args) {
      << "; source: `bench/bench_tracker.cpp`; how the tracker works: `docs/detector.md`, "
         "\"Evidence over rotations\").\n\n"
      << "## The issue's targets: static sensor\n\n"
-     << "A 1.2 m `tag16h5` on an easel stand, diamond mount, centre near the sensor's height "
+     << "A 1.2 m `tag16h5` on an easel stand, diamond mount, "
+     << (args.board_margin ? "on a board of a " + fmt(*args.board_margin, 2) + " m margin"
+                           : std::string("on a board of the simulator's default 5 cm margin"))
+     << ", centre near the sensor's height "
         "(and a 0.6 m one 0.3 m above it, whose upper half only the VLP-32C's sparse upper beams "
         "cross), face-on (0°) or turned 45°; "
      << runs
