@@ -141,9 +141,7 @@ double run_height(const Cell& c, int run, bool fixed) {
   if (fixed) return c.above;
   const double share = ((11 * run) % 30 + 0.5) / 30.0 - 0.5;
   const double spacing =
-      c.ouster ? eval::beam_spacing_m(driver::ouster::nominal_sensor_info(
-                                          *c.ouster, 1024, 10, driver::ouster::Profile::kLegacy)
-                                          .beam_altitude_deg,
+      c.ouster ? eval::beam_spacing_m(driver::ouster::nominal_beam_altitudes_deg(*c.ouster),
                                       c.distance, c.above)
                : eval::beam_spacing_m(c.model, c.distance, c.above);
   return c.above + share * spacing;

@@ -375,20 +375,24 @@ double median_x(std::vector<Eigen::Vector2d>& buffer, size_t from) {
 
 double sampled_coverage(std::span<const ClusterPoint> points, const RigidPose& pose, double t,
                         std::vector<Eigen::Vector2d>& buffer, std::vector<Eigen::Vector2d>& hull) {
-  const auto at = [&](const ClusterPoint& p) {
+  // The points in the tag's y-z plane, pulled back once (`hull` is their scratch until the end).
+  std::vector<Eigen::Vector2d>& yz = hull;
+  yz.clear();
+  for (const auto& p : points) {
     const Eigen::Vector3d q = pose.apply(Eigen::Vector3d(p.x, p.y, p.z));
-    return Eigen::Vector2d(q.y(), q.z());
-  };
-  // Each ring's run [i, j]: the rings' direction from the longest one.
+    yz.emplace_back(q.y(), q.z());
+  }
+  // Each ring's run of points [i, run_end(i)); the rings' direction from the longest one.
   const auto run_end = [&](size_t i) {
-    size_t j = i;
-    while (j + 1 < points.size() && points[j + 1].ring == points[i].ring) ++j;
+    size_t j = i + 1;
+    while (j < points.size() && points[j].ring == points[i].ring) ++j;
     return j;
   };
   Eigen::Vector2d dir = Eigen::Vector2d::Zero();
   double longest = 0.0;
-  for (size_t i = 0; i < points.size(); i = run_end(i) + 1) {
-    const Eigen::Vector2d d = at(points[run_end(i)]) - at(points[i]);
+  for (size_t i = 0, j = 0; i < points.size(); i = j) {
+    j = run_end(i);
+    const Eigen::Vector2d d = yz[j - 1] - yz[i];
     if (d.norm() > longest) {
       longest = d.norm();
       dir = d / longest;
@@ -400,15 +404,15 @@ double sampled_coverage(std::span<const ClusterPoint> points, const RigidPose& p
   buffer.clear();
   for (size_t i = 1; i < points.size(); ++i)
     if (points[i].ring == points[i - 1].ring)
-      buffer.emplace_back(std::abs((at(points[i]) - at(points[i - 1])).dot(dir)), 0.0);
+      buffer.emplace_back(std::abs((yz[i] - yz[i - 1]).dot(dir)), 0.0);
   const double step = median_x(buffer, 0);
   // The ring spacing: the median gap between neighbouring rings' mean offsets across them.
   buffer.clear();
-  for (size_t i = 0; i < points.size(); i = run_end(i) + 1) {
-    const size_t j = run_end(i);
+  for (size_t i = 0, j = 0; i < points.size(); i = j) {
+    j = run_end(i);
     double sum = 0.0;
-    for (size_t k = i; k <= j; ++k) sum += at(points[k]).dot(across);
-    buffer.emplace_back(sum / static_cast<double>(j - i + 1), 0.0);
+    for (size_t k = i; k < j; ++k) sum += yz[k].dot(across);
+    buffer.emplace_back(sum / static_cast<double>(j - i), 0.0);
   }
   std::sort(buffer.begin(), buffer.end(),
             [](const Eigen::Vector2d& a, const Eigen::Vector2d& b) { return a.x() < b.x(); });

@@ -667,8 +667,8 @@ sensor frame), intensity (0-255; 0-1 is scaled) and optionally ring (0 = lowest 
 (degrees clockwise from +x), time (seconds from the rotation's start), return_type -- the names
 Rotation.points uses, so rotation.points round-trips. Without ring, the rings come from the model's
 beam elevations (model="vlp32c", "os1-128", ...) or are estimated (rings=N beams). Points are
-binned into columns of resolution_deg of azimuth. Raises CloudError (no intensity, sizes that disagree, rings
-that cannot be told).)")
+binned into columns of resolution_deg of azimuth. Raises CloudError (no intensity, sizes that
+disagree, rings that cannot be told).)")
       .def("__len__", [](const Rotation& r) { return r.scan.point_count(); })
       .def("__repr__", [](const Rotation& r) {
         const std::string model = model_name(r);

@@ -50,9 +50,7 @@ struct PlanSensor {
   std::optional<sim::OusterSensorOptions> ouster;
 
   std::vector<double> elevations_deg() const {
-    return ouster ? driver::ouster::nominal_sensor_info(ouster->model, ouster->columns,
-                                                        ouster->rate_hz, ouster->profile)
-                        .beam_altitude_deg
+    return ouster ? driver::ouster::nominal_beam_altitudes_deg(ouster->model)
                   : velodyne::beam_elevations_deg(model);
   }
   std::string name() const {

@@ -178,6 +178,23 @@ bool describes_model(const SensorInfo& info, std::string_view name) {
   return unnamed && beams(described) == beams(name);
 }
 
+std::vector<double> nominal_beam_altitudes_deg(Model m) {
+  const ModelSpec& spec = model_spec(m);
+  const auto n = static_cast<size_t>(spec.beams);
+  std::vector<double> altitudes(n);
+  for (size_t i = 0; i < n; ++i) {
+    const double f = double(i) / double(n - 1);
+    // Rounded to 1e-4 deg, as sensors report them.
+    altitudes[i] = spec.altitude_table_deg.empty()
+                       ? std::round((spec.altitude_top_deg +
+                                     f * (spec.altitude_bottom_deg - spec.altitude_top_deg)) *
+                                    1e4) /
+                             1e4
+                       : spec.altitude_table_deg[i];
+  }
+  return altitudes;
+}
+
 SensorInfo nominal_sensor_info(Model m, int columns, int rate_hz, Profile profile) {
   if ((columns != 512 && columns != 1024 && columns != 2048) || (rate_hz != 10 && rate_hz != 20) ||
       (columns == 2048 && rate_hz != 10))
@@ -190,19 +207,10 @@ SensorInfo nominal_sensor_info(Model m, int columns, int rate_hz, Profile profil
   s.firmware = "v2.5.0";
   s.nested_layout = true;
   const auto n = static_cast<size_t>(spec.beams);
-  s.beam_altitude_deg.resize(n);
+  s.beam_altitude_deg = nominal_beam_altitudes_deg(m);
   s.beam_azimuth_deg.resize(n);
   s.pixel_shift_by_row.resize(n);
   for (size_t i = 0; i < n; ++i) {
-    const double f = double(i) / double(n - 1);
-    // Rounded to 1e-4 deg, as sensors report them.
-    s.beam_altitude_deg[i] =
-        spec.altitude_table_deg.empty()
-            ? std::round(
-                  (spec.altitude_top_deg + f * (spec.altitude_bottom_deg - spec.altitude_top_deg)) *
-                  1e4) /
-                  1e4
-            : spec.altitude_table_deg[i];
     s.beam_azimuth_deg[i] = spec.azimuth_table_deg.empty() ? spec.azimuth_pattern_deg[i % 4]
                                                            : spec.azimuth_table_deg[i];
     // A beam pointing `az` degrees clockwise of its column's encoder angle looks where the column

@@ -28,9 +28,7 @@ RingSource ring_source(const std::optional<ModelName>& model, int rings) {
   if (model->velodyne) {
     r.elevations_deg = velodyne::beam_elevations_deg(model->velodyne);
   } else if (const auto m = ouster::model_from_name(model->ouster)) {
-    // Any lidar mode: the beam table does not depend on it.
-    r.elevations_deg =
-        ouster::nominal_sensor_info(*m, 1024, 10, ouster::Profile::kLegacy).beam_altitude_deg;
+    r.elevations_deg = ouster::nominal_beam_altitudes_deg(*m);
   } else if (r.rings <= 0) {
     r.rings = std::stoi(model->ouster.substr(model->ouster.find('-') + 1));  // "os1-32": 32
   }

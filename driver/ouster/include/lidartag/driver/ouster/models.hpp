@@ -11,6 +11,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "lidartag/driver/ouster/metadata.hpp"
 
@@ -55,6 +56,10 @@ bool is_model_name(std::string_view name);
 // Whether `info` describes a sensor of model `name` (model_name(info) == name; only the beams
 // when either names no product line, "os-128").
 bool describes_model(const SensorInfo& info, std::string_view name);
+
+// The beam altitudes a sensor of model `m` reports (the first beam the top one), degrees: its
+// table, or its evenly spaced beams rounded to 1e-4 degree as sensors report them. Any lidar mode.
+std::vector<double> nominal_beam_altitudes_deg(Model m);
 
 // The SensorInfo (nested layout) a sensor of model `m` reports in lidar mode `columns` x
 // `rate_hz` with `profile`: the model's beam table, pixel_shift_by_row = each beam's azimuth
