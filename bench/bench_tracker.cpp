@@ -3,7 +3,7 @@
 //
 //   bench_tracker [--runs N] [--rotations R] [--quick] [--trace] [--fixed-height]
 //                 [--cell MODEL:DISTANCE:ANGLE ...] [--first-run K] [--board-margin M]
-//                 [--extras] [--motion] [--deskew] [--out DIR]
+//                 [--printed-family F] [--extras] [--motion] [--deskew] [--out DIR]
 //
 // Static scenes, the target grid: a 1.2 m tag16h5 on an easel, diamond mount, centre near
 // the sensor's height (run k raised or lowered by a share of the spacing of the beams there, so
@@ -25,6 +25,9 @@
 // --cell (repeatable, e.g. `--cell vlp16:10:45`) runs only those cells of the static grid and
 // nothing else, to study one cell with --trace; no report is written; --first-run K starts its
 // runs at run K (runs K to N-1: one run of a long series again, e.g. `--runs 87 --first-run 86`).
+// --printed-family F prints the grid's tags from family F while the detector and tracker look for
+// tag16h5: every ID at the tag counts as wrong (with --cell: the far edge's safety against another
+// family's tag).
 // --motion runs only the moving-sensor rows, printed (no report). --deskew runs only the deskew
 // rows: the moving rows' motions and a fast yaw (90 deg/s) detected as fired, deskewed with the
 // tracker's motion model and with the odometry, side by side on the same rotations: tracked rate,
@@ -75,6 +78,10 @@ struct Args {
   // --board-margin: the static grid's tags on boards of this margin, m (else the simulator's
   // default 5 cm); 0: a tag cut to its size.
   std::optional<double> board_margin;
+  // --printed-family: the static grid's tags printed from this family while the detector looks
+  // for tag16h5: any ID at the tag is wrong (the far edge's evidence must not confirm another
+  // family's tag as one of its own).
+  std::string printed_family;
   bool extras = false;  // --extras: only the square-mount and ego-motion sections, printed
   bool motion = false;  // --motion: only the moving-sensor rows, printed
   bool deskew = false;  // --deskew: only the deskew rows (off, tracker's model, odometry), printed
@@ -91,6 +98,7 @@ struct Cell {
   double size = 1.2;                   // tag side, m (the detector is given it)
   double above = 0.0;                  // tag centre above the sensor's height, m
   std::optional<double> board_margin;  // set: the tag's board margin, m (else the simulator's)
+  std::string printed_family;          // set: the tag's family, not the detector's (every ID wrong)
   int counted = 0;                     // rotations from the 4th on
   int single = 0, tracked = 0;  // of them with the right ID: detector alone, with the tracker
   int wrong_single = 0, wrong_tracked = 0;
@@ -161,6 +169,8 @@ void run_cell(Cell& c, int run, int rotations, bool trace, bool fixed_height) {
   scene.sensor.angular_velocity = {0.0, 0.0, c.turn_deg_s};
   scene.tags.front().rotation_deg = c.rotation_deg;
   if (c.board_margin) scene.tags.front().board.margin = *c.board_margin;
+  const bool foreign = !c.printed_family.empty();
+  if (foreign) scene.tags.front().family = c.printed_family;
   const sim::Simulator simulator(scene);
   eval::SimScans scans(simulator);
   detector::DetectorOptions options;
@@ -189,7 +199,7 @@ void run_cell(Cell& c, int run, int rotations, bool trace, bool fixed_height) {
     bool single = false, tracked = false, from_track = false, confirmed = false;
     for (const auto& d : rotations_out[k].first) {
       if (!eval::at_tag(d, then(d))) continue;
-      if (d.id == tag.id) {
+      if (d.id == tag.id && !foreign) {
         single = true;
         continue;
       }
@@ -207,7 +217,7 @@ void run_cell(Cell& c, int run, int rotations, bool trace, bool fixed_height) {
     for (const auto& t : rotations_out[k].second.tags) {
       const sim::TagTruth at = then(t.detection);
       if (!eval::at_tag(t.detection, at)) continue;
-      if (t.detection.id != tag.id) {
+      if (t.detection.id != tag.id || foreign) {
         ++c.wrong_tracked;
         c.wrong_by_track += t.decoded ? 0 : 1;
         if (trace) {
@@ -679,7 +689,10 @@ int run(const Args& args) {
        << "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|\n";
   int never = 0;
   if (args.motion) cells.clear();
-  for (Cell& c : cells) c.board_margin = args.board_margin;
+  for (Cell& c : cells) {
+    c.board_margin = args.board_margin;
+    c.printed_family = args.printed_family;
+  }
   for (Cell& c : cells) {
     for (int r = args.first_run; r < runs; ++r)
       run_cell(c, r, rotations, args.trace, args.fixed_height);
@@ -922,6 +935,8 @@ int main(int argc, char** argv) {
       }
       args.board_margin = m;
       args.command += " --board-margin " + v;
+    } else if (a == "--printed-family") {
+      args.printed_family = value("--printed-family");
     } else if (a == "--first-run") {
       args.first_run = count("--first-run", 0);
     } else if (a == "--out") {
@@ -931,8 +946,9 @@ int main(int argc, char** argv) {
       std::fprintf(
           stderr,
           "usage: bench_tracker [--runs N] [--rotations R] [--quick] [--trace] [--fixed-height] "
-          "[--cell MODEL:DISTANCE:ANGLE ...] [--first-run K] [--board-margin M] [--extras] "
-          "[--motion] [--deskew] [--out DIR]\n");
+          "[--cell MODEL:DISTANCE:ANGLE ...] [--first-run K] [--board-margin M] [--printed-family "
+          "F] "
+          "[--extras] [--motion] [--deskew] [--out DIR]\n");
       return 2;
     }
   }

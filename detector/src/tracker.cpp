@@ -62,6 +62,15 @@ Eigen::Matrix3d quarter_turn(int q) {
 constexpr int kShifts = 9;
 constexpr int kCentre = kShifts / 2;
 
+// How much better another built-in family must fit a track's fused votes (best_decoy_score)
+// to keep it from confirming: far tags of another family, cut to their size, whose votes led a
+// tag16h5 code by 0.75 cells or more (tag25h9 and tag36h11 at 24-32 m and 45 degrees, 90 runs
+// each) fitted their own family better in 463 of 469 rotations, by up to 0.15; the right tag16h5
+// codes fitted worse than some other family's best in 7 of 1,361 (by up to 0.03), and a sparse
+// grid of few votes per cell lets a large family (tag36h11's 2,348 functions) come within 0.001
+// of a perfect fit by chance.
+constexpr double kDecoyTolerance = 0.01;
+
 // The least position scatter the motion fit assumes, metres (a near tag's: 1-3 mm at 6 m on a
 // VLP-16).
 constexpr double kMinNoiseM = 0.002;
@@ -153,6 +162,9 @@ struct Tracker::Track {
   // summed; and their number.
   std::vector<double> score_sum;
   std::vector<float> votes, purity, counts;  // kShifts grids of W x W cells (kCentre unshifted)
+  // The same on each decoy family's grid (Tracker::decoys_), kShifts of them: shift g's grids
+  // from g x decoy_cells_ on.
+  std::vector<float> decoy_votes, decoy_purity, decoy_counts;
   // The axis of the track's frame along which its tag's place is searched (1: y, 2: z; 0: none,
   // every side seen), from its first candidate whose shift decoding searched; the extent of the
   // voted points along it (track frame, metres), and the grid that leads.
@@ -216,8 +228,23 @@ Tracker::Tracker(TrackerOptions options, const DetectorOptions& detector)
       most = std::max(most, 4 * fam.ncodes());
       cells = std::max(cells, fam.total_width * fam.total_width);
     }
+    if (detector.decode.reject_other_families) {
+      for (const auto& name : tags::builtin_family_names()) {
+        const bool configured =
+            std::any_of(families_.begin(), families_.end(),
+                        [&](const Family& f) { return f.dict.family().name == name; });
+        if (configured) continue;
+        decoys_.emplace_back(tags::builtin_family(name));
+        most = std::max(most, decoys_.back().functions());
+        cells = std::max(cells, decoys_.back().width() * decoys_.back().width());
+      }
+    }
   } catch (const tags::FamilyError& e) {
     throw OptionsError("families", "", e.what());
+  }
+  for (const auto& d : decoys_) {
+    decoy_offsets_.push_back(decoy_cells_);
+    decoy_cells_ += static_cast<size_t>(d.width() * d.width());
   }
   tracks_.resize(static_cast<size_t>(opt_.max_tracks));
   scores_.reserve(static_cast<size_t>(most));
@@ -231,6 +258,9 @@ Tracker::Tracker(TrackerOptions options, const DetectorOptions& detector)
     t.votes.assign(static_cast<size_t>(kShifts * cells), 0.0f);
     t.purity.assign(static_cast<size_t>(kShifts * cells), 0.0f);
     t.counts.assign(static_cast<size_t>(kShifts * cells), 0.0f);
+    t.decoy_votes.assign(kShifts * decoy_cells_, 0.0f);
+    t.decoy_purity.assign(kShifts * decoy_cells_, 0.0f);
+    t.decoy_counts.assign(kShifts * decoy_cells_, 0.0f);
     t.window.resize(static_cast<size_t>(opt_.window));
     t.window_points.assign(static_cast<size_t>(opt_.window), 0);
     t.odometry.resize(static_cast<size_t>(opt_.window));
@@ -482,6 +512,9 @@ void Tracker::start(Track& t, const Candidate& c) {
   std::fill(t.votes.begin(), t.votes.end(), 0.0f);
   std::fill(t.purity.begin(), t.purity.end(), 0.0f);
   std::fill(t.counts.begin(), t.counts.end(), 0.0f);
+  std::fill(t.decoy_votes.begin(), t.decoy_votes.end(), 0.0f);
+  std::fill(t.decoy_purity.begin(), t.decoy_purity.end(), 0.0f);
+  std::fill(t.decoy_counts.begin(), t.decoy_counts.end(), 0.0f);
   t.axis = 0;
   t.square = false;
   t.lo = t.hi = 0.0;
@@ -642,14 +675,31 @@ void Tracker::add_evidence(Track& t, const Candidate& c, const ScanResult& resul
         const double sh = (g - kCentre) * step;
         const double y = q.y() - (t.axis == 1 ? sh : 0.0), z = q.z() - (t.axis == 2 ? sh : 0.0);
         const int i = vote_cell(y / t.size_m, z / t.size_m, W, vote_inset_);
-        if (i < 0) continue;
-        const double fc = (y / t.size_m + 0.5) * W, fr = (0.5 - z / t.size_m) * W;
-        const auto w =
-            static_cast<float>(footprint_purity(fp, fc - std::floor(fc), fr - std::floor(fr)));
-        const size_t k = static_cast<size_t>(g) * cells + static_cast<size_t>(i);
-        t.votes[k] += w * vote;
-        t.purity[k] += w;
-        t.counts[k] += 1.0f;
+        if (i >= 0) {
+          const double fc = (y / t.size_m + 0.5) * W, fr = (0.5 - z / t.size_m) * W;
+          const auto w =
+              static_cast<float>(footprint_purity(fp, fc - std::floor(fc), fr - std::floor(fr)));
+          const size_t k = static_cast<size_t>(g) * cells + static_cast<size_t>(i);
+          t.votes[k] += w * vote;
+          t.purity[k] += w;
+          t.counts[k] += 1.0f;
+        }
+        // The decoy families' grids at the same shift: the footprint scales with their cells.
+        for (size_t d = 0; d < decoys_.size(); ++d) {
+          const int Wd = decoys_[d].width();
+          const int j = vote_cell(y / t.size_m, z / t.size_m, Wd, vote_inset_);
+          if (j < 0) continue;
+          const double sc = static_cast<double>(Wd) / W;
+          const double dc = (y / t.size_m + 0.5) * Wd, dr = (0.5 - z / t.size_m) * Wd;
+          const auto wd =
+              static_cast<float>(footprint_purity({fp.across_column * sc, fp.across_row * sc},
+                                                  dc - std::floor(dc), dr - std::floor(dr)));
+          const size_t kd =
+              static_cast<size_t>(g) * decoy_cells_ + decoy_offsets_[d] + static_cast<size_t>(j);
+          t.decoy_votes[kd] += wd * vote;
+          t.decoy_purity[kd] += wd;
+          t.decoy_counts[kd] += 1.0f;
+        }
       }
     }
   }
@@ -690,12 +740,6 @@ void Tracker::add_evidence(Track& t, const Candidate& c, const ScanResult& resul
   t.shift = best_grid_[static_cast<size_t>(lead)];
   t.margin = n > 1 ? (best_[static_cast<size_t>(lead)] - rival) / 2.0 : 1e9;
   t.mean_score = t.score_sum[static_cast<size_t>(lead)] / t.rotations;
-  // Another family fitting better on average makes it that family's tag (as the detector's
-  // decode/other_family for one rotation), best against best as there: the leading function's own
-  // score is lower in the rotations another function of the family led, and the decoys' best
-  // would beat it by that alone (a VLP-32C's 1.2 m tag16h5 at 24 m and 45 degrees, whose codes
-  // tag16h6 shares, was never confirmed).
-  const bool other_better = t.other_count > 0 && t.other_sum > t.own_sum + 1e-6 * t.other_count;
   // The score: the rotations' mean, or the fused grid's under a stricter margin (the far edge,
   // where each rotation's own fit scores low: fused_grid_confirms), on the leader's own grid (the
   // unshifted one unless the track searches its place).
@@ -708,8 +752,7 @@ void Tracker::add_evidence(Track& t, const Candidate& c, const ScanResult& resul
   const auto lead_grid = std::span<const float>(fused_votes_);
   const auto lead_counts =
       std::span<const float>(t.counts).subspan(static_cast<size_t>(t.shift) * cells, cells);
-  const bool scored =
-      t.mean_score >= min_score_ ||
+  const bool fused_path =
       fused_grid_confirms(fam.dict, lead, lead_grid, lead_counts, opt_.full_cell_votes, t.margin,
                           min_score_, opt_.fused_min_score, opt_.fused_min_margin_cells);
   const double min_margin = t.square ? opt_.min_margin_cells_searched : opt_.min_margin_cells;
@@ -718,7 +761,61 @@ void Tracker::add_evidence(Track& t, const Candidate& c, const ScanResult& resul
   // sparse and biased alike (an OS1-128's tag at 20 m and 45 degrees confirmed code 15 for 17
   // after 3 such rotations, margin 0.82 cells, mean score 0.835; 17 led by 1.44 after 20).
   const int min_rotations = opt_.min_rotations + (t.validated == 0 ? 1 : 0);
-  t.confirmed = t.rotations >= min_rotations && t.margin >= min_margin && scored && !other_better;
+  t.confirmed = t.rotations >= min_rotations && t.margin >= min_margin &&
+                (t.mean_score >= min_score_ || fused_path);
+  if (!t.confirmed) return;
+  const double fused =
+      fused_grid_score(fam.dict, lead, lead_grid, lead_counts, opt_.full_cell_votes);
+  // Another family fitting better makes it that family's tag (as the detector's
+  // decode/other_family for one rotation). Over the rotations whose candidates were decoded
+  // against the other families, best against best as there: the leading function's own score is
+  // lower in the rotations another function of the family led, and the decoys' best would beat
+  // it by that alone (a VLP-32C's 1.2 m tag16h5 at 24 m and 45 degrees, whose codes tag16h6
+  // shares, was never confirmed). And over the fused votes, on every other built-in family's own
+  // grid at the leader's place (best_decoy_score): far tags' candidates are mostly too poor to
+  // be decoded against the other families, and a 1.2 m tag25h9 at 24 m and 45 degrees, cut to
+  // its size, was confirmed as a tag16h5 code by its rotations' mean score (0.823, margin 0.90
+  // cells) while its fused votes fitted tag25h9 better.
+  const bool other_mean = t.other_count > 0 && t.other_sum > t.own_sum + 1e-6 * t.other_count;
+  t.confirmed = !other_mean && !(best_decoy_score(t, fam.dict, lead) > fused + kDecoyTolerance);
+}
+
+double Tracker::best_decoy_score(const Track& t, const RkhsDictionary& own, int lead) {
+  double best = -1.0;
+  const auto full = static_cast<float>(opt_.full_cell_votes);
+  const auto own_cells = static_cast<size_t>(own.width() * own.width());
+  for (size_t d = 0; d < decoys_.size(); ++d) {
+    const RkhsDictionary& dict = decoys_[d];
+    const auto cells = static_cast<size_t>(dict.width() * dict.width());
+    const size_t base = static_cast<size_t>(t.shift) * decoy_cells_ + decoy_offsets_[d];
+    const auto& vary = dict.varying_cells();
+    values_.resize(vary.size());
+    for (size_t k = 0; k < vary.size(); ++k) {
+      const size_t i = base + static_cast<size_t>(vary[k]);
+      values_[k] = cell_value(t.decoy_votes[i], t.decoy_purity[i], t.decoy_counts[i], full);
+    }
+    score_functions(dict, values_, tables_, scores_);
+    // Its best function, other than the leader's own pattern (families that share codes, such as
+    // tag16h5 and tag16h6, tie there and stay with the configured one).
+    int f = -1;
+    for (int k = 0; k < dict.functions(); ++k) {
+      if (f >= 0 && scores_[static_cast<size_t>(k)] <= scores_[static_cast<size_t>(f)]) continue;
+      if (cells == own_cells && std::equal(dict.signs(k), dict.signs(k) + cells, own.signs(lead)))
+        continue;
+      f = k;
+    }
+    if (f < 0) continue;
+    fused_votes_.resize(cells);
+    for (size_t i = 0; i < cells; ++i)
+      fused_votes_[i] = cell_value(t.decoy_votes[base + i], t.decoy_purity[base + i],
+                                   t.decoy_counts[base + i], 0.0f) *
+                        t.decoy_counts[base + i];
+    best =
+        std::max(best, fused_grid_score(dict, f, fused_votes_,
+                                        std::span<const float>(t.decoy_counts).subspan(base, cells),
+                                        opt_.full_cell_votes));
+  }
+  return best;
 }
 
 void Tracker::fill_info(const Track& t, TrackInfo& info) const {

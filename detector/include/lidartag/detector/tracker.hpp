@@ -292,6 +292,11 @@ class Tracker {
   void start(Track& t, const Candidate& c);
   void add(Track& t, const Candidate& c, const ScanResult& result, int64_t stamp_ns);
   void add_evidence(Track& t, const Candidate& c, const ScanResult& result);
+  // The best fused grid score (fused_grid_score) of any decoy family's function on the track's
+  // votes at its leading grid's place, the leader's own pattern (function `lead` of `own`: a
+  // family that shares codes ties there) excluded; -1 with no decoy or no vote. Overwrites the
+  // scoring scratch.
+  double best_decoy_score(const Track& t, const RkhsDictionary& own, int lead);
   void fill_info(const Track& t, TrackInfo& info) const;
   void report(const ScanResult& result, TrackerResult& out) const;
 
@@ -300,15 +305,22 @@ class Tracker {
   double size_warning_ratio_ = 0.03;  // the detector's pose.size_warning_ratio
   double vote_inset_ = 0.05;          // the detector's decode.vote_inset_cells
   std::vector<Family> families_;
+  // The built-in families not configured (the detector's decode.reject_other_families): each
+  // track's votes are also summed on their grids, so that a track whose fused evidence fits
+  // another family better is never confirmed as a tag of its own family. Each decoy's grid starts
+  // at decoy_offsets_[k] of a track's decoy_* arrays.
+  std::vector<RkhsDictionary> decoys_;
+  std::vector<size_t> decoy_offsets_;
+  size_t decoy_cells_ = 0;     // the cells of every decoy's grid, one shift
   std::vector<Track> tracks_;  // the pool, max_tracks of them
   std::vector<Pair> pairs_;
   std::vector<int> assigned_;   // per candidate of the rotation: the track it joined, or -1
   std::vector<Placed> placed_;  // per candidate of the rotation
   std::vector<float> values_, tables_, scores_;  // scoring scratch
-  std::vector<float> fused_votes_;               // the leading grid's votes for fused_grid_score
-  std::vector<float> best_;                      // per function: its best score over the grids
-  std::vector<int> best_grid_;                   // ... and that grid
-  std::vector<TimedPose> ordered_;               // a window, oldest first
+  std::vector<float> fused_votes_;  // the leading grid's votes for fused_grid_score (or a decoy's)
+  std::vector<float> best_;         // per function: its best score over the grids
+  std::vector<int> best_grid_;      // ... and that grid
+  std::vector<TimedPose> ordered_;  // a window, oldest first
   Motion fleet_;          // the motion of the tags that show it best (the sensor's, reversed)
   int64_t epoch_ns_ = 0;  // the tracker's clock starts at the first stamp
   int64_t last_stamp_ns_ = 0;
