@@ -84,18 +84,6 @@ struct Footprint {
   double across_column = 0.0, across_row = 0.0;
 };
 
-// A rotation's vote kept for voting again: the point in the sensor's frame at the candidate's
-// time, its vote and its footprint (cells of the track's grid).
-struct StoredVote {
-  Eigen::Vector3f point;
-  float vote = 0.0f;
-  Footprint fp;
-};
-
-// The most votes of one rotation kept for voting again: a far tag's rotations, whose poses
-// scatter most, have 35-70; a near tag's hundreds are voted once (their poses scatter little).
-constexpr int kSlotVotes = 160;
-
 // The footprint of the beam to `point` (sensor's frame; an ellipse of full divergences div_h_rad
 // across the scan and div_v_rad along it) laid on the tag's plane (normal `normal`) and turned
 // into the track's frame (`to_track`; cells_per_m the grid's cells per metre). Across a border its
@@ -142,76 +130,6 @@ float cell_value(float votes, float purity, float counts, float full) {
   return purity > 0.0f ? votes / purity * (counts / std::max(counts, full)) : 0.0f;
 }
 
-// Where a track's votes go: its grids of kShifts x W x W cells and its decoys' grids.
-struct VoteGrids {
-  float *votes, *purity, *counts;
-  float *decoy_votes, *decoy_purity, *decoy_counts;
-};
-
-// What voting a point on a track's grids needs.
-struct VoteContext {
-  int W = 0;
-  size_t cells = 0;
-  double size_m = 0.0, step = 0.0, inset = 0.0;
-  int axis = 0, first_grid = 0, last_grid = 0;
-  std::span<const RkhsDictionary> decoys;
-  std::span<const size_t> decoy_offsets;
-  size_t decoy_cells = 0;
-};
-
-VoteContext make_context(int W, double size_m, int axis, double inset,
-                         std::span<const RkhsDictionary> decoys,
-                         std::span<const size_t> decoy_offsets, size_t decoy_cells) {
-  VoteContext x;
-  x.W = W;
-  x.cells = static_cast<size_t>(W * W);
-  x.size_m = size_m;
-  x.step = size_m / W / 4.0;
-  x.inset = inset;
-  x.axis = axis;
-  x.first_grid = axis == 0 ? kCentre : 0;
-  x.last_grid = axis == 0 ? kCentre : kShifts - 1;
-  x.decoys = decoys;
-  x.decoy_offsets = decoy_offsets;
-  x.decoy_cells = decoy_cells;
-  return x;
-}
-
-// One vote at `q` (the track's frame) on each grid a shift keeps it inside a cell of, weighted by
-// its footprint's purity there; the decoys' grids at the same shifts, the footprint scaled to
-// their cells.
-void vote_point(const VoteContext& x, const VoteGrids& g, const Eigen::Vector3d& q,
-                const Footprint& fp, float vote) {
-  for (int s = x.first_grid; s <= x.last_grid; ++s) {
-    const double sh = (s - kCentre) * x.step;
-    const double y = q.y() - (x.axis == 1 ? sh : 0.0), z = q.z() - (x.axis == 2 ? sh : 0.0);
-    const int i = vote_cell(y / x.size_m, z / x.size_m, x.W, x.inset);
-    if (i >= 0) {
-      const double fc = (y / x.size_m + 0.5) * x.W, fr = (0.5 - z / x.size_m) * x.W;
-      const auto w =
-          static_cast<float>(footprint_purity(fp, fc - std::floor(fc), fr - std::floor(fr)));
-      const size_t k = static_cast<size_t>(s) * x.cells + static_cast<size_t>(i);
-      g.votes[k] += w * vote;
-      g.purity[k] += w;
-      g.counts[k] += 1.0f;
-    }
-    for (size_t d = 0; d < x.decoys.size(); ++d) {
-      const int wd = x.decoys[d].width();
-      const int j = vote_cell(y / x.size_m, z / x.size_m, wd, x.inset);
-      if (j < 0) continue;
-      const double sc = static_cast<double>(wd) / x.W;
-      const double dc = (y / x.size_m + 0.5) * wd, dr = (0.5 - z / x.size_m) * wd;
-      const auto w = static_cast<float>(footprint_purity(
-          {fp.across_column * sc, fp.across_row * sc}, dc - std::floor(dc), dr - std::floor(dr)));
-      const size_t k =
-          static_cast<size_t>(s) * x.decoy_cells + x.decoy_offsets[d] + static_cast<size_t>(j);
-      g.decoy_votes[k] += w * vote;
-      g.decoy_purity[k] += w;
-      g.decoy_counts[k] += 1.0f;
-    }
-  }
-}
-
 }  // namespace
 
 namespace {
@@ -247,14 +165,6 @@ struct Tracker::Track {
   // The same on each decoy family's grid (Tracker::decoys_), kShifts of them: shift g's grids
   // from g x decoy_cells_ on.
   std::vector<float> decoy_votes, decoy_purity, decoy_counts;
-  // The votes of the rotations that left the window (or had more than kSlotVotes points), voted
-  // once with the track's pose then; the grids above are these plus the window's rotations,
-  // voted again at every update with the track's latest model at their own times.
-  std::vector<float> frozen_votes, frozen_purity, frozen_counts;
-  std::vector<float> frozen_decoy_votes, frozen_decoy_purity, frozen_decoy_counts;
-  // Per window slot: its rotation's votes (kSlotVotes at most), and how many.
-  std::vector<StoredVote> slot_votes;
-  std::vector<int> slot_count;
   // The axis of the track's frame along which its tag's place is searched (1: y, 2: z; 0: none,
   // every side seen), from its first candidate whose shift decoding searched; the extent of the
   // voted points along it (track frame, metres), and the grid that leads.
@@ -351,10 +261,6 @@ Tracker::Tracker(TrackerOptions options, const DetectorOptions& detector)
     t.decoy_votes.assign(kShifts * decoy_cells_, 0.0f);
     t.decoy_purity.assign(kShifts * decoy_cells_, 0.0f);
     t.decoy_counts.assign(kShifts * decoy_cells_, 0.0f);
-    t.frozen_votes = t.frozen_purity = t.frozen_counts = t.votes;
-    t.frozen_decoy_votes = t.frozen_decoy_purity = t.frozen_decoy_counts = t.decoy_votes;
-    t.slot_votes.resize(static_cast<size_t>(opt_.window * kSlotVotes));
-    t.slot_count.assign(static_cast<size_t>(opt_.window), 0);
     t.window.resize(static_cast<size_t>(opt_.window));
     t.window_points.assign(static_cast<size_t>(opt_.window), 0);
     t.odometry.resize(static_cast<size_t>(opt_.window));
@@ -609,10 +515,6 @@ void Tracker::start(Track& t, const Candidate& c) {
   std::fill(t.decoy_votes.begin(), t.decoy_votes.end(), 0.0f);
   std::fill(t.decoy_purity.begin(), t.decoy_purity.end(), 0.0f);
   std::fill(t.decoy_counts.begin(), t.decoy_counts.end(), 0.0f);
-  for (auto* v : {&t.frozen_votes, &t.frozen_purity, &t.frozen_counts, &t.frozen_decoy_votes,
-                  &t.frozen_decoy_purity, &t.frozen_decoy_counts})
-    std::fill(v->begin(), v->end(), 0.0f);
-  std::fill(t.slot_count.begin(), t.slot_count.end(), 0);
   t.axis = 0;
   t.square = false;
   t.lo = t.hi = 0.0;
@@ -639,13 +541,8 @@ void Tracker::add(Track& t, const Candidate& c, const ScanResult& result, int64_
     t.size_sum += c.measured_size_m;
     ++t.size_count;
   }
-  // The window: the frame turned into the track's frame, at the candidate's time. The votes of
-  // the rotation it replaces are frozen where the track's model puts them now.
+  // The window: the frame turned into the track's frame, at the candidate's time.
   const auto w = static_cast<size_t>(t.window_next);
-  if (t.slot_count[w] > 0) {
-    vote_slot(t, w, true);
-    t.slot_count[w] = 0;
-  }
   t.window[w] = {time_of(c, stamp_ns), c.position,
                  Eigen::Quaterniond(c.undecoded_orientation.normalized().toRotationMatrix() *
                                     quarter_turn(t.delta))};
@@ -763,46 +660,49 @@ void Tracker::add_evidence(Track& t, const Candidate& c, const ScanResult& resul
   const double div_h = opt_.beam_divergence_h_mrad * 1e-3,
                div_v = opt_.beam_divergence_v_mrad * 1e-3;
   const double cells_per_m = W / t.size_m;
-  // The rotation's votes kept in its window slot (the one add() filled), to be voted again with
-  // the track's model at every update: a far tag's first rotations are voted with a pose of one
-  // or two rotations, which scatters by 2-3 cm and 3 degrees at 28 m. A rotation with more
-  // votes than a slot holds is voted once, now.
-  const auto slot = static_cast<size_t>((t.window_next + opt_.window - 1) % opt_.window);
-  const auto points = result.vote_points_of(c);
-  const bool keep = points.size() <= static_cast<size_t>(kSlotVotes);
-  const VoteContext x =
-      make_context(W, t.size_m, t.axis, vote_inset_, decoys_, decoy_offsets_, decoy_cells_);
-  const VoteGrids frozen{t.frozen_votes.data(),        t.frozen_purity.data(),
-                         t.frozen_counts.data(),       t.frozen_decoy_votes.data(),
-                         t.frozen_decoy_purity.data(), t.frozen_decoy_counts.data()};
-  t.slot_count[slot] = 0;
-  for (const VotePoint& p : points) {
-    const Eigen::Vector3d local(p.x, p.y, p.z);
-    const Eigen::Vector3d q = m * local + offset;
-    const Eigen::Vector3d sensor = frame * local + c.position;
-    const Footprint fp =
-        footprint_on_tag(sensor, frame.col(0), sensor_to_track, div_h, div_v, cells_per_m);
-    if (t.axis != 0) {
-      t.lo = std::min(t.lo, q[t.axis]);
-      t.hi = std::max(t.hi, q[t.axis]);
+  {
+    for (const VotePoint& p : result.vote_points_of(c)) {
+      const Eigen::Vector3d local(p.x, p.y, p.z);
+      const Eigen::Vector3d q = m * local + offset;
+      const Footprint fp = footprint_on_tag(frame * local + c.position, frame.col(0),
+                                            sensor_to_track, div_h, div_v, cells_per_m);
+      if (t.axis != 0) {
+        t.lo = std::min(t.lo, q[t.axis]);
+        t.hi = std::max(t.hi, q[t.axis]);
+      }
+      const float vote = point_vote(p.label);
+      for (int g = first_grid; g <= last_grid; ++g) {
+        const double sh = (g - kCentre) * step;
+        const double y = q.y() - (t.axis == 1 ? sh : 0.0), z = q.z() - (t.axis == 2 ? sh : 0.0);
+        const int i = vote_cell(y / t.size_m, z / t.size_m, W, vote_inset_);
+        if (i >= 0) {
+          const double fc = (y / t.size_m + 0.5) * W, fr = (0.5 - z / t.size_m) * W;
+          const auto w =
+              static_cast<float>(footprint_purity(fp, fc - std::floor(fc), fr - std::floor(fr)));
+          const size_t k = static_cast<size_t>(g) * cells + static_cast<size_t>(i);
+          t.votes[k] += w * vote;
+          t.purity[k] += w;
+          t.counts[k] += 1.0f;
+        }
+        // The decoy families' grids at the same shift: the footprint scales with their cells.
+        for (size_t d = 0; d < decoys_.size(); ++d) {
+          const int Wd = decoys_[d].width();
+          const int j = vote_cell(y / t.size_m, z / t.size_m, Wd, vote_inset_);
+          if (j < 0) continue;
+          const double sc = static_cast<double>(Wd) / W;
+          const double dc = (y / t.size_m + 0.5) * Wd, dr = (0.5 - z / t.size_m) * Wd;
+          const auto wd =
+              static_cast<float>(footprint_purity({fp.across_column * sc, fp.across_row * sc},
+                                                  dc - std::floor(dc), dr - std::floor(dr)));
+          const size_t kd =
+              static_cast<size_t>(g) * decoy_cells_ + decoy_offsets_[d] + static_cast<size_t>(j);
+          t.decoy_votes[kd] += wd * vote;
+          t.decoy_purity[kd] += wd;
+          t.decoy_counts[kd] += 1.0f;
+        }
+      }
     }
-    const float vote = point_vote(p.label);
-    if (!keep) {
-      vote_point(x, frozen, q, fp, vote);
-      continue;
-    }
-    t.slot_votes[slot * kSlotVotes + static_cast<size_t>(t.slot_count[slot]++)] = {
-        sensor.cast<float>(), vote, fp};
   }
-  // The grids: the frozen votes and the window's, each rotation where the model puts the tag at
-  // its time.
-  t.votes = t.frozen_votes;
-  t.purity = t.frozen_purity;
-  t.counts = t.frozen_counts;
-  t.decoy_votes = t.frozen_decoy_votes;
-  t.decoy_purity = t.frozen_decoy_purity;
-  t.decoy_counts = t.frozen_decoy_counts;
-  for (int k = 0; k < t.window_count; ++k) vote_slot(t, static_cast<size_t>(k), false);
   // The decision: every function scored on the cells that tell functions apart, each cell's votes
   // averaged (a cell with fewer than full_cell_votes votes counts proportionally less), in each
   // grid whose shift keeps the points inside the tag (and the track's pose); each function's best
@@ -878,28 +778,6 @@ void Tracker::add_evidence(Track& t, const Candidate& c, const ScanResult& resul
   // cells) while its fused votes fitted tag25h9 better.
   const bool other_mean = t.other_count > 0 && t.other_sum > t.own_sum + 1e-6 * t.other_count;
   t.confirmed = !other_mean && !(best_decoy_score(t, fam.dict, lead) > fused + kDecoyTolerance);
-}
-
-void Tracker::vote_slot(Track& t, size_t slot, bool frozen) const {
-  const int n = t.slot_count[slot];
-  if (n == 0) return;
-  const Family& fam = families_[static_cast<size_t>(t.family)];
-  const VoteContext x = make_context(fam.dict.width(), t.size_m, t.axis, vote_inset_, decoys_,
-                                     decoy_offsets_, decoy_cells_);
-  const VoteGrids g =
-      frozen ? VoteGrids{t.frozen_votes.data(),        t.frozen_purity.data(),
-                         t.frozen_counts.data(),       t.frozen_decoy_votes.data(),
-                         t.frozen_decoy_purity.data(), t.frozen_decoy_counts.data()}
-             : VoteGrids{t.votes.data(),       t.purity.data(),       t.counts.data(),
-                         t.decoy_votes.data(), t.decoy_purity.data(), t.decoy_counts.data()};
-  // The track's pose at the slot's time, by its model (in the sensor's frame).
-  const TimedPose pose =
-      predict({t.ref_t_s, t.ref_position, t.ref_frame}, t.motion, t.window[slot].t_s - t.ref_t_s);
-  const Eigen::Matrix3d to_track = pose.frame.toRotationMatrix().transpose();
-  for (int i = 0; i < n; ++i) {
-    const StoredVote& v = t.slot_votes[slot * kSlotVotes + static_cast<size_t>(i)];
-    vote_point(x, g, to_track * (v.point.cast<double>() - pose.position), v.fp, v.vote);
-  }
 }
 
 double Tracker::best_decoy_score(const Track& t, const RkhsDictionary& own, int lead) {

@@ -292,9 +292,6 @@ class Tracker {
   void start(Track& t, const Candidate& c);
   void add(Track& t, const Candidate& c, const ScanResult& result, int64_t stamp_ns);
   void add_evidence(Track& t, const Candidate& c, const ScanResult& result);
-  // The votes kept in window slot `slot`, voted where the track's model puts the tag at that
-  // rotation's time: on its frozen grids (the rotation leaves the window) or its live ones.
-  void vote_slot(Track& t, size_t slot, bool frozen) const;
   // The best fused grid score (fused_grid_score) of any decoy family's function on the track's
   // votes at its leading grid's place, the leader's own pattern (function `lead` of `own`: a
   // family that shares codes ties there) excluded; -1 with no decoy or no vote. Overwrites the
