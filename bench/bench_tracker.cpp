@@ -937,6 +937,7 @@ int main(int argc, char** argv) {
       args.command += " --board-margin " + v;
     } else if (a == "--printed-family") {
       args.printed_family = value("--printed-family");
+      args.command += " --printed-family " + args.printed_family;
     } else if (a == "--first-run") {
       args.first_run = count("--first-run", 0);
     } else if (a == "--out") {
@@ -946,9 +947,8 @@ int main(int argc, char** argv) {
       std::fprintf(
           stderr,
           "usage: bench_tracker [--runs N] [--rotations R] [--quick] [--trace] [--fixed-height] "
-          "[--cell MODEL:DISTANCE:ANGLE ...] [--first-run K] [--board-margin M] [--printed-family "
-          "F] "
-          "[--extras] [--motion] [--deskew] [--out DIR]\n");
+          "[--cell MODEL:DISTANCE:ANGLE ...] [--first-run K] [--board-margin M] "
+          "[--printed-family F] [--extras] [--motion] [--deskew] [--out DIR]\n");
       return 2;
     }
   }

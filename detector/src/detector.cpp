@@ -84,11 +84,9 @@ Detector::Detector(DetectorOptions options) : opt_(std::move(options)) {
   try {
     for (const auto& f : opt_.families) dicts_.emplace_back(tags::resolve_family(f));
     if (opt_.decode.reject_other_families) {
-      for (const auto& name : tags::builtin_family_names()) {
-        const bool configured = std::any_of(dicts_.begin(), dicts_.end(),
-                                            [&](const auto& d) { return d.family().name == name; });
-        if (!configured) decoys_.emplace_back(tags::builtin_family(name));
-      }
+      std::vector<std::string> configured;
+      for (const auto& d : dicts_) configured.push_back(d.family().name);
+      decoys_ = other_builtin_dictionaries(configured);
     }
   } catch (const tags::FamilyError& e) {
     throw OptionsError("families", "", e.what());

@@ -472,4 +472,12 @@ double seen_cells_lead(const RkhsDictionary& dict, int function, std::span<const
   return static_cast<double>(ws.scores[static_cast<size_t>(function)] - rival) / 2.0;
 }
 
+std::vector<RkhsDictionary> other_builtin_dictionaries(std::span<const std::string> configured) {
+  std::vector<RkhsDictionary> out;
+  for (const auto& name : tags::builtin_family_names())
+    if (std::find(configured.begin(), configured.end(), name) == configured.end())
+      out.emplace_back(tags::builtin_family(name));
+  return out;
+}
+
 }  // namespace lidartag::detector

@@ -131,6 +131,15 @@ float cell_value(float votes, float purity, float counts, float full) {
   return purity > 0.0f ? votes / purity * (counts / std::max(counts, full)) : 0.0f;
 }
 
+// A grid's votes for fused_grid_score: each cell's purity-weighted mean vote times its number of
+// votes (`votes`, `purity` and `counts` of one grid, `out` resized to them).
+void fused_votes(std::span<const float> votes, std::span<const float> purity,
+                 std::span<const float> counts, std::vector<float>& out) {
+  out.resize(counts.size());
+  for (size_t i = 0; i < counts.size(); ++i)
+    out[i] = cell_value(votes[i], purity[i], counts[i], 0.0f) * counts[i];
+}
+
 }  // namespace
 
 namespace {
@@ -230,15 +239,9 @@ Tracker::Tracker(TrackerOptions options, const DetectorOptions& detector)
       cells = std::max(cells, fam.total_width * fam.total_width);
     }
     if (detector.decode.reject_other_families) {
-      for (const auto& name : tags::builtin_family_names()) {
-        const bool configured =
-            std::any_of(families_.begin(), families_.end(),
-                        [&](const Family& f) { return f.dict.family().name == name; });
-        if (configured) continue;
-        decoys_.emplace_back(tags::builtin_family(name));
-        most = std::max(most, decoys_.back().functions());
-        cells = std::max(cells, decoys_.back().width() * decoys_.back().width());
-      }
+      std::vector<std::string> configured;
+      for (const Family& f : families_) configured.push_back(f.dict.family().name);
+      decoys_ = other_builtin_dictionaries(configured);
     }
   } catch (const tags::FamilyError& e) {
     throw OptionsError("families", "", e.what());
@@ -246,6 +249,8 @@ Tracker::Tracker(TrackerOptions options, const DetectorOptions& detector)
   for (const auto& d : decoys_) {
     decoy_offsets_.push_back(decoy_cells_);
     decoy_cells_ += static_cast<size_t>(d.width() * d.width());
+    most = std::max(most, d.functions());
+    cells = std::max(cells, d.width() * d.width());
   }
   tracks_.resize(static_cast<size_t>(opt_.max_tracks));
   scores_.reserve(static_cast<size_t>(most));
@@ -744,15 +749,12 @@ void Tracker::add_evidence(Track& t, const Candidate& c, const ScanResult& resul
   // The score: the rotations' mean, or the fused grid's under a stricter margin (the far edge,
   // where each rotation's own fit scores low: fused_grid_confirms), on the leader's own grid (the
   // unshifted one unless the track searches its place).
-  // The fused grid's votes: each cell's purity-weighted mean vote times its number of votes.
-  fused_votes_.resize(cells);
-  for (size_t i = 0; i < cells; ++i) {
-    const size_t k = static_cast<size_t>(t.shift) * cells + i;
-    fused_votes_[i] = cell_value(t.votes[k], t.purity[k], t.counts[k], 0.0f) * t.counts[k];
-  }
+  const size_t lead_base = static_cast<size_t>(t.shift) * cells;
+  const auto lead_counts = std::span<const float>(t.counts).subspan(lead_base, cells);
+  fused_votes(std::span<const float>(t.votes).subspan(lead_base, cells),
+              std::span<const float>(t.purity).subspan(lead_base, cells), lead_counts,
+              fused_votes_);
   const auto lead_grid = std::span<const float>(fused_votes_);
-  const auto lead_counts =
-      std::span<const float>(t.counts).subspan(static_cast<size_t>(t.shift) * cells, cells);
   const bool fused_path =
       fused_grid_confirms(fam.dict, lead, lead_grid, lead_counts, opt_.full_cell_votes, t.margin,
                           min_score_, opt_.fused_min_score, opt_.fused_min_margin_cells);
@@ -806,15 +808,10 @@ double Tracker::best_decoy_score(const Track& t, const RkhsDictionary& own, int 
       f = k;
     }
     if (f < 0) continue;
-    fused_votes_.resize(cells);
-    for (size_t i = 0; i < cells; ++i)
-      fused_votes_[i] = cell_value(t.decoy_votes[base + i], t.decoy_purity[base + i],
-                                   t.decoy_counts[base + i], 0.0f) *
-                        t.decoy_counts[base + i];
-    best =
-        std::max(best, fused_grid_score(dict, f, fused_votes_,
-                                        std::span<const float>(t.decoy_counts).subspan(base, cells),
-                                        opt_.full_cell_votes));
+    const auto counts = std::span<const float>(t.decoy_counts).subspan(base, cells);
+    fused_votes(std::span<const float>(t.decoy_votes).subspan(base, cells),
+                std::span<const float>(t.decoy_purity).subspan(base, cells), counts, fused_votes_);
+    best = std::max(best, fused_grid_score(dict, f, fused_votes_, counts, opt_.full_cell_votes));
   }
   return best;
 }

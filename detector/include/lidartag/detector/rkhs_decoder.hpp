@@ -8,6 +8,7 @@
 #include <array>
 #include <cstdint>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "lidartag/detector/tag_family.hpp"
@@ -131,6 +132,11 @@ class RkhsDictionary {
   std::vector<int> varying_;
   std::vector<uint8_t> chunks_;  // functions x chunk_count()
 };
+
+// The dictionaries of the built-in families whose names are not among `configured` (the families
+// a detector or tracker looks for): what decode.reject_other_families decodes against, in the
+// detector one rotation at a time and in the tracker over a track's votes.
+std::vector<RkhsDictionary> other_builtin_dictionaries(std::span<const std::string> configured);
 
 // The black and the white intensity level of a cluster: the points split around their mean
 // intensity, the median of each side. Invalid for no points.
