@@ -26,6 +26,7 @@
 #include "lidartag/driver/io/udp_frame.hpp"
 #include "lidartag/driver/ouster/models.hpp"
 #include "lidartag/driver/ouster/packet.hpp"
+#include "lidartag/driver/sources/model_name.hpp"
 
 namespace lidartag::daemon {
 
@@ -384,20 +385,16 @@ class Reader {
   }
   static void read(const std::string& name, const YAML::Node& n, ModelKey& out) {
     const std::string text = scalar(name, n);
-    if (driver::ouster::is_model_name(text)) {
+    if (text == "auto") {
       out.velodyne->reset();
-      *out.ouster = text;
+      out.ouster->clear();
       return;
     }
-    out.ouster->clear();
-    try {
-      read(name, n, *out.velodyne);
-    } catch (const ConfigError&) {
-      throw ConfigError(name, text,
-                        "expected auto, a Velodyne model (" + velodyne::model_names() +
-                            ") or an Ouster model (os0, os1 or os2 with 16, 32, 64 or 128 "
-                            "beams: os1-128)");
-    }
+    // The names every front end takes (driver::model_from_name: any case, "VLP-32C", "OS1-128").
+    const auto model = driver::model_from_name(text);
+    if (!model) throw ConfigError(name, text, "expected auto or a model: " + driver::model_names());
+    *out.velodyne = model->velodyne;
+    *out.ouster = model->ouster;
   }
   template <class T>
   static void read(const std::string& name, const YAML::Node& n, std::vector<T>& out) {
@@ -631,6 +628,11 @@ void check_relations(const DaemonOptions& o) {
         throw ConfigError(key + ".min_range_m", to_text(s.decoder.min_range_m),
                           fmt::format("must be below the model's maximum range ({} m)", limit));
       }
+    }
+    if (!s.ouster_model.empty() && !driver::ouster::is_model_name(s.ouster_model)) {
+      throw ConfigError(key + ".model", s.ouster_model,
+                        "expected a lower-case Ouster model name (os1-128; the configuration "
+                        "file takes any case)");
     }
     if (!s.ouster_model.empty() && s.metadata.empty()) {
       throw ConfigError(key + ".metadata", s.metadata,

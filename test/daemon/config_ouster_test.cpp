@@ -37,6 +37,16 @@ TEST(ConfigOuster, ModelNamesMetadataAndTheSensorsPorts) {
     EXPECT_EQ(again.sensors[i].source.position_port, o.sensors[i].source.position_port);
     EXPECT_EQ(again.sensors[i].source.topic, o.sensors[i].source.topic);
   }
+  // The names the tools' --model takes, in any case (driver::model_from_name).
+  const DaemonOptions cased = parse_config(
+      "sensors:\n"
+      "  - {name: a, model: OS1-128, metadata: /etc/os.json}\n"
+      "  - {name: b, channel_prefix: B_, model: VLP-32C}\n");
+  EXPECT_EQ(cased.sensors[0].ouster_model, "os1-128");
+  EXPECT_FALSE(cased.sensors[0].model);
+  EXPECT_EQ(cased.sensors[1].model, velodyne::Model::kVLP32C);
+  EXPECT_EQ(cased.sensors[1].ouster_model, "");
+  EXPECT_EQ(print_config(cased), print_config(parse_config(print_config(cased))));
   // --set overrides the same way.
   const DaemonOptions set = parse_config("", {"sensors[0].metadata=os.json"});
   EXPECT_EQ(set.sensors[0].source.data_port, 7502);
@@ -49,8 +59,9 @@ TEST(ConfigOuster, RulesBetweenModelMetadataAndCalibration) {
        "is Velodyne's"},
       {"sensors: [{calibration: c.yaml, metadata: os.json}]", "sensors[0].calibration", "c.yaml",
        "is Velodyne's"},
-      {"sensors: [{model: os3-64}]", "sensors[0].model", "os3-64", "an Ouster model"},
-      {"sensors: [{model: OS1-128}]", "sensors[0].model", "OS1-128", "an Ouster model"},
+      {"sensors: [{model: os3-64}]", "sensors[0].model", "os3-64", "Ouster: os0, os1, os2"},
+      {"sensors: [{model: os1-96}]", "sensors[0].model", "os1-96", "with -16, -32, -64 or -128"},
+      {"sensors: [{model: vlp64}]", "sensors[0].model", "vlp64", "expected auto or a model"},
   });
   // Options built in code obey the same rules.
   DaemonOptions built;
@@ -58,6 +69,8 @@ TEST(ConfigOuster, RulesBetweenModelMetadataAndCalibration) {
   EXPECT_THROW(validate(built), ConfigError);
   built.sensors[0].metadata = "os.json";
   EXPECT_NO_THROW(validate(built));
+  built.sensors[0].ouster_model = "os3-32";  // not a model
+  EXPECT_THROW(validate(built), ConfigError);
 }
 
 }  // namespace

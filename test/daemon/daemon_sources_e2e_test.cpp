@@ -284,7 +284,7 @@ TEST(OusterConfig, ModelAndMetadataErrors) {
        "not the configured model os1-128"},
       {"    model: os1-128\n", 2, "sensors[0].metadata"},
       {"    model: vlp32c\n    metadata: " + metadata + "\n", 2, "sensors[0].model"},
-      {"    model: os3-64\n", 2, "an Ouster model"},
+      {"    model: os3-64\n", 2, "Ouster: os0, os1, os2"},
       {"    metadata: /nonexistent/os.json\n", 1, "sensors[0].metadata"},
   };
   for (const Case& c : cases) {
