@@ -57,6 +57,9 @@ struct Cand {
   std::vector<bool> blurred;
   int blurred_votes = 0;
   int blurred_function = -1;
+  // Where the points sit in their cells: moved this share of a cell along the tag's y from the
+  // centre (a sensor whose firings drift from one rotation to the next samples other places).
+  double sample_shift = 0.0;
 };
 
 // Appends a candidate as the detector reports one: the normalised score of every function (the
@@ -102,7 +105,8 @@ void add(ScanResult& r, const RkhsDictionary& dict, const Cand& c) {
   const Eigen::Vector3d centre = c.tag_at.value_or(c.position);
   for (int i = 0; i < W * W; ++i) {
     if (!c.observed.empty() && !c.observed[static_cast<size_t>(i)]) continue;
-    const double y = ((i % W + 0.5) / W - 0.5) * c.size, z = (0.5 - (i / W + 0.5) / W) * c.size;
+    const double y = ((i % W + 0.5 + c.sample_shift) / W - 0.5) * c.size,
+                 z = (0.5 - (i / W + 0.5) / W) * c.size;
     const Eigen::Vector3d p = centre + c.frame * Eigen::Vector3d(0.0, y, z);
     const Eigen::Vector3d q = c.frame.transpose() * (p - c.position);
     const float label = dict.signs(f)[i] > 0 ? 1.0f : 0.0f;
@@ -319,9 +323,15 @@ TEST_F(TrackerTest, TheFusedGridConfirmsATagWhoseRotationsScoreLow) {
   c.fit_score = 0.75f;
   c.position = {22.0, 22.0, 0.0};
   c.points = 60;
+  // Each rotation samples the cells at other places (a Velodyne's firings drift).
+  auto at = [&](int k) {
+    Cand r = c;
+    r.sample_shift = 0.2 * (k % 2) - 0.1;
+    return r;
+  };
   {
     Tracker tracker({}, det_opt);
-    for (int k = 0; k < 3; ++k) step(tracker, {c});
+    for (int k = 0; k < 3; ++k) step(tracker, {at(k)});
     ASSERT_EQ(out.seen.size(), 1u);
     EXPECT_LT(out.seen[0].mean_score, det_opt.decode.min_score);
     EXPECT_TRUE(out.seen[0].confirmed);
@@ -330,8 +340,37 @@ TEST_F(TrackerTest, TheFusedGridConfirmsATagWhoseRotationsScoreLow) {
   TrackerOptions strict;
   strict.fused_min_margin_cells = 100.0;
   Tracker tracker(strict, det_opt);
-  for (int k = 0; k < 5; ++k) step(tracker, {c});
+  for (int k = 0; k < 5; ++k) step(tracker, {at(k)});
   EXPECT_FALSE(out.seen[0].confirmed);
+}
+
+// The same tag sampled at the same places in every rotation (an Ouster's columns at fixed encoder
+// angles, a static sensor): its fused grid is one rotation's with less noise, not a finer one, and
+// never confirms what the rotations' own scores do not. Half the rotations sampling anew is
+// enough. (128 points a rotation: a far tag's; a tag of more than 256 is taken as sampled anew.)
+TEST_F(TrackerTest, TheFusedGridNeedsRotationsThatSampleTheTagAnew) {
+  Cand c;
+  c.fit_score = 0.75f;
+  c.position = {22.0, 22.0, 0.0};
+  c.points = 60;
+  c.votes = 2;
+  {
+    Tracker tracker({}, det_opt);
+    for (int k = 0; k < 8; ++k) {
+      step(tracker, {c});
+      ASSERT_EQ(out.seen.size(), 1u);
+      EXPECT_EQ(out.seen[0].id, c.code);
+      EXPECT_GE(out.seen[0].margin_cells, 1.0);
+      EXPECT_FALSE(out.seen[0].confirmed) << k;
+    }
+  }
+  Tracker tracker({}, det_opt);
+  for (int k = 0; k < 5; ++k) {
+    Cand r = c;
+    r.sample_shift = k % 4 == 1 || k % 4 == 2 ? 0.2 : 0.0;  // anew in rotations 2 and 4
+    step(tracker, {r});
+    EXPECT_EQ(out.seen[0].confirmed, k >= 2) << k;
+  }
 }
 
 // A tag `p0` (frame `f0`) fixed in the world, seen after the sensor turned `deg` about its z.

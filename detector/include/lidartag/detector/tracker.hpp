@@ -105,7 +105,9 @@ struct TrackerOptions {
   // right leaders of a VLP-32C's 1.2 m tag at 28-32 m and 45 degrees end at 0.88-0.94 after 20
   // rotations; the wrong leaders of a far tag of another family (tracker_e2e_test) reached 0.855
   // with a margin of 0.92 cells and up to 0.94 only with margins below 0.75, and the boards and
-  // clutter of the tests stay below 0.66. Raising either trades far tags for caution.
+  // clutter of the tests stay below 0.66. Raising either trades far tags for caution. Only for a
+  // track at least half of whose rotations sampled the tag anew (a static sensor firing at the
+  // same angles every rotation, such as an Ouster, adds no finer sampling over rotations).
   double fused_min_score = 0.88;
   double fused_min_margin_cells = 1.0;
   // The beam's full divergence across the scan (horizontal on a spinning sensor) and along it,
@@ -318,6 +320,8 @@ class Tracker {
   std::vector<Placed> placed_;  // per candidate of the rotation
   std::vector<float> values_, tables_, scores_;  // scoring scratch
   std::vector<float> fused_votes_;  // the leading grid's votes for fused_grid_score (or a decoy's)
+  std::vector<Eigen::Vector3f> directions_;  // a candidate's vote points' directions (resampling)
+  std::vector<float> resampling_scratch_;
   std::vector<float> best_;         // per function: its best score over the grids
   std::vector<int> best_grid_;      // ... and that grid
   std::vector<TimedPose> ordered_;  // a window, oldest first
