@@ -184,8 +184,7 @@ struct ModelKey {
 template <class T>
 std::string to_text(const T& v) {
   if constexpr (std::is_same_v<T, ModelKey>) {
-    if (!v.ouster->empty()) return *v.ouster;
-    return *v.velodyne ? std::string(velodyne::model_spec(**v.velodyne).name) : "auto";
+    return v.ouster->empty() ? to_text(*v.velodyne) : *v.ouster;
   } else if constexpr (std::is_same_v<T, std::optional<velodyne::Model>>) {
     return v ? std::string(velodyne::model_spec(*v).name) : "auto";
   } else {
@@ -372,16 +371,6 @@ class Reader {
                         std::numeric_limits<T>::max()));
       }
     }
-  }
-  static void read(const std::string& name, const YAML::Node& n,
-                   std::optional<velodyne::Model>& out) {
-    const std::string text = scalar(name, n);
-    if (text == "auto") {
-      out.reset();
-      return;
-    }
-    out = velodyne::model_from_name(text);
-    if (!out) throw ConfigError(name, text, "expected auto or " + velodyne::model_names());
   }
   static void read(const std::string& name, const YAML::Node& n, ModelKey& out) {
     const std::string text = scalar(name, n);

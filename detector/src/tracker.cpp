@@ -724,12 +724,19 @@ void Tracker::add_evidence(Track& t, const Candidate& c, const ScanResult& resul
   const double div_h = opt_.beam_divergence_h_mrad * 1e-3,
                div_v = opt_.beam_divergence_v_mrad * 1e-3;
   const double cells_per_m = W / t.size_m;
+  // The points' directions from the sensor, for whether this rotation sampled the tag anew (the
+  // fused grid's premise, below): kept for up to kSampleDirections points.
+  const auto vote_points = result.vote_points_of(c);
+  const bool keep_directions = vote_points.size() <= kSampleDirections;
+  directions_.clear();
   {
-    for (const VotePoint& p : result.vote_points_of(c)) {
+    for (const VotePoint& p : vote_points) {
       const Eigen::Vector3d local(p.x, p.y, p.z);
       const Eigen::Vector3d q = m * local + offset;
-      const Footprint fp = footprint_on_tag(frame * local + c.position, frame.col(0),
-                                            sensor_to_track, div_h, div_v, cells_per_m);
+      const Eigen::Vector3d sensor = frame * local + c.position;
+      if (keep_directions) directions_.push_back(sensor.normalized().cast<float>());
+      const Footprint fp =
+          footprint_on_tag(sensor, frame.col(0), sensor_to_track, div_h, div_v, cells_per_m);
       if (t.axis != 0) {
         t.lo = std::min(t.lo, q[t.axis]);
         t.hi = std::max(t.hi, q[t.axis]);
@@ -767,13 +774,6 @@ void Tracker::add_evidence(Track& t, const Candidate& c, const ScanResult& resul
       }
     }
   }
-  // Whether this rotation sampled the tag anew: the fused grid's premise (below).
-  const auto vote_points = result.vote_points_of(c);
-  directions_.clear();
-  if (vote_points.size() <= kSampleDirections)
-    for (const VotePoint& p : vote_points)
-      directions_.push_back(
-          (frame * Eigen::Vector3d(p.x, p.y, p.z) + c.position).normalized().cast<float>());
   if (t.rotations > 1 &&
       (directions_.empty() || t.last_directions.empty() ||
        resampling(directions_, t.last_directions, resampling_scratch_) >= kResampledShare))
