@@ -83,17 +83,15 @@ IntensityLevels intensity_levels(std::span<const ClusterPoint> points, DecodeWor
   mean /= static_cast<double>(points.size());
   if (bytes) {
     // The same medians from a histogram of each side: no sorting.
-    std::array<uint32_t, 256> below{}, above{};
+    // Indexed by side rather than branched on: a tag's points alternate between its colours.
+    std::array<std::array<uint32_t, 256>, 2> counts{};
     size_t n_below = 0;
     for (const auto& p : points) {
-      const auto v = static_cast<size_t>(p.intensity);
-      if (p.intensity < mean) {
-        ++below[v];
-        ++n_below;
-      } else {
-        ++above[v];
-      }
+      const bool low = p.intensity < mean;
+      ++counts[low ? 0 : 1][static_cast<size_t>(p.intensity)];
+      n_below += low ? 1 : 0;
     }
+    const auto &below = counts[0], &above = counts[1];
     if (n_below == 0) return lv;
     lv.black = histogram_element(below, n_below / 2);
     lv.white = histogram_element(above, (points.size() - n_below) / 2);
@@ -182,6 +180,100 @@ inline bool reach_of(const DecodePoint& p, int N, int reach, Reach& out) {
   return out.c0 <= out.c1 && out.r0 <= out.r1;
 }
 
+// The evidence accumulator's rows are kPad cells longer, and it has kPad more rows, than the
+// template: a point's kernel is added to a fixed 4 x 4 block of cells, whatever of it lies past
+// the template's edge landing in the padding.
+constexpr int kPad = 3;
+
+// Every point's kernel, weighed by its white-minus-black factor, into the cells it reaches (ws.acc,
+// stride W + kPad), for any samples per cell S: per axis the sum of its samples' factors in each
+// cell, then their products (the kernel is separable).
+void accumulate_any(int W, int S, double ratio_step, DecodeWorkspace& ws) {
+  const size_t n = ws.prepared.size();
+  const float *arg_w = ws.exps.data(), *arg_b = arg_w + n, *arg_c = arg_b + n, *arg_r = arg_c + n;
+  const auto stride = static_cast<size_t>(W + kPad);
+  // Per cell along one axis, the sum of the factors of its samples in reach; returns the cells.
+  auto cell_factors = [&](int j0, int j1, double ratio, std::vector<double>& out) {
+    double g = 1.0;
+    size_t m = 0;
+    int left = (j0 / S + 1) * S - j0;  // samples of the first cell in reach
+    out[0] = 0.0;
+    for (int j = j0; j <= j1; ++j) {
+      out[m] += g;
+      g *= ratio;
+      ratio *= ratio_step;
+      if (--left == 0 && j < j1) {
+        out[++m] = 0.0;
+        left = S;
+      }
+    }
+    return m + 1;
+  };
+  for (size_t i = 0; i < n; ++i) {
+    const auto [c0, c1, r0, r1] = ws.reach[i];
+    if (c0 < 0) continue;
+    const size_t ncol = cell_factors(c0, c1, arg_c[i], ws.ex);
+    const size_t nrow = cell_factors(r0, r1, arg_r[i], ws.ez);
+    const double k = static_cast<double>(arg_w[i]) - static_cast<double>(arg_b[i]);
+    for (size_t r = 0; r < nrow; ++r) {
+      const double kr = k * ws.ez[r];
+      double* out = ws.acc.data() + static_cast<size_t>(r0 / S) * stride +
+                    static_cast<size_t>(c0 / S) + r * stride;
+      for (size_t c = 0; c < ncol; ++c) out[c] += kr * ws.ex[c];
+    }
+  }
+}
+
+// accumulate_any for 2 samples per cell and a reach of at most 2 samples (the defaults): at most
+// 6 samples, so 4 cells, per axis, in straight-line code. The 6 factors from the first sample on
+// (zero past the last one in reach), paired into cells by the first sample's parity, and the 4 x 4
+// block added whole (zeros past the point's last cell): the same sums in the same order as
+// accumulate_any's (0 + g = g), without its loops' mispredicted exits and stores to the stack.
+void accumulate_two_samples(int W, double ratio_step, DecodeWorkspace& ws) {
+  const size_t n = ws.prepared.size();
+  const float *arg_w = ws.exps.data(), *arg_b = arg_w + n, *arg_c = arg_b + n, *arg_r = arg_c + n;
+  const auto stride = static_cast<size_t>(W + kPad);
+  // Cell m = kA[m] + kB[m] of {0, g0, ..., g5, 0}: samples (0, 1), (2, 3), (4, 5) from an even
+  // first sample; 0, (1, 2), (3, 4), 5 from an odd one.
+  static constexpr std::array<std::array<uint8_t, 4>, 2> kA = {{{1, 3, 5, 0}, {1, 2, 4, 6}}};
+  static constexpr std::array<std::array<uint8_t, 4>, 2> kB = {{{2, 4, 6, 0}, {0, 3, 5, 0}}};
+  auto cell_factors = [ratio_step](int j0, int j1, double ratio, std::array<double, 4>& out) {
+    // kKeep[j1 - j0][k]: 1 for the samples in reach, 0 past them (f * 1 and f * 0 are exact; a
+    // comparison here became a branch on the window's length).
+    static constexpr std::array<std::array<double, 6>, 6> kKeep = {{{1, 0, 0, 0, 0, 0},
+                                                                    {1, 1, 0, 0, 0, 0},
+                                                                    {1, 1, 1, 0, 0, 0},
+                                                                    {1, 1, 1, 1, 0, 0},
+                                                                    {1, 1, 1, 1, 1, 0},
+                                                                    {1, 1, 1, 1, 1, 1}}};
+    const auto& keep = kKeep[static_cast<size_t>(j1 - j0)];
+    std::array<double, 8> g{};
+    double f = 1.0;
+    for (size_t k = 0; k < 6; ++k) {
+      g[k + 1] = f * keep[k];
+      f *= ratio;
+      ratio *= ratio_step;
+    }
+    const auto& ia = kA[static_cast<size_t>(j0 & 1)];
+    const auto& ib = kB[static_cast<size_t>(j0 & 1)];
+    for (size_t m = 0; m < 4; ++m) out[m] = g[ia[m]] + g[ib[m]];
+  };
+  std::array<double, 4> fx{}, fz{};
+  for (size_t i = 0; i < n; ++i) {
+    const auto [c0, c1, r0, r1] = ws.reach[i];
+    if (c0 < 0) continue;
+    cell_factors(c0, c1, arg_c[i], fx);
+    cell_factors(r0, r1, arg_r[i], fz);
+    const double k = static_cast<double>(arg_w[i]) - static_cast<double>(arg_b[i]);
+    double* out =
+        ws.acc.data() + static_cast<size_t>(r0 >> 1) * stride + static_cast<size_t>(c0 >> 1);
+    for (size_t r = 0; r < 4; ++r, out += stride) {
+      const double kr = k * fz[r];
+      for (size_t c = 0; c < 4; ++c) out[c] += kr * fx[c];
+    }
+  }
+}
+
 // eq. (18) against a template function is a sum over its sample points; per cell of a
 // W x W template, the white-minus-black kernel sums of the prepared points make every code's inner
 // product a signed sum over cells. Fills `evidence` (W x W, row-major) and returns the sum of its
@@ -192,7 +284,7 @@ double accumulate_evidence(int W, const DecodeOptions& opt, DecodeWorkspace& ws,
   const int N = W * S;  // template sample points per axis
   const auto cells_w = static_cast<size_t>(W);
   const auto cells = cells_w * cells_w;
-  ws.acc.assign(cells, 0.0);
+  ws.acc.assign(static_cast<size_t>(W + kPad) * static_cast<size_t>(W + kPad), 0.0);
   // Everything in units of the tag size: the dictionary does not depend on t.
   const double sigma = opt.length_scale_cells / W;
   const double inv2s2 = 1.0 / (2 * sigma * sigma);
@@ -234,43 +326,20 @@ double accumulate_evidence(int W, const DecodeOptions& opt, DecodeWorkspace& ws,
     arg_r[i] = static_cast<float>(-a * (2 * (q.r0 - q.fr) + 1));
   }
   for (size_t i = 0; i < 4 * n; ++i) ws.exps[i] = exp_float(ws.exps[i]);
-  // Per cell along one axis, the sum of the factors of its samples in reach; returns the cells.
-  auto cell_factors = [&](int j0, int j1, double ratio, std::vector<double>& out) {
-    double g = 1.0;
-    size_t m = 0;
-    int left = (j0 / S + 1) * S - j0;  // samples of the first cell in reach
-    out[0] = 0.0;
-    for (int j = j0; j <= j1; ++j) {
-      out[m] += g;
-      g *= ratio;
-      ratio *= ratio_step;
-      if (--left == 0 && j < j1) {
-        out[++m] = 0.0;
-        left = S;
-      }
-    }
-    return m + 1;
-  };
-  for (size_t i = 0; i < n; ++i) {
-    const auto [c0, c1, r0, r1] = ws.reach[i];
-    if (c0 < 0) continue;
-    // The kernel is separable: a cell's sum over its S x S samples is the product of the sums of
-    // its sample rows and columns.
-    const size_t ncol = cell_factors(c0, c1, arg_c[i], ws.ex);
-    const size_t nrow = cell_factors(r0, r1, arg_r[i], ws.ez);
-    const double k = static_cast<double>(arg_w[i]) - static_cast<double>(arg_b[i]);
-    for (size_t r = 0; r < nrow; ++r) {
-      const double kr = k * ws.ez[r];
-      double* out = ws.acc.data() + static_cast<size_t>((r0 / S) * W + c0 / S) + r * cells_w;
-      for (size_t c = 0; c < ncol; ++c) out[c] += kr * ws.ex[c];
-    }
+  if (S == 2 && reach <= 2) {
+    accumulate_two_samples(W, ratio_step, ws);
+  } else {
+    accumulate_any(W, S, ratio_step, ws);
   }
   evidence.resize(cells);
   double total = 0.0;
-  for (size_t i = 0; i < cells; ++i) {
-    evidence[i] = static_cast<float>(ws.acc[i]);
-    total += std::fabs(evidence[i]);
-  }
+  const auto stride = static_cast<size_t>(W + kPad);
+  for (size_t r = 0; r < cells_w; ++r)
+    for (size_t c = 0; c < cells_w; ++c) {
+      const size_t i = r * cells_w + c;
+      evidence[i] = static_cast<float>(ws.acc[r * stride + c]);
+      total += std::fabs(evidence[i]);
+    }
   return total;
 }
 

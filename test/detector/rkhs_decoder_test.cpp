@@ -305,48 +305,57 @@ TEST(RkhsDecoder, BestAndRunnerUpAreThoseOfTheInnerProductWithEveryFunction) {
 
 // Each cell's evidence is eqs. (19), (21), (22) summed directly over the template samples in the
 // cell and the points whose kernel reaches them, white minus black: what the separable products,
-// the ratio recurrence and the vectorised exponentials compute.
+// the ratio recurrence and the vectorised exponentials compute. The defaults (2 samples per cell,
+// a reach of 2 samples) take the straight-line path; 3 samples per cell, or a longer length scale
+// (a reach of 3 samples), the general one.
 TEST(RkhsDecoder, CellEvidenceIsTheKernelSumOverEachCellsSamples) {
   std::mt19937 rng(23);
   std::normal_distribution<float> noise(0.0f, 1.0f);
   std::vector<ClusterPoint> pts;
   DecodeWorkspace ws;
-  const DecodeOptions opt;
-  for (const char* name : {"tag16h5", "tag25h9", "tag36h11"}) {
-    const RkhsDictionary dict(tags::builtin_family(name));
-    const int W = dict.width(), S = opt.samples_per_cell, N = W * S;
-    synth(dict.family(), 3, 1, {}, 3, pts);
-    for (auto& p : pts) {  // off the plane, off the grid, noisy, some off the tag
-      p.x += 0.02f * noise(rng);
-      p.y = p.y * 1.1f + 0.01f * noise(rng);
-      p.z += 0.3f / static_cast<float>(W);
-      p.intensity += 20.0f * noise(rng);
+  DecodeOptions three_samples, long_kernel;
+  three_samples.samples_per_cell = 3;
+  long_kernel.length_scale_cells = 0.4;
+  for (const auto& [path, opt] :
+       {std::pair{"defaults", DecodeOptions{}}, std::pair{"3 samples per cell", three_samples},
+        std::pair{"length scale 0.4 cells", long_kernel}}) {
+    for (const char* family : {"tag16h5", "tag25h9", "tag36h11"}) {
+      const std::string name = std::string(family) + ", " + path;
+      const RkhsDictionary dict(tags::builtin_family(family));
+      const int W = dict.width(), S = opt.samples_per_cell, N = W * S;
+      synth(dict.family(), 3, 1, {}, 3, pts);
+      for (auto& p : pts) {  // off the plane, off the grid, noisy, some off the tag
+        p.x += 0.02f * noise(rng);
+        p.y = p.y * 1.1f + 0.01f * noise(rng);
+        p.z += 0.3f / static_cast<float>(W);
+        p.intensity += 20.0f * noise(rng);
+      }
+      prepare_decode(pts, intensity_levels(pts, ws), 1.0, ws);
+      ASSERT_GE(decode_prepared(dict, opt, ws).function, 0) << name;
+      const double sigma = opt.length_scale_cells / W, inv2s2 = 1.0 / (2 * sigma * sigma);
+      const double lift = opt.lift_cells / W;
+      const double inv2li = 1.0 / (2 * opt.intensity_length_scale * opt.intensity_length_scale);
+      const int reach = static_cast<int>(std::ceil(3 * sigma * N));
+      std::vector<double> direct(static_cast<size_t>(W * W), 0.0);
+      for (const DecodePoint& p : ws.prepared) {
+        const double xl = p.xn + lift * p.label;
+        const double fc = (p.yn + 0.5) * N - 0.5, fr = (0.5 - p.zn) * N - 0.5;
+        const int ic = static_cast<int>(std::floor(fc)), ir = static_cast<int>(std::floor(fr));
+        for (int jr = std::max(0, ir - reach); jr <= std::min(N - 1, ir + reach + 1); ++jr)
+          for (int jc = std::max(0, ic - reach); jc <= std::min(N - 1, ic + reach + 1); ++jc) {
+            const double d2 = ((jc - fc) * (jc - fc) + (jr - fr) * (jr - fr)) / (N * N) * inv2s2;
+            const double white = std::exp(-d2 - (xl - lift) * (xl - lift) * inv2s2 -
+                                          (p.label - 1) * (p.label - 1) * inv2li);
+            const double black = std::exp(-d2 - xl * xl * inv2s2 - p.label * p.label * inv2li);
+            direct[static_cast<size_t>((jr / S) * W + jc / S)] += white - black;
+          }
+      }
+      double largest = 0.0;
+      for (double d : direct) largest = std::max(largest, std::fabs(d));
+      ASSERT_GT(largest, 1.0) << name;
+      for (size_t i = 0; i < direct.size(); ++i)
+        EXPECT_NEAR(ws.evidence[i], direct[i], 2e-6 * largest) << name << " cell " << i;
     }
-    prepare_decode(pts, intensity_levels(pts, ws), 1.0, ws);
-    ASSERT_GE(decode_prepared(dict, opt, ws).function, 0) << name;
-    const double sigma = opt.length_scale_cells / W, inv2s2 = 1.0 / (2 * sigma * sigma);
-    const double lift = opt.lift_cells / W;
-    const double inv2li = 1.0 / (2 * opt.intensity_length_scale * opt.intensity_length_scale);
-    const int reach = static_cast<int>(std::ceil(3 * sigma * N));
-    std::vector<double> direct(static_cast<size_t>(W * W), 0.0);
-    for (const DecodePoint& p : ws.prepared) {
-      const double xl = p.xn + lift * p.label;
-      const double fc = (p.yn + 0.5) * N - 0.5, fr = (0.5 - p.zn) * N - 0.5;
-      const int ic = static_cast<int>(std::floor(fc)), ir = static_cast<int>(std::floor(fr));
-      for (int jr = std::max(0, ir - reach); jr <= std::min(N - 1, ir + reach + 1); ++jr)
-        for (int jc = std::max(0, ic - reach); jc <= std::min(N - 1, ic + reach + 1); ++jc) {
-          const double d2 = ((jc - fc) * (jc - fc) + (jr - fr) * (jr - fr)) / (N * N) * inv2s2;
-          const double white = std::exp(-d2 - (xl - lift) * (xl - lift) * inv2s2 -
-                                        (p.label - 1) * (p.label - 1) * inv2li);
-          const double black = std::exp(-d2 - xl * xl * inv2s2 - p.label * p.label * inv2li);
-          direct[static_cast<size_t>((jr / S) * W + jc / S)] += white - black;
-        }
-    }
-    double largest = 0.0;
-    for (double d : direct) largest = std::max(largest, std::fabs(d));
-    ASSERT_GT(largest, 1.0) << name;
-    for (size_t i = 0; i < direct.size(); ++i)
-      EXPECT_NEAR(ws.evidence[i], direct[i], 2e-6 * largest) << name << " cell " << i;
   }
 }
 
