@@ -142,12 +142,11 @@ void print_trace_prefix(const Cell& c, int run) {
 }
 
 // The tag centre's height above the sensor's in run `run`: the cell's, moved by a share of the
-// beam spacing there, ((11 run) mod 30 + 0.5) / 30 - 0.5 of it (each of 30 offsets once in 30
-// runs, in another order than the codes), so that a cell's figure is no lucky or unlucky crossing
-// of the rings. --fixed-height: the cell's own.
+// beam spacing there (eval::run_height_share), so that a cell's figure is no lucky or unlucky
+// crossing of the rings. --fixed-height: the cell's own.
 double run_height(const Cell& c, int run, bool fixed) {
   if (fixed) return c.above;
-  const double share = ((11 * run) % 30 + 0.5) / 30.0 - 0.5;
+  const double share = eval::run_height_share(run);
   const double spacing =
       c.ouster ? eval::beam_spacing_m(driver::ouster::nominal_beam_altitudes_deg(*c.ouster),
                                       c.distance, c.above)
@@ -157,7 +156,7 @@ double run_height(const Cell& c, int run, bool fixed) {
 
 // R rotations of a static tag; counts from rotation index 3 (the 4th) on.
 void run_cell(Cell& c, int run, int rotations, bool trace, bool fixed_height) {
-  const int code = (7 * run + 3 * static_cast<int>(c.distance) + c.angle) % 30;
+  const int code = eval::run_code(run, c.distance, c.angle);
   const double above = run_height(c, run, fixed_height);
   sim::Scene scene = eval::accuracy_scene(c.model, c.distance, c.angle, code, c.size, above);
   if (c.ouster) {
@@ -181,13 +180,13 @@ void run_cell(Cell& c, int run, int rotations, bool trace, bool fixed_height) {
   detector::TrackerResult tr;
   std::vector<std::pair<std::vector<detector::Detection>, detector::TrackerResult>> rotations_out;
   std::vector<std::vector<detector::ClusterDiagnostic>> diags;  // with --trace
-  const sim::Truth truth = scans.run(rotations, static_cast<uint64_t>(5000 + 100 * run + c.angle),
-                                     [&](const Scan& scan, size_t) {
-                                       det.detect(scan, result);
-                                       tracker.update(result, scan.stamp_ns, tr);
-                                       rotations_out.emplace_back(result.detections, tr);
-                                       if (trace) diags.push_back(result.diagnostics);
-                                     });
+  const sim::Truth truth =
+      scans.run(rotations, eval::run_seed(run, c.angle), [&](const Scan& scan, size_t) {
+        det.detect(scan, result);
+        tracker.update(result, scan.stamp_ns, tr);
+        rotations_out.emplace_back(result.detections, tr);
+        if (trace) diags.push_back(result.diagnostics);
+      });
   std::set<int> tracks;  // that reported the right ID
   ++c.runs;
   for (size_t k = 0; k < rotations_out.size() && k < truth.rotations.size(); ++k) {
@@ -376,7 +375,7 @@ std::string run_ego(int runs, int rotations, int& never, bool& met) {
   std::vector<double> own_off_mm, first_off_mm;  // each placed detection off the tag's truth
   int counted = 0, tracked = 0, wrong = 0, one_track = 0, placed = 0, missing = 0;
   for (int run = 0; run < runs; ++run) {
-    const int code = (7 * run + 30) % 30;
+    const int code = eval::run_code(run, 10.0, 0);
     sim::Scene scene = eval::accuracy_scene(velodyne::Model::kVLP16, 10.0, 0, code);
     scene.sensor.angular_velocity = {0.0, 0.0, 30.0};
     detector::EgoMotion ego;
@@ -502,7 +501,7 @@ void run_deskew_row(const DeskewRow& row, int run, int rotations, bool fixed_hei
   c.model = velodyne::Model::kVLP16;
   c.distance = row.distance;
   c.angle = row.angle;
-  const int code = (7 * run + 3 * static_cast<int>(c.distance) + c.angle) % 30;
+  const int code = eval::run_code(run, c.distance, c.angle);
   sim::Scene scene = eval::accuracy_scene(c.model, c.distance, c.angle, code, c.size,
                                           run_height(c, run, fixed_height));
   scene.sensor.velocity = row.velocity;
@@ -530,8 +529,8 @@ void run_deskew_row(const DeskewRow& row, int run, int rotations, bool fixed_hei
       Pipeline{detector::Detector(on), detector::Tracker({}, on), {}, {}}};
   const sim::Simulator simulator(scene);
   eval::SimScans scans(simulator);
-  const sim::Truth truth = scans.run(
-      rotations, static_cast<uint64_t>(5000 + 100 * run + c.angle), [&](const Scan& scan, size_t) {
+  const sim::Truth truth =
+      scans.run(rotations, eval::run_seed(run, c.angle), [&](const Scan& scan, size_t) {
         for (size_t i = 0; i < p.size(); ++i) {
           detector::SensorMotion motion;
           if (i == 1) motion.model = p[i].tracker.motion();

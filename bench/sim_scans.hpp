@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <numbers>
@@ -215,6 +216,20 @@ inline double beam_spacing_m(std::vector<double> el, double distance, double abo
 
 inline double beam_spacing_m(velodyne::Model model, double distance, double above) {
   return beam_spacing_m(velodyne::beam_elevations_deg(model), distance, above);
+}
+
+// bench_tracker's run `run` of a static cell at `distance` metres turned `angle_deg`: the tag's
+// code (each of 30 once in 30 runs), the share of the beam spacing its centre is raised by
+// (((11 run) mod 30 + 0.5) / 30 - 0.5: each of 30 offsets once in 30 runs, in another order than
+// the codes) and the simulator's noise seed. One definition, so that a test replays a run.
+inline int run_code(int run, double distance, int angle_deg) {
+  return (7 * run + 3 * static_cast<int>(distance) + angle_deg) % 30;
+}
+inline double run_height_share(int run) {
+  return ((11 * run) % 30 + 0.5) / 30.0 - 0.5;
+}
+inline uint64_t run_seed(int run, int angle_deg) {
+  return static_cast<uint64_t>(5000 + 100 * run + angle_deg);
 }
 
 // The accuracy scene of the paper's Table I: a tag16h5 of `size` metres (1.2 by default) on an

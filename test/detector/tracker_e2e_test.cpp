@@ -391,14 +391,13 @@ TEST(TrackerEndToEnd, AFarTagOfAnotherFamilyNeverGetsAnIdFromFusedEvidence) {
 // tag16h5 code by 0.9 cells at a mean score above decode.min_score, which once confirmed a wrong
 // ID. The same votes on tag25h9's own grid fit better: no ID, in any rotation.
 TEST(TrackerEndToEnd, AFarTagWhoseFusedVotesFitAnotherFamilyBetterIsNeverConfirmed) {
-  sim::Scene scene =
-      eval::accuracy_scene(velodyne::Model::kVLP32C, 24.0, 45, 0, 1.2,
-                           (((11 * 9) % 30 + 0.5) / 30.0 - 0.5) *
-                               eval::beam_spacing_m(velodyne::Model::kVLP32C, 24.0, 0.0));
+  sim::Scene scene = eval::accuracy_scene(
+      velodyne::Model::kVLP32C, 24.0, 45, 0, 1.2,
+      eval::run_height_share(9) * eval::beam_spacing_m(velodyne::Model::kVLP32C, 24.0, 0.0));
   scene.tags.front().family = "tag25h9";
   scene.tags.front().board.margin = 0.0;
   std::vector<TrackerResult> results;
-  const auto seen = run(scene, 20, 5000 + 100 * 9 + 45, {}, nullptr, &results);
+  const auto seen = run(scene, 20, eval::run_seed(9, 45), {}, nullptr, &results);
   int ids = 0;
   for (const Seen& s : seen) ids += s.right || s.wrong ? 1 : 0;
   EXPECT_EQ(ids, 0);
@@ -415,14 +414,14 @@ TEST(TrackerEndToEnd, AFarTagWhoseFusedVotesFitAnotherFamilyBetterIsNeverConfirm
 // noise seed), 20 rotations, and the tracker's results.
 std::vector<Seen> os1_128_far_run(int run_index, std::vector<TrackerResult>& results) {
   const auto model = driver::ouster::Model::kOs1_128;
-  const double share = ((11 * run_index) % 30 + 0.5) / 30.0 - 0.5;
   sim::Scene scene = eval::accuracy_scene(
-      velodyne::Model::kVLP32C, 24.0, 45, (7 * run_index + 3 * 24 + 45) % 30, 1.2,
-      share * eval::beam_spacing_m(driver::ouster::nominal_beam_altitudes_deg(model), 24.0, 0.0));
+      velodyne::Model::kVLP32C, 24.0, 45, eval::run_code(run_index, 24.0, 45), 1.2,
+      eval::run_height_share(run_index) *
+          eval::beam_spacing_m(driver::ouster::nominal_beam_altitudes_deg(model), 24.0, 0.0));
   scene.sensor.ouster =
       sim::OusterSensorOptions{model, 1024, 10, driver::ouster::Profile::kRng19Rfl8Sig16Nir16};
   scene.sensor.noise = sim::NoiseOptions{};
-  return run(scene, 20, 5000 + 100 * static_cast<uint64_t>(run_index) + 45, {}, nullptr, &results);
+  return run(scene, 20, eval::run_seed(run_index, 45), {}, nullptr, &results);
 }
 
 // Whether some track led with code `id` past the margin `margin` over 5 rotations or more,
