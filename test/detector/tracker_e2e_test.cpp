@@ -471,5 +471,30 @@ TEST(TrackerEndToEnd, AStaticOustersFusedGridIsNoFinerThanOneRotationAndConfirms
   }
 }
 
+// Run 6 of bench_tracker's VLP-32C cell at 32 m and 45 degrees with the tag cut to its size
+// (--board-margin 0; code 3): every rotation track-only, the track's leader right with margins
+// past 1.25 cells, but its rotations' mean score below decode.min_score and its fused grid's score
+// below fused_min_score. No rotation was confirmed before the wide margin
+// (TrackerOptions::wide_min_margin_cells); with it 11 of the 17 rotations from the 4th, and never
+// another code.
+TEST(TrackerEndToEnd, AFarTagLeadingByAWideMarginIsConfirmedBelowTheFusedScore) {
+  const int run_index = 6;
+  sim::Scene scene = eval::accuracy_scene(
+      velodyne::Model::kVLP32C, 32.0, 45, eval::run_code(run_index, 32.0, 45), 1.2,
+      eval::run_height_share(run_index) *
+          eval::beam_spacing_m(velodyne::Model::kVLP32C, 32.0, 0.0));
+  scene.tags.front().board.margin = 0.0;
+  const auto seen = run(scene, 20, eval::run_seed(run_index, 45));
+  int right = 0, wrong = 0, decoded = 0;
+  for (size_t k = 3; k < seen.size(); ++k) {
+    right += seen[k].right ? 1 : 0;
+    wrong += seen[k].wrong ? 1 : 0;
+    decoded += seen[k].decoded ? 1 : 0;
+  }
+  EXPECT_EQ(wrong, 0);
+  EXPECT_EQ(decoded, 0);  // no rotation alone: the track's doing
+  EXPECT_GE(right, 8);
+}
+
 }  // namespace
 }  // namespace lidartag::detector

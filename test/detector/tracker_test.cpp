@@ -337,6 +337,7 @@ TEST_F(TrackerTest, TheFusedGridConfirmsATagWhoseRotationsScoreLow) {
     EXPECT_TRUE(out.seen[0].confirmed);
     EXPECT_EQ(out.seen[0].id, c.code);
   }
+  // Without the fused grid's confirmation (nor its wide margin, which asks as much): none.
   TrackerOptions strict;
   strict.fused_min_margin_cells = 100.0;
   Tracker tracker(strict, det_opt);
@@ -920,6 +921,8 @@ TEST(TrackerOptionsTest, EveryRuleOfTheTableIsChecked) {
   broken([](TrackerOptions& o) { o.fused_min_score = 0.4; });
   broken([](TrackerOptions& o) { o.fused_min_score = 1.1; });
   broken([](TrackerOptions& o) { o.fused_min_margin_cells = 0.0; });
+  broken([](TrackerOptions& o) { o.wide_min_score = 0.4; });
+  broken([](TrackerOptions& o) { o.wide_min_margin_cells = std::nan(""); });
   broken([](TrackerOptions& o) { o.beam_divergence_h_mrad = -1.0; });
   broken([](TrackerOptions& o) { o.beam_divergence_v_mrad = 101.0; });
   try {

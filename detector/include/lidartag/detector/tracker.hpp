@@ -110,6 +110,16 @@ struct TrackerOptions {
   // same angles every rotation, such as an Ouster, adds no finer sampling over rotations).
   double fused_min_score = 0.88;
   double fused_min_margin_cells = 1.0;
+  // The far edge's wide margin: a fused grid that scores below fused_min_score but at least
+  // max(decode.min_score, wide_min_score) still confirms when its leader leads by
+  // wide_min_margin_cells or more (and by fused_min_margin_cells), on rotations that sampled the
+  // tag anew, and no other built-in family fits its votes as well (no tolerance). Defaults 0.84
+  // and 1.25 cells: a VLP-32C's 1.2 m tag16h5 cut to its size at 32 m and 45 degrees had its right
+  // leader in every run, margins past 1.25 cells, and fused scores of 0.86-0.88 that never
+  // reached fused_min_score (docs/tracking.md, the far edge's item 11). A margin above any a
+  // track reaches (e.g. 100) turns it off.
+  double wide_min_score = 0.84;
+  double wide_min_margin_cells = 1.25;
   // The beam's full divergence across the scan (horizontal on a spinning sensor) and along it,
   // milliradians: each vote is weighted by how purely its return is its cell's colour, the share
   // of its footprint, laid on the tag, that stays on its side of the cell's nearest border (1 for
@@ -153,6 +163,8 @@ void visit_tracker_options(V& v, TrackerOptions& o) {
   v.field("min_rotations", o.min_rotations, at_least(1), "rotations");
   v.field("fused_min_score", o.fused_min_score, closed(0.5, 1.0), "");
   v.field("fused_min_margin_cells", o.fused_min_margin_cells, above(0.0), "cells");
+  v.field("wide_min_score", o.wide_min_score, closed(0.5, 1.0), "");
+  v.field("wide_min_margin_cells", o.wide_min_margin_cells, above(0.0), "cells");
   v.field("beam_divergence_h_mrad", o.beam_divergence_h_mrad, closed(0.0, 100.0), "mrad");
   v.field("beam_divergence_v_mrad", o.beam_divergence_v_mrad, closed(0.0, 100.0), "mrad");
   v.field("window", o.window, closed(1, 1000), "rotations");
