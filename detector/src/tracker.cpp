@@ -70,6 +70,11 @@ constexpr int kCentre = kShifts / 2;
 // grid lets a large family (tag36h11's 2,348 functions) come close to a fit by chance: at 0.01
 // an OS1-64's tags at 20 m face-on lost 4.3 points (71.2 -> 66.9 %, 30 runs), at 0.02 none, and
 // the far tag25h9 that had been confirmed as tag16h5 is refused at 0.01, 0.02 and 0.03 alike.
+// Only a track that fits its own code well gets it: its rotations' mean score or its fused grid's
+// at max(decode.min_score, fused_min_score) or more. The right tracks that needed it scored
+// 0.94-0.98 / 0.91-0.95 there (mean / fused: an OS1-64 at 20 m face-on), and 0.92-0.94 / 0.88
+// (an OS1-128 at 28 m face-on); a tag36h11 printed at 28 m and 45 degrees was confirmed as
+// tag16h5 code 27 at 0.81 / 0.85, tag36h11's best fitting its votes better by 0.009.
 constexpr double kDecoyTolerance = 0.02;
 
 // The least position scatter the motion fit assumes, metres (a near tag's: 1-3 mm at 6 m on a
@@ -271,6 +276,7 @@ struct Tracker::Track {
   int leader = -1;
   double margin = 0.0, mean_score = 0.0;
   bool confirmed = false;
+  int confirmed_leader = -1;  // the leader of its last confirmation, while it keeps leading
   // This rotation's candidate: its index and the quarter turns from its frame to the track's.
   int candidate = -1;
   int delta = 0;
@@ -595,6 +601,7 @@ void Tracker::start(Track& t, const Candidate& c) {
   t.size_count = 0;
   t.leader = -1;
   t.confirmed = false;
+  t.confirmed_leader = -1;
 }
 
 void Tracker::add(Track& t, const Candidate& c, const ScanResult& result, int64_t stamp_ns) {
@@ -861,8 +868,15 @@ void Tracker::add_evidence(Track& t, const Candidate& c, const ScanResult& resul
       resampled && !fused_path && t.mean_score < min_score_ &&
       t.margin >= std::max(opt_.wide_min_margin_cells, opt_.fused_min_margin_cells) &&
       fused >= std::max(min_score_, opt_.wide_min_score);
-  t.confirmed = t.rotations >= min_rotations && t.margin >= min_margin &&
-                (t.mean_score >= min_score_ || fused_path || wide_margin) && views_agree;
+  // The score gates confirm a track; its lead keeps it: a confirmed track stays confirmed while
+  // the same function leads by min_margin (and both views agree), whatever its scores. A far
+  // tag's mean and fused scores wander about their gates from one rotation to the next (a
+  // VLP-32C's 1.2 m tag16h5 cut to its size at 32 m and 45 degrees: 3 of 30 runs confirmed, then
+  // dropped for a few rotations with the same leader and margins of 0.86-1.25 cells).
+  if (t.confirmed_leader != lead) t.confirmed_leader = -1;
+  const bool kept = t.confirmed_leader == lead && t.margin >= min_margin && views_agree;
+  t.confirmed = kept || (t.rotations >= min_rotations && t.margin >= min_margin &&
+                         (t.mean_score >= min_score_ || fused_path || wide_margin) && views_agree);
   if (!t.confirmed) return;
   // Another family fitting better makes it that family's tag (as the detector's
   // decode/other_family for one rotation). Over the rotations whose candidates were decoded
@@ -873,13 +887,15 @@ void Tracker::add_evidence(Track& t, const Candidate& c, const ScanResult& resul
   // grid at the leader's place (best_decoy_score): far tags' candidates are mostly too poor to
   // be decoded against the other families, and a 1.2 m tag25h9 at 24 m and 45 degrees, cut to
   // its size, was confirmed as a tag16h5 code by its rotations' mean score (0.823, margin 0.90
-  // cells) while its fused votes fitted tag25h9 better. A track confirmed by the wide margin
-  // alone gets no tolerance: the foreign tags of that test's kind (tag25h9, tag36h11 printed)
-  // reach its margin and score in some rotations, and with the tolerance one more was read as a
-  // tag16h5 code over 90 runs.
+  // cells) while its fused votes fitted tag25h9 better. A track that fits its own code poorly
+  // gets no tolerance (kDecoyTolerance): so also every track confirmed by the wide margin alone,
+  // whose foreign tags of that test's kind (tag25h9, tag36h11 printed) reach its margin and score
+  // in some rotations (with the tolerance one more was read as a tag16h5 code over 90 runs).
   const bool other_mean = t.other_count > 0 && t.other_sum > t.own_sum + 1e-6 * t.other_count;
   const double decoy = best_decoy_score(t, fam.dict, lead);
-  t.confirmed = !other_mean && (wide_margin ? decoy < fused : !(decoy > fused + kDecoyTolerance));
+  const bool strong = std::max(t.mean_score, fused) >= std::max(min_score_, opt_.fused_min_score);
+  t.confirmed = !other_mean && decoy < fused + (strong ? kDecoyTolerance : 0.0);
+  if (t.confirmed) t.confirmed_leader = lead;
 }
 
 double Tracker::best_decoy_score(const Track& t, const RkhsDictionary& own, int lead) {

@@ -410,6 +410,57 @@ TEST(TrackerEndToEnd, AFarTagWhoseFusedVotesFitAnotherFamilyBetterIsNeverConfirm
   EXPECT_TRUE(passed_own_gates);
 }
 
+// A far tag36h11 cut to its size, seen by a tag16h5 detector (a VLP-32C at 28 m, 45 degrees: run
+// 48 of bench_tracker's cell with --board-margin 0 --printed-family tag36h11). At its 4th
+// rotation a track of track-only rotations led tag16h5 code 27 by 0.86 cells at a mean score of
+// 0.81, and tag36h11 fitted its fused votes better by only 0.009: inside the tolerance that a
+// track whose fused grid scores 0.84 (below tracker.fused_min_score) no longer gets. No ID, in
+// any rotation, and the track that passed its family's own gates is there.
+TEST(TrackerEndToEnd, AWeakFarTrackThatAnotherFamilyFitsBetterByAHairIsNeverConfirmed) {
+  sim::Scene scene = eval::accuracy_scene(
+      velodyne::Model::kVLP32C, 28.0, 45, eval::run_code(48, 28.0, 45), 1.2,
+      eval::run_height_share(48) * eval::beam_spacing_m(velodyne::Model::kVLP32C, 28.0, 0.0));
+  scene.tags.front().family = "tag36h11";
+  scene.tags.front().board.margin = 0.0;
+  std::vector<TrackerResult> results;
+  const auto seen = run(scene, 20, eval::run_seed(48, 45), {}, nullptr, &results);
+  int ids = 0;
+  for (const Seen& s : seen) ids += s.right || s.wrong ? 1 : 0;
+  EXPECT_EQ(ids, 0);
+  bool passed_own_gates = false;
+  for (const TrackerResult& r : results)
+    for (const TrackInfo& t : r.seen)
+      passed_own_gates = passed_own_gates || (t.rotations >= 4 && t.margin_cells >= 0.75 &&
+                                              t.mean_score >= DecodeOptions{}.min_score);
+  EXPECT_TRUE(passed_own_gates);
+}
+
+// Run 7 of bench_tracker's OS1-128 cell at 28 m face-on (code 13, the simulator's default
+// board): a right track whose rotations fit code 13 well (mean score 0.93-0.94) while its fused
+// grid scores just below 0.88 and another family's best fits its votes up to 0.02 better, by
+// chance (a sparse grid of fixed columns). A track that fits its own code well keeps the other
+// families' tolerance (kDecoyTolerance in tracker.cpp): every rotation from the 4th on has the
+// right ID, none wrong.
+TEST(TrackerEndToEnd, AFarTrackThatFitsItsCodeWellKeepsTheOtherFamiliesTolerance) {
+  const int run_index = 7;
+  const auto model = driver::ouster::Model::kOs1_128;
+  sim::Scene scene = eval::accuracy_scene(
+      velodyne::Model::kVLP32C, 28.0, 0, eval::run_code(run_index, 28.0, 0), 1.2,
+      eval::run_height_share(run_index) *
+          eval::beam_spacing_m(driver::ouster::nominal_beam_altitudes_deg(model), 28.0, 0.0));
+  scene.sensor.ouster =
+      sim::OusterSensorOptions{model, 1024, 10, driver::ouster::Profile::kRng19Rfl8Sig16Nir16};
+  scene.sensor.noise = sim::NoiseOptions{};
+  const auto seen = run(scene, 20, eval::run_seed(run_index, 0));
+  int right = 0, wrong = 0;
+  for (size_t k = 3; k < seen.size(); ++k) {
+    right += seen[k].right ? 1 : 0;
+    wrong += seen[k].wrong ? 1 : 0;
+  }
+  EXPECT_EQ(wrong, 0);
+  EXPECT_EQ(right, 13);  // 6 without the tolerance
+}
+
 // Run `run_index` of bench_tracker's OS1-128 cell at 24 m and 45 degrees (its code, height and
 // noise seed), 20 rotations, and the tracker's results.
 std::vector<Seen> os1_128_far_run(int run_index, std::vector<TrackerResult>& results) {
@@ -494,6 +545,40 @@ TEST(TrackerEndToEnd, AFarTagLeadingByAWideMarginIsConfirmedBelowTheFusedScore) 
   EXPECT_EQ(wrong, 0);
   EXPECT_EQ(decoded, 0);  // no rotation alone: the track's doing
   EXPECT_GE(right, 8);
+}
+
+// Run 12 of the same cell (code 15): its track confirmed, then at its 7th rotation and its
+// 9th-11th the rotations' mean score (0.75-0.79) and the fused grid's (0.87-0.88) fell below
+// their gates while the same code led by more than a cell, and it was dropped there. The score
+// gates confirm a track; its lead keeps it: from its first confirmation on, every rotation whose
+// track keeps that code in the lead by tracker.min_margin_cells is confirmed, and no other code
+// ever is.
+TEST(TrackerEndToEnd, AConfirmedTrackStaysConfirmedWhileItsCodeKeepsTheLead) {
+  const int run_index = 12;
+  sim::Scene scene = eval::accuracy_scene(
+      velodyne::Model::kVLP32C, 32.0, 45, eval::run_code(run_index, 32.0, 45), 1.2,
+      eval::run_height_share(run_index) *
+          eval::beam_spacing_m(velodyne::Model::kVLP32C, 32.0, 0.0));
+  scene.tags.front().board.margin = 0.0;
+  std::vector<TrackerResult> results;
+  const auto seen = run(scene, 20, eval::run_seed(run_index, 45), {}, nullptr, &results);
+  int wrong = 0;
+  for (const Seen& s : seen) wrong += s.wrong ? 1 : 0;
+  EXPECT_EQ(wrong, 0);
+  int confirmed_id = -1, kept = 0, below_score = 0;
+  for (const TrackerResult& r : results)
+    for (const TrackInfo& t : r.seen) {
+      if (confirmed_id < 0 && t.confirmed) confirmed_id = t.id;
+      if (confirmed_id < 0 || t.id != confirmed_id ||
+          t.margin_cells < TrackerOptions{}.min_margin_cells)
+        continue;
+      EXPECT_TRUE(t.confirmed) << "rotation " << t.rotations;
+      ++kept;
+      below_score += t.mean_score < DecodeOptions{}.min_score ? 1 : 0;
+    }
+  EXPECT_EQ(confirmed_id, eval::run_code(run_index, 32.0, 45));
+  EXPECT_GE(kept, 10);
+  EXPECT_GE(below_score, 5);  // kept by the lead, not by the rotations' mean score
 }
 
 }  // namespace

@@ -81,7 +81,9 @@ struct TrackerOptions {
   // leading function (code and quarter turns) must beat the best other one by min_margin_cells
   // cells, over at least min_rotations rotations (one more when none of them validated: every
   // candidate track-only, Candidate::track_only), and its mean normalised decoding score must
-  // reach the detector's decode.min_score (and beat the families that are not configured). Cells
+  // reach the detector's decode.min_score (and beat the families that are not configured). Once
+  // confirmed, a track stays confirmed while the same function leads by the margin (the other
+  // families' checks asked again), whatever its scores: the scores confirm, the lead keeps. Cells
   // no point fell well inside have no vote: codes that differ only there are never told apart,
   // however many rotations are summed (a static VLP-16 at 6 m sees only half the payload cells
   // of a diamond-mounted 1.2 m tag, and some codes differ only on the other half). Defaults:
@@ -180,7 +182,8 @@ void validate_tracker_options(const TrackerOptions& options);
 struct TrackInfo {
   int track_id = -1;  // unique for the Tracker's life, increasing; -1: not tracked
   int rotations = 0;  // rotations that gave the track a candidate (this one included)
-  // The leading function's code passed the gates (TrackerOptions); the track's ID is `id`.
+  // The leading function's code passed the gates (TrackerOptions), or passed them earlier and
+  // still leads by the margin; the track's ID is `id`.
   bool confirmed = false;
   int family_index = 0;       // of the track's evidence
   int id = -1;                // the code of the leading function
