@@ -868,11 +868,12 @@ void Tracker::add_evidence(Track& t, const Candidate& c, const ScanResult& resul
       resampled && !fused_path && t.mean_score < min_score_ &&
       t.margin >= std::max(opt_.wide_min_margin_cells, opt_.fused_min_margin_cells) &&
       fused >= std::max(min_score_, opt_.wide_min_score);
-  // The score gates confirm a track; its lead keeps it: a confirmed track stays confirmed while
-  // the same function leads by min_margin (and both views agree), whatever its scores. A far
-  // tag's mean and fused scores wander about their gates from one rotation to the next (a
-  // VLP-32C's 1.2 m tag16h5 cut to its size at 32 m and 45 degrees: 3 of 30 runs confirmed, then
-  // dropped for a few rotations with the same leader and margins of 0.86-1.25 cells).
+  // The score gates confirm a track; its lead keeps it: once a function confirmed, the track is
+  // confirmed in every rotation where that function, in the lead ever since, leads by min_margin
+  // (and both views agree), whatever its scores. A far tag's mean and fused scores wander about
+  // their gates from one rotation to the next (a VLP-32C's 1.2 m tag16h5 cut to its size at 32 m
+  // and 45 degrees: 3 of 30 runs confirmed, then dropped for a few rotations with the same leader
+  // and margins of 0.86-1.25 cells).
   if (t.confirmed_leader != lead) t.confirmed_leader = -1;
   const bool kept = t.confirmed_leader == lead && t.margin >= min_margin && views_agree;
   t.confirmed = kept || (t.rotations >= min_rotations && t.margin >= min_margin &&

@@ -385,54 +385,76 @@ TEST(TrackerEndToEnd, AFarTagOfAnotherFamilyNeverGetsAnIdFromFusedEvidence) {
   EXPECT_EQ(wrong, 0);
 }
 
+// Run `run_index` of bench_tracker's VLP-32C cell at `distance` m and 45 degrees (its code and
+// height; the noise seed is eval::run_seed(run_index, 45)), the tag cut to its size
+// (--board-margin 0).
+sim::Scene vlp32c_far_scene(double distance, int run_index) {
+  sim::Scene scene = eval::accuracy_scene(
+      velodyne::Model::kVLP32C, distance, 45, eval::run_code(run_index, distance, 45), 1.2,
+      eval::run_height_share(run_index) *
+          eval::beam_spacing_m(velodyne::Model::kVLP32C, distance, 0.0));
+  scene.tags.front().board.margin = 0.0;
+  return scene;
+}
+
+// Whether some track of `min_rotations` or more passed its family's own gates: the margin and the
+// mean score (the test of a foreign tag is not empty).
+bool passed_own_gates(const std::vector<TrackerResult>& results, int min_rotations) {
+  for (const TrackerResult& r : results)
+    for (const TrackInfo& t : r.seen)
+      if (t.rotations >= min_rotations && t.margin_cells >= TrackerOptions{}.min_margin_cells &&
+          t.mean_score >= DecodeOptions{}.min_score)
+        return true;
+  return false;
+}
+
 // A far tag25h9 cut to its size, seen by a tag16h5 detector (a VLP-32C at 24 m, 45 degrees: run
 // 9 of bench_tracker's cell with --board-margin 0 --printed-family tag25h9): its rotations are
 // too sparse to be decoded against the other families one by one, and its track's votes lead a
 // tag16h5 code by 0.9 cells at a mean score above decode.min_score, which once confirmed a wrong
 // ID. The same votes on tag25h9's own grid fit better: no ID, in any rotation.
 TEST(TrackerEndToEnd, AFarTagWhoseFusedVotesFitAnotherFamilyBetterIsNeverConfirmed) {
-  sim::Scene scene = eval::accuracy_scene(
-      velodyne::Model::kVLP32C, 24.0, 45, 0, 1.2,
-      eval::run_height_share(9) * eval::beam_spacing_m(velodyne::Model::kVLP32C, 24.0, 0.0));
+  sim::Scene scene = vlp32c_far_scene(24.0, 9);  // code 0
   scene.tags.front().family = "tag25h9";
-  scene.tags.front().board.margin = 0.0;
   std::vector<TrackerResult> results;
   const auto seen = run(scene, 20, eval::run_seed(9, 45), {}, nullptr, &results);
   int ids = 0;
   for (const Seen& s : seen) ids += s.right || s.wrong ? 1 : 0;
   EXPECT_EQ(ids, 0);
-  // The test is not empty: a track whose margin and mean score pass the family's own gates.
-  bool passed_own_gates = false;
-  for (const TrackerResult& r : results)
-    for (const TrackInfo& t : r.seen)
-      passed_own_gates = passed_own_gates || (t.rotations >= 3 && t.margin_cells >= 0.75 &&
-                                              t.mean_score >= DecodeOptions{}.min_score);
-  EXPECT_TRUE(passed_own_gates);
+  EXPECT_TRUE(passed_own_gates(results, 3));
 }
 
 // A far tag36h11 cut to its size, seen by a tag16h5 detector (a VLP-32C at 28 m, 45 degrees: run
 // 48 of bench_tracker's cell with --board-margin 0 --printed-family tag36h11). At its 4th
 // rotation a track of track-only rotations led tag16h5 code 27 by 0.86 cells at a mean score of
-// 0.81, and tag36h11 fitted its fused votes better by only 0.009: inside the tolerance that a
-// track whose fused grid scores 0.84 (below tracker.fused_min_score) no longer gets. No ID, in
-// any rotation, and the track that passed its family's own gates is there.
+// 0.81 (its fused grid's 0.85), and tag36h11 fitted its fused votes better by only 0.009:
+// inside the tolerance that a track whose mean and fused scores are both below
+// tracker.fused_min_score no longer gets. No ID, in any rotation, and the track that passed its
+// family's own gates is there.
 TEST(TrackerEndToEnd, AWeakFarTrackThatAnotherFamilyFitsBetterByAHairIsNeverConfirmed) {
-  sim::Scene scene = eval::accuracy_scene(
-      velodyne::Model::kVLP32C, 28.0, 45, eval::run_code(48, 28.0, 45), 1.2,
-      eval::run_height_share(48) * eval::beam_spacing_m(velodyne::Model::kVLP32C, 28.0, 0.0));
+  sim::Scene scene = vlp32c_far_scene(28.0, 48);
   scene.tags.front().family = "tag36h11";
-  scene.tags.front().board.margin = 0.0;
   std::vector<TrackerResult> results;
   const auto seen = run(scene, 20, eval::run_seed(48, 45), {}, nullptr, &results);
   int ids = 0;
   for (const Seen& s : seen) ids += s.right || s.wrong ? 1 : 0;
   EXPECT_EQ(ids, 0);
-  bool passed_own_gates = false;
-  for (const TrackerResult& r : results)
-    for (const TrackInfo& t : r.seen)
-      passed_own_gates = passed_own_gates || (t.rotations >= 4 && t.margin_cells >= 0.75 &&
-                                              t.mean_score >= DecodeOptions{}.min_score);
-  EXPECT_TRUE(passed_own_gates);
+  EXPECT_TRUE(passed_own_gates(results, 4));
+}
+
+// Run `run_index` of bench_tracker's OS1-128 cell at `distance` m and `angle` degrees (its code,
+// height and noise seed; the simulator's default board), 20 rotations, and the tracker's results.
+std::vector<Seen> os1_128_run(double distance, int angle, int run_index,
+                              std::vector<TrackerResult>& results) {
+  const auto model = driver::ouster::Model::kOs1_128;
+  sim::Scene scene = eval::accuracy_scene(
+      velodyne::Model::kVLP32C, distance, angle, eval::run_code(run_index, distance, angle), 1.2,
+      eval::run_height_share(run_index) *
+          eval::beam_spacing_m(driver::ouster::nominal_beam_altitudes_deg(model), distance, 0.0));
+  scene.sensor.ouster =
+      sim::OusterSensorOptions{model, 1024, 10, driver::ouster::Profile::kRng19Rfl8Sig16Nir16};
+  scene.sensor.noise = sim::NoiseOptions{};
+  return run(scene, 20, eval::run_seed(run_index, angle), {}, nullptr, &results);
 }
 
 // Run 7 of bench_tracker's OS1-128 cell at 28 m face-on (code 13, the simulator's default
@@ -442,16 +464,8 @@ TEST(TrackerEndToEnd, AWeakFarTrackThatAnotherFamilyFitsBetterByAHairIsNeverConf
 // families' tolerance (kDecoyTolerance in tracker.cpp): every rotation from the 4th on has the
 // right ID, none wrong.
 TEST(TrackerEndToEnd, AFarTrackThatFitsItsCodeWellKeepsTheOtherFamiliesTolerance) {
-  const int run_index = 7;
-  const auto model = driver::ouster::Model::kOs1_128;
-  sim::Scene scene = eval::accuracy_scene(
-      velodyne::Model::kVLP32C, 28.0, 0, eval::run_code(run_index, 28.0, 0), 1.2,
-      eval::run_height_share(run_index) *
-          eval::beam_spacing_m(driver::ouster::nominal_beam_altitudes_deg(model), 28.0, 0.0));
-  scene.sensor.ouster =
-      sim::OusterSensorOptions{model, 1024, 10, driver::ouster::Profile::kRng19Rfl8Sig16Nir16};
-  scene.sensor.noise = sim::NoiseOptions{};
-  const auto seen = run(scene, 20, eval::run_seed(run_index, 0));
+  std::vector<TrackerResult> results;
+  const auto seen = os1_128_run(28.0, 0, 7, results);
   int right = 0, wrong = 0;
   for (size_t k = 3; k < seen.size(); ++k) {
     right += seen[k].right ? 1 : 0;
@@ -459,20 +473,6 @@ TEST(TrackerEndToEnd, AFarTrackThatFitsItsCodeWellKeepsTheOtherFamiliesTolerance
   }
   EXPECT_EQ(wrong, 0);
   EXPECT_EQ(right, 13);  // 6 without the tolerance
-}
-
-// Run `run_index` of bench_tracker's OS1-128 cell at 24 m and 45 degrees (its code, height and
-// noise seed), 20 rotations, and the tracker's results.
-std::vector<Seen> os1_128_far_run(int run_index, std::vector<TrackerResult>& results) {
-  const auto model = driver::ouster::Model::kOs1_128;
-  sim::Scene scene = eval::accuracy_scene(
-      velodyne::Model::kVLP32C, 24.0, 45, eval::run_code(run_index, 24.0, 45), 1.2,
-      eval::run_height_share(run_index) *
-          eval::beam_spacing_m(driver::ouster::nominal_beam_altitudes_deg(model), 24.0, 0.0));
-  scene.sensor.ouster =
-      sim::OusterSensorOptions{model, 1024, 10, driver::ouster::Profile::kRng19Rfl8Sig16Nir16};
-  scene.sensor.noise = sim::NoiseOptions{};
-  return run(scene, 20, eval::run_seed(run_index, 45), {}, nullptr, &results);
 }
 
 // Whether some track led with code `id` past the margin `margin` over 5 rotations or more,
@@ -492,7 +492,7 @@ bool led_unconfirmed(const std::vector<TrackerResult>& results, int id, double m
 // that passed the margin and score gates with the wrong leader is there, unconfirmed.
 TEST(TrackerEndToEnd, ATrackWhoseGridAndRotationsNameDifferentCodesIsNeverConfirmed) {
   std::vector<TrackerResult> results;
-  const auto seen = os1_128_far_run(19, results);
+  const auto seen = os1_128_run(24.0, 45, 19, results);
   int wrong = 0;
   for (const Seen& s : seen) wrong += s.wrong ? 1 : 0;
   EXPECT_EQ(wrong, 0);
@@ -514,7 +514,7 @@ TEST(TrackerEndToEnd, AStaticOustersFusedGridIsNoFinerThanOneRotationAndConfirms
   for (const auto& [run_index, wrong_code] : {std::pair{49, 3}, std::pair{86, 9}}) {
     SCOPED_TRACE(run_index);
     std::vector<TrackerResult> results;
-    const auto seen = os1_128_far_run(run_index, results);
+    const auto seen = os1_128_run(24.0, 45, run_index, results);
     int wrong = 0;
     for (const Seen& s : seen) wrong += s.wrong ? 1 : 0;
     EXPECT_EQ(wrong, 0);
@@ -530,12 +530,7 @@ TEST(TrackerEndToEnd, AStaticOustersFusedGridIsNoFinerThanOneRotationAndConfirms
 // another code.
 TEST(TrackerEndToEnd, AFarTagLeadingByAWideMarginIsConfirmedBelowTheFusedScore) {
   const int run_index = 6;
-  sim::Scene scene = eval::accuracy_scene(
-      velodyne::Model::kVLP32C, 32.0, 45, eval::run_code(run_index, 32.0, 45), 1.2,
-      eval::run_height_share(run_index) *
-          eval::beam_spacing_m(velodyne::Model::kVLP32C, 32.0, 0.0));
-  scene.tags.front().board.margin = 0.0;
-  const auto seen = run(scene, 20, eval::run_seed(run_index, 45));
+  const auto seen = run(vlp32c_far_scene(32.0, run_index), 20, eval::run_seed(run_index, 45));
   int right = 0, wrong = 0, decoded = 0;
   for (size_t k = 3; k < seen.size(); ++k) {
     right += seen[k].right ? 1 : 0;
@@ -555,13 +550,9 @@ TEST(TrackerEndToEnd, AFarTagLeadingByAWideMarginIsConfirmedBelowTheFusedScore) 
 // ever is.
 TEST(TrackerEndToEnd, AConfirmedTrackStaysConfirmedWhileItsCodeKeepsTheLead) {
   const int run_index = 12;
-  sim::Scene scene = eval::accuracy_scene(
-      velodyne::Model::kVLP32C, 32.0, 45, eval::run_code(run_index, 32.0, 45), 1.2,
-      eval::run_height_share(run_index) *
-          eval::beam_spacing_m(velodyne::Model::kVLP32C, 32.0, 0.0));
-  scene.tags.front().board.margin = 0.0;
   std::vector<TrackerResult> results;
-  const auto seen = run(scene, 20, eval::run_seed(run_index, 45), {}, nullptr, &results);
+  const auto seen = run(vlp32c_far_scene(32.0, run_index), 20, eval::run_seed(run_index, 45), {},
+                        nullptr, &results);
   int wrong = 0;
   for (const Seen& s : seen) wrong += s.wrong ? 1 : 0;
   EXPECT_EQ(wrong, 0);
