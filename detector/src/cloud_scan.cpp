@@ -119,9 +119,42 @@ void to_grid(const CloudFields& f, int rings, int returns, double scale, CloudSc
   fill_gaps(out.column_time_s, time_known, columns);
 }
 
+// The column width for a cloud of level rings (CloudScanOptions::resolution_deg 0): a share of the
+// median azimuth step between neighbouring points of one ring (steps within kSameFiringDeg, two
+// echoes of one firing, left out), a little under the sensor's step so that the jitter of its
+// firing azimuths does not put two firings into one column; kDefaultColumnWidthDeg when fewer
+// than kMinColumnSteps steps are seen.
+double column_width_of(std::span<const CloudPoint> cloud, int rings) {
+  std::vector<std::pair<int, float>> az;  // ring, azimuth in degrees
+  az.reserve(cloud.size());
+  for (const auto& p : cloud)
+    if (p.ring >= 0 && p.ring < rings && (p.x != 0.0f || p.y != 0.0f))
+      az.emplace_back(p.ring, static_cast<float>(azimuth_of(p.x, p.y)));
+  std::sort(az.begin(), az.end());
+  std::vector<float> steps;
+  steps.reserve(az.size());
+  for (size_t k = 0; k + 1 < az.size(); ++k) {
+    const float step = az[k + 1].second - az[k].second;
+    if (az[k + 1].first == az[k].first && step > kSameFiringDeg) steps.push_back(step);
+  }
+  if (steps.size() < kMinColumnSteps) return kDefaultColumnWidthDeg;
+  const auto mid = steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2);
+  std::nth_element(steps.begin(), mid, steps.end());
+  return std::clamp(kColumnStepShare * double{*mid}, kMinColumnWidthDeg, kMaxColumnWidthDeg);
+}
+
 // Whether the points of each ring lie on one cone: their mean distance from their ring's mean
-// elevation is within kMaxRingSpreadDeg.
+// elevation is within kMaxRingSpreadDeg. Judged on the points at kLevelMinRangeM or farther when
+// there are kLevelMinPoints of them: a beam's origin sits centimetres off the sensor's axis, which
+// moves the elevation of a point 1 m away, seen from the cloud's origin, by a degree or more (a
+// RoboSense Bpearl's rings, read 0.2 to 13 m away, spread 1.9 degrees over all points, 0.08
+// beyond 3 m).
 bool rings_level(const CloudFields& f, int rings) {
+  size_t far = 0;
+  for (size_t k = 0; k < f.x.size(); ++k)
+    if (f.x[k] * f.x[k] + f.y[k] * f.y[k] + f.z[k] * f.z[k] >= kLevelMinRangeM * kLevelMinRangeM)
+      ++far;
+  const double min_range2 = far >= kLevelMinPoints ? kLevelMinRangeM * kLevelMinRangeM : 0.0;
   std::vector<double> sum(static_cast<size_t>(rings), 0.0);
   std::vector<size_t> count(static_cast<size_t>(rings), 0);
   std::vector<std::pair<int, float>> elevations;  // ring, degrees: each point's, computed once
@@ -130,6 +163,7 @@ bool rings_level(const CloudFields& f, int rings) {
     const int ring = ring_of(f.ring[k], rings);
     const double h = std::hypot(f.x[k], f.y[k]);
     if (ring < 0 || !(h > 0.0 || f.z[k] != 0.0)) continue;  // no ring, no return
+    if (h * h + f.z[k] * f.z[k] < min_range2) continue;
     const double e = std::atan2(f.z[k], h) * 180.0 / std::numbers::pi;
     if (!std::isfinite(e)) continue;
     elevations.emplace_back(ring, static_cast<float>(e));
@@ -268,17 +302,24 @@ CloudScanReport cloud_to_scan(const CloudFields& f, const CloudScanOptions& opti
         const double r2 = double{p.x} * p.x + double{p.y} * p.y + double{p.z} * p.z;
         return r2 > 0.0 && std::isfinite(r2) && (f.ring.empty() || p.ring < rings);
       }));
+  if (!(options.resolution_deg >= 0.0))
+    throw CloudError("a column width of " + std::to_string(options.resolution_deg) +
+                     " degrees (0: the cloud's own)");
+  report.resolution_deg = options.resolution_deg > 0.0 ? options.resolution_deg
+                          : f.ring.empty() || report.rings_not_level
+                              ? kDefaultColumnWidthDeg
+                              : column_width_of(cloud, rings);
   if (!f.ring.empty()) {
-    if (!organise_rings(cloud, rings, options.resolution_deg, out))
+    if (!organise_rings(cloud, rings, report.resolution_deg, out, &report.echoes))
       throw CloudError("cannot organise the rings (column width " +
-                       std::to_string(options.resolution_deg) + " degrees)");
+                       std::to_string(report.resolution_deg) + " degrees)");
     report.points = out.point_count();
     report.merged = placeable > report.points ? placeable - report.points : 0;
     return report;
   }
   report.regressed = true;
   RingRegressionOptions ro;
-  ro.horizontal_resolution_deg = options.resolution_deg;
+  ro.horizontal_resolution_deg = report.resolution_deg;
   ro.elevations_deg = options.elevations_deg;
   ro.rings = options.rings;
   if (ro.elevations_deg.empty() && ro.rings <= 0) {
@@ -286,7 +327,7 @@ CloudScanReport cloud_to_scan(const CloudFields& f, const CloudScanOptions& opti
         "no ring field: give the sensor model (its beam elevations) or the number of rings to "
         "regress");
   }
-  if (!regress_rings(cloud, ro, out)) {
+  if (!regress_rings(cloud, ro, out, &report.echoes)) {
     throw CloudError("cannot regress rings (fewer than " +
                      std::to_string(ro.elevations_deg.empty()
                                         ? ro.rings

@@ -70,15 +70,22 @@ void prepare(int rings, double res_deg, Scan& out) {
   }
 }
 
-// Puts `p` into its cell of `ring`; a cell hit twice keeps the nearer point.
-void place(const CloudPoint& p, double range, int ring, double res_deg, Scan& out) {
+// Puts `p` into its cell of `ring`; a cell hit twice keeps the nearer point. Counts in `echoes`
+// (when given) a second point of the same firing as the cell's.
+void place(const CloudPoint& p, double range, int ring, double res_deg, Scan& out, size_t* echoes) {
   double az = std::atan2(-double{p.y}, double{p.x}) * 180.0 / std::numbers::pi;
   if (az < 0) az += 360.0;
   // Column c is centred on azimuth c * resolution (as a sensor's firing azimuths are).
   int col = static_cast<int>(std::lround(az / res_deg));
   if (col >= out.columns) col -= out.columns;
   const size_t i = out.at(0, ring, col);
-  if (out.range[i] > 0.0f && out.range[i] <= range) return;
+  if (out.range[i] > 0.0f) {
+    if (echoes != nullptr && std::fabs(az - double{out.azimuth_deg[i]}) < kSameFiringDeg &&
+        std::fabs(elevation_deg(p) - std::asin(double{out.z[i]} / double{out.range[i]}) * 180.0 /
+                                         std::numbers::pi) < kSameFiringDeg)
+      ++*echoes;
+    if (out.range[i] <= range) return;
+  }
   out.x[i] = p.x;
   out.y[i] = p.y;
   out.z[i] = p.z;
@@ -97,7 +104,8 @@ double range_of(const CloudPoint& p) {
 
 }  // namespace
 
-bool regress_rings(std::span<const CloudPoint> cloud, const RingRegressionOptions& opt, Scan& out) {
+bool regress_rings(std::span<const CloudPoint> cloud, const RingRegressionOptions& opt, Scan& out,
+                   size_t* echoes) {
   std::vector<double> elev = opt.elevations_deg;
   if (elev.empty()) elev = estimate_elevations(cloud, opt.rings);
   const bool finite =
@@ -119,13 +127,13 @@ bool regress_rings(std::span<const CloudPoint> cloud, const RingRegressionOption
     if (ring == rings ||
         (ring > 0 && e - elev[static_cast<size_t>(ring - 1)] < elev[static_cast<size_t>(ring)] - e))
       --ring;
-    place(p, range, ring, opt.horizontal_resolution_deg, out);
+    place(p, range, ring, opt.horizontal_resolution_deg, out, echoes);
   }
   return true;
 }
 
 bool organise_rings(std::span<const CloudPoint> cloud, int rings, double horizontal_resolution_deg,
-                    Scan& out) {
+                    Scan& out, size_t* echoes) {
   if (rings <= 0 || !usable_resolution(horizontal_resolution_deg)) {
     out.clear();
     return false;
@@ -134,7 +142,7 @@ bool organise_rings(std::span<const CloudPoint> cloud, int rings, double horizon
   for (const auto& p : cloud) {
     const double range = range_of(p);
     if (!(range > 0.0) || !std::isfinite(range) || p.ring < 0 || p.ring >= rings) continue;
-    place(p, range, p.ring, horizontal_resolution_deg, out);
+    place(p, range, p.ring, horizontal_resolution_deg, out, echoes);
   }
   return true;
 }

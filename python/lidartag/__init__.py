@@ -60,7 +60,7 @@ __all__ = [
 
 
 def read(path, model=None, calibration=None, cut_deg=180.0, partial=False, data_port=None,
-         position_port=None, sensor=None, rings=0, resolution_deg=0.2, topic=None, start=0.0,
+         position_port=None, sensor=None, rings=0, resolution_deg=0.0, topic=None, start=0.0,
          duration=None, metadata=None, intensity="reflectivity"):
     """The rotations of a capture, read lazily: a pcap/pcapng of Velodyne or Ouster packets, a ROS
     bag or MCAP file, or a PCD file (one rotation).

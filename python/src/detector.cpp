@@ -321,7 +321,7 @@ the key. diagnostics=True also records what happened to every cluster.)")
             return d.detect(rotation);
           },
           py::arg("points"), py::kw_only(), py::arg("rings") = 0, py::arg("model") = py::none(),
-          py::arg("resolution_deg") = 0.2,
+          py::arg("resolution_deg") = 0.0,
           "The detections of a point cloud from any source: a numpy structured array or a dict "
           "of arrays, as Rotation.from_points takes (rings, model and resolution_deg as there).")
       .def_property_readonly("tag_sizes_m",

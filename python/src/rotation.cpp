@@ -225,7 +225,7 @@ class Reader {
     // Unset: the vendor's ports (Velodyne 2368/8308, Ouster lidar 7502 / IMU 7503).
     std::optional<uint16_t> data_port, position_port;
     int rings = 0;
-    double resolution_deg = 0.2;
+    double resolution_deg = 0.0;
     std::optional<std::string> topic;  // a bag's LiDAR topic; None: its one LiDAR topic
     double start_s = 0;                // a bag's time window, seconds from its first message
     double duration_s = std::numeric_limits<double>::infinity();
@@ -659,7 +659,7 @@ from above, seconds from the rotation's first firing.)")
                              [](const Rotation& r) { return r.scan.missing_packets; })
       .def_static("from_points", &Rotation::from_points, py::arg("points"), py::kw_only(),
                   py::arg("rings") = 0, py::arg("model") = py::none(),
-                  py::arg("resolution_deg") = 0.2, py::arg("stamp_ns") = 0, py::arg("sequence") = 0,
+                  py::arg("resolution_deg") = 0.0, py::arg("stamp_ns") = 0, py::arg("sequence") = 0,
                   R"(A rotation made of a point cloud from any source (another driver, a bag).
 
 points: a numpy structured array or a dict of equal-length arrays with fields x, y, z (metres,
@@ -667,7 +667,8 @@ sensor frame), intensity (0-255; 0-1 is scaled) and optionally ring (0 = lowest 
 (degrees clockwise from +x), time (seconds from the rotation's start), return_type -- the names
 Rotation.points uses, so rotation.points round-trips. Without ring, the rings come from the model's
 beam elevations (model="vlp32c", "os1-128", ...) or are estimated (rings=N beams). Points are
-binned into columns of resolution_deg of azimuth. Raises CloudError (no intensity, sizes that
+binned into columns of resolution_deg of azimuth (0: 0.95 x the cloud's own step between a ring's
+neighbouring points; 0.2 without level ring numbers). Raises CloudError (no intensity, sizes that
 disagree, rings that cannot be told).)")
       .def("__len__", [](const Rotation& r) { return r.scan.point_count(); })
       .def("__repr__", [](const Rotation& r) {

@@ -6,7 +6,9 @@
 
 #include <cmath>
 #include <limits>
+#include <numbers>
 #include <string>
+#include <utility>
 
 #include "lidartag/detector/detector.hpp"
 #include "synthetic_scene.hpp"
@@ -207,6 +209,73 @@ TEST(CloudScan, PointsThatShareACellAreCountedNotDroppedSilently) {
   EXPECT_EQ(regressed.points + regressed.merged, 4u);
 }
 
+TEST(CloudScan, WithoutAColumnWidthTheCloudsOwnStepIsUsed) {
+  // A VLP-32C rotation (0.2 degree steps) unorganised: columns of 0.95 x 0.2 degrees, so that no
+  // firing shares a column (at 0.2, firings whose azimuths straddle a column's edge did), and the
+  // tag is found.
+  const Scan s = tag_scene();
+  const Columns c = unorganised(s);
+  Scan out;
+  CloudScanReport r = cloud_to_scan(c.fields(), CloudScanOptions{}, out);
+  EXPECT_NEAR(r.resolution_deg, kColumnStepShare * 360.0 / s.columns, 1e-3);
+  EXPECT_EQ(r.merged, 0u);
+  EXPECT_EQ(r.points, s.point_count());
+  EXPECT_EQ(detect(out).size(), 1u);
+  // Every third point of each ring kept: a sensor of 0.6 degree steps.
+  Columns sparse;
+  for (size_t k = 0; k < c.x.size(); ++k)
+    if (std::lround(c.azimuth[k] / (360.0 / s.columns)) % 3 == 0)
+      sparse.add(c.x[k], c.y[k], c.z[k], c.intensity[k], c.ring[k], c.azimuth[k], c.time[k], 1);
+  sparse.width = sparse.x.size();
+  r = cloud_to_scan(sparse.fields(), CloudScanOptions{}, out);
+  EXPECT_NEAR(r.resolution_deg, kColumnStepShare * 3 * 360.0 / s.columns, 1e-3);
+  EXPECT_EQ(r.merged, 0u);
+  // A width given is used; without ring numbers (regressed), the default.
+  CloudScanOptions given;
+  given.resolution_deg = 0.4;
+  EXPECT_EQ(cloud_to_scan(c.fields(), given, out).resolution_deg, 0.4);
+  CloudScanOptions beams;
+  beams.rings = 32;
+  EXPECT_EQ(cloud_to_scan(c.fields(false), beams, out).resolution_deg, kDefaultColumnWidthDeg);
+  // A negative or NaN width is refused, not taken for "the cloud's own".
+  given.resolution_deg = -0.2;
+  EXPECT_THROW(cloud_to_scan(c.fields(), given, out), CloudError);
+  given.resolution_deg = kNaN;
+  EXPECT_THROW(cloud_to_scan(c.fields(), given, out), CloudError);
+}
+
+TEST(CloudScan, TheFartherEchoOfADualReturnFiringIsToldFromAColumnTooCoarse) {
+  // Ring 0: two echoes of one firing (the same direction, 5 and 6 m), a firing 0.05 degrees on
+  // (the same 0.2 degree column) and a point 0.5 degrees above the first (the same ring here, not
+  // the same direction); a point elsewhere.
+  Columns c;
+  c.add(5.0, 0.0, 0.0, 10, 0, 0, 0, 0);
+  c.add(6.0, 0.0, 0.0, 10, 0, 0, 0, 0);
+  c.add(7.0, -7.0 * std::tan(0.05 * std::numbers::pi / 180.0), 0.0, 10, 0, 0, 0, 0);
+  c.add(6.0, 0.0, 6.0 * std::tan(0.5 * std::numbers::pi / 180.0), 10, 0, 0, 0, 0);
+  c.add(0.0, -5.0, 0.0, 10, 0, 90, 0, 0);
+  c.width = c.x.size();
+  Scan out;
+  CloudScanOptions o;
+  o.resolution_deg = 0.2;
+  o.rings = 1;
+  const auto report = cloud_to_scan(c.fields(), o, out);
+  EXPECT_EQ(report.points, 2u);
+  EXPECT_EQ(report.merged, 3u);
+  EXPECT_EQ(report.echoes, 1u);
+  EXPECT_FLOAT_EQ(out.range[out.at(0, 0, 0)], 5.0f);  // the nearer echo kept
+  // The nearer echo after the farther: still one echo, the nearer kept.
+  Columns swapped = c;
+  std::swap(swapped.x[0], swapped.x[1]);
+  EXPECT_EQ(cloud_to_scan(swapped.fields(), o, out).echoes, 1u);
+  EXPECT_FLOAT_EQ(out.range[out.at(0, 0, 0)], 5.0f);
+  // Rings regressed (one beam): the same accounting.
+  const auto regressed = cloud_to_scan(c.fields(false), o, out);
+  EXPECT_TRUE(regressed.regressed);
+  EXPECT_EQ(regressed.merged, 3u);
+  EXPECT_EQ(regressed.echoes, 1u);
+}
+
 TEST(CloudScan, WithoutRingNumbersRingsAreRegressed) {
   const Scan s = tag_scene();
   const Columns c = unorganised(s);
@@ -331,6 +400,37 @@ TEST(CloudScan, ARingFieldWhoseRingsAreNotLevelIsSetAsideWhenBeamsAreGiven) {
   EXPECT_TRUE(r.regressed);
   EXPECT_EQ(out.rings, 32);
   EXPECT_EQ(detect(out).size(), 1u);
+}
+
+TEST(CloudScan, RingsOfBeamsThatStartOffTheAxisAreLevel) {
+  // A spinning sensor whose beams leave 4 cm off its axis and 5 cm above its origin (as RoboSense's
+  // do): seen from the cloud's origin, a ring's points 0.3 to 1.2 m away sit up to 10 degrees off
+  // its elevation, those at 10 m a few tenths. Its ring field is a sensor's rings, not Livox's
+  // lines: kept, not regressed, whatever the beams given.
+  auto cloud = [](bool far) {
+    Columns c;
+    for (int ring = 0; ring < 16; ++ring)
+      for (int col = 0; col < 900; ++col) {
+        const double e = (-15.0 + 2.0 * ring) * std::numbers::pi / 180.0;
+        const double a = col * 0.4 * std::numbers::pi / 180.0;
+        const double r = far && col % 2 == 0 ? 10.0 : 0.3 + 0.9 * (col % 7) / 6.0;
+        c.add(0.04 * std::cos(a) + r * std::cos(e) * std::cos(a),
+              0.04 * std::sin(a) + r * std::cos(e) * std::sin(a), 0.05 + r * std::sin(e), 100, ring,
+              kNaN, 0, 1);
+      }
+    c.width = c.x.size();
+    return c;
+  };
+  const Columns sensor = cloud(true);
+  Scan out;
+  CloudScanReport r =
+      cloud_to_scan(sensor.fields(), cloud_scan_options(sensor.fields(), {}, 16, 0.4), out);
+  EXPECT_FALSE(r.rings_not_level);
+  EXPECT_FALSE(r.regressed);
+  // With no point 3 m away or farther, every point is read, and these rings are too wide.
+  const Columns near = cloud(false);
+  r = cloud_to_scan(near.fields(), cloud_scan_options(near.fields(), {}, 0, 0.4), out);
+  EXPECT_TRUE(r.rings_not_level);
 }
 
 }  // namespace

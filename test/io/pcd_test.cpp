@@ -362,6 +362,33 @@ TEST(Pcd, ReadsAsciiWithOtherTypes) {
   std::filesystem::remove(path);
 }
 
+TEST(Pcd, WidthZeroWithItsPointsCountedIsReadAsOneRow) {
+  // A writer that never set WIDTH (Autoware nebula's test clouds: WIDTH 0, HEIGHT 0, POINTS
+  // 14673): every point is in the data, so it is read as one row, and said.
+  const std::string path = temp_path("width0.pcd");
+  const std::string head = "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 0\n";
+  for (const std::string height : {"HEIGHT 0\n", "HEIGHT 1\n", ""}) {
+    std::ofstream(path, std::ios::trunc)
+        << head << height << "POINTS 2\nDATA ascii\n1 2 3\n4 5 6\n";
+    const PcdCloud cloud = read_pcd(path);
+    EXPECT_TRUE(cloud.width_from_points);
+    ASSERT_EQ(cloud.size(), 2u);
+    EXPECT_EQ(cloud.width, 2u);
+    EXPECT_EQ(cloud.height, 1u);
+    EXPECT_EQ(cloud.field("z")[1], 6);
+  }
+  // An empty cloud stays one, and other disagreements are still refused.
+  std::ofstream(path, std::ios::trunc) << head << "HEIGHT 0\nPOINTS 0\nDATA ascii\n";
+  EXPECT_EQ(read_pcd(path).size(), 0u);
+  EXPECT_FALSE(read_pcd(path).width_from_points);
+  std::ofstream(path, std::ios::trunc) << head << "HEIGHT 2\nPOINTS 2\nDATA ascii\n1 2 3\n4 5 6\n";
+  EXPECT_THROW(read_pcd(path), driver::IoError);
+  // Too few points for what POINTS says: refused as any short file.
+  std::ofstream(path, std::ios::trunc) << head << "POINTS 3\nDATA ascii\n1 2 3\n4 5 6\n";
+  EXPECT_THROW(read_pcd(path), driver::IoError);
+  std::filesystem::remove(path);
+}
+
 TEST(Pcd, BadFilesAreIoErrorsNamingTheProblem) {
   const std::string path = temp_path("bad.pcd");
   auto expect_error = [&](const std::string& text, const std::string& words) {

@@ -27,7 +27,7 @@ struct BagCloudOptions {
   // beams estimated from the cloud (detector::CloudScanOptions).
   std::vector<double> elevations_deg;
   int rings = 0;
-  double resolution_deg = 0.2;  // column width, degrees of azimuth
+  double resolution_deg = 0.0;  // column width, degrees of azimuth (0: the cloud's own)
 };
 
 // Whether `path` is a bag (by content) whose topic (`topic`, or the one LiDAR topic) holds

@@ -45,10 +45,7 @@ size_t for_each_bag_cloud(const CaptureArgs& args, int rings, double resolution_
       continue;
     }
     if (reader.report().merged > 0)
-      spdlog::warn(
-          "{}: {} of {} points fell into a cell of their ring a nearer point took "
-          "(--resolution sets the column width)",
-          name, reader.report().merged, reader.cloud_points());
+      spdlog::warn("{}: {}", name, merged_points_note(reader.report(), reader.cloud_points()));
     if (reader.report().rings_not_level && !reader.report().regressed) ++unlevel;
     ++n;
     if (!each(scan)) break;

@@ -50,7 +50,7 @@ struct DetectArgs {
   std::vector<double> tag_sizes;
   std::vector<std::string> families;
   int rings = 0;                // PCD without a ring field and no --model: beams to estimate
-  double resolution_deg = 0.2;  // PCD: width of a column
+  double resolution_deg = 0.0;  // PCD or PointCloud2: width of a column (0: the cloud's own)
   McapArgs mcap;                // --mcap: every rotation's cloud and detections for Foxglove
 };
 
@@ -625,9 +625,7 @@ const Registrar kDetect(
                      "PCD or PointCloud2 without a ring field and no --model: number of beams to "
                      "regress")
           ->check(CLI::Range(1, 256));
-      app.add_option("--resolution", args->resolution_deg,
-                     "PCD or PointCloud2: horizontal resolution (column width), degrees")
-          ->capture_default_str()
+      app.add_option("--resolution", args->resolution_deg, kResolutionHelp)
           ->check(CLI::Range(0.01, 5.0));
       return [args] { return run_detect(*args); };
     });

@@ -35,7 +35,7 @@ struct DumpArgs {
   bool organized = false;
   bool force = false;
   int rings = 0;                // PointCloud2 without a ring field and no --model: beams
-  double resolution_deg = 0.2;  // PointCloud2: width of a column
+  double resolution_deg = 0.0;  // PointCloud2 or PCD: width of a column (0: the cloud's own)
   std::string format = "pcd";   // pcd: a folder of PCD files; mcap: one MCAP file (--out FILE)
   McapArgs mcap;
 };
@@ -221,9 +221,8 @@ const Registrar kDump(
                    "other files are kept");
       app.add_option("--rings", args->rings,
                      "PointCloud2 or PCD without a ring field: beams to estimate (or --model)");
-      app.add_option("--resolution", args->resolution_deg,
-                     "PointCloud2 or PCD: horizontal resolution (column width), degrees")
-          ->capture_default_str();
+      app.add_option("--resolution", args->resolution_deg, kResolutionHelp)
+          ->check(CLI::Range(0.01, 5.0));
       return [args] { return run_dump(*args); };
     });
 

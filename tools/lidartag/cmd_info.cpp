@@ -31,7 +31,7 @@ struct InfoArgs {
   bool json = false;
   OusterArgs ouster;            // --metadata only
   int rings = 0;                // a PCD file without a ring field: beams to estimate (or --model)
-  double resolution_deg = 0.2;  // a PCD file's unorganised cloud: column width, degrees
+  double resolution_deg = 0.0;  // a PCD file's unorganised cloud: column width (0: its own)
 };
 
 // A PCD file: its header, its fields and the scan the detector would get from it (the same
@@ -85,7 +85,10 @@ int run_info_pcd(const InfoArgs& args) {
                    {"columns", scan.columns},
                    {"points", scan.point_count()},
                    {"organised", rep.grid},
+                   {"column_deg", rep.grid ? 0.0 : rep.resolution_deg},
                    {"merged", rep.merged},
+                   {"echoes", rep.echoes},
+                   {"width_from_points", pcd->width_from_points},
                    {"skipped_coordinates", rep.skipped_coordinates},
                    {"skipped_rings", rep.skipped_rings},
                    {"rings_not_level", rep.rings_not_level},
@@ -115,10 +118,17 @@ int run_info_pcd(const InfoArgs& args) {
     fmt::print("scan:           none: {}\n", problem);
     return 0;
   }
+  const char* width_from = args.resolution_deg > 0                ? "--resolution"
+                           : rep.regressed || rep.rings_not_level ? "the default"
+                                                                  : "0.95 x its step";
+  const std::string columns_of =
+      rep.grid ? " (the file's grid)"
+               : fmt::format(" of {:.4g} degrees ({})", rep.resolution_deg, width_from);
   fmt::print("scan:           {} rings ({}), {} columns{}, {} points\n", scan.rings, rings_from,
-             scan.columns, rep.grid ? " (the file's grid)" : "", scan.point_count());
-  fmt::print("dropped:        {} sharing a cell, {} bad coordinates, {} bad rings\n", rep.merged,
-             rep.skipped_coordinates, rep.skipped_rings);
+             scan.columns, columns_of, scan.point_count());
+  fmt::print(
+      "dropped:        {} sharing a cell ({} second echoes), {} bad coordinates, {} bad rings\n",
+      rep.merged, rep.echoes, rep.skipped_coordinates, rep.skipped_rings);
   return 0;
 }
 
@@ -329,9 +339,8 @@ const Registrar kInfo("info", "Summarise a capture: sensor, mode, rotations, los
                         add_ouster_options(app, args->ouster, false);
                         app.add_option("--rings", args->rings,
                                        "PCD without a ring field: beams to estimate (or --model)");
-                        app.add_option("--resolution", args->resolution_deg,
-                                       "PCD: horizontal resolution (column width), degrees")
-                            ->capture_default_str();
+                        app.add_option("--resolution", args->resolution_deg, kResolutionHelp)
+                            ->check(CLI::Range(0.01, 5.0));
                         return [args] { return run_info(*args); };
                       });
 

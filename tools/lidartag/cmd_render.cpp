@@ -54,7 +54,7 @@ struct RenderArgs {
   std::string out;
   int size_px = 1000;
   int rings = 0;
-  double resolution_deg = 0.2;
+  double resolution_deg = 0.0;  // PCD or PointCloud2: width of a column (0: the cloud's own)
 };
 
 det::DetectorOptions detector_options(const RenderArgs& args) {
@@ -396,9 +396,7 @@ const Registrar kRender(
       app.add_option("--rings", a->rings,
                      "PCD without a ring field and no --model: number of beams to regress")
           ->check(CLI::Range(1, 256));
-      app.add_option("--resolution", a->resolution_deg,
-                     "PCD: horizontal resolution (column width), degrees")
-          ->capture_default_str()
+      app.add_option("--resolution", a->resolution_deg, kResolutionHelp)
           ->check(CLI::Range(0.01, 5.0));
       return [a] { return run_render(*a); };
     });

@@ -156,18 +156,17 @@ clouds::PcdScan load_pcd_scan(const CaptureArgs& args, int rings, double resolut
     throw driver::IoError(e.what());
   }
   const detector::CloudScanReport& report = pcd.report;
+  if (pcd.width_from_points)
+    spdlog::warn("{}: the header says WIDTH 0 with POINTS {}: read as {} unorganised points", path,
+                 pcd.file_points, pcd.file_points);
   if (report.skipped_coordinates > 0)
     spdlog::warn("{}: {} points with infinite or out-of-range coordinates skipped", path,
                  report.skipped_coordinates);
   if (report.skipped_rings > 0)
     spdlog::warn("{}: {} points with a ring that is not a whole number in 0..{} skipped", path,
                  report.skipped_rings, scan.rings - 1);
-  if (report.merged > 0) {
-    spdlog::warn(
-        "{}: {} of {} points dropped: each fell into a ring's column (of {} degrees) that a "
-        "nearer point took; --resolution sets the column width",
-        path, report.merged, report.merged + report.points, resolution_deg);
-  }
+  if (report.merged > 0)
+    spdlog::warn("{}: {}", path, merged_points_note(report, report.merged + report.points));
   if (report.rings_not_level) {
     const std::string& field = pcd.ring_field;
     if (report.regressed)
@@ -185,6 +184,22 @@ clouds::PcdScan load_pcd_scan(const CaptureArgs& args, int rings, double resolut
   if (report.intensity_scaled)
     spdlog::warn("{}: every intensity is within [0, 1]: read as 0..1 and scaled to 0..255", path);
   return pcd;
+}
+
+std::string merged_points_note(const detector::CloudScanReport& report, size_t points) {
+  const size_t echoes = std::min(report.echoes, report.merged);
+  std::string note = fmt::format("{} of {} points dropped:", report.merged, points);
+  if (echoes > 0)
+    note += fmt::format(
+        " {} the farther echo of a firing whose nearer echo was kept (a dual-return cloud){}",
+        echoes, echoes < report.merged ? ";" : "");
+  if (echoes < report.merged)
+    note += fmt::format(
+        " {} in a ring's column (of {:.4g} degrees) that a nearer point took (--resolution sets "
+        "the "
+        "column width)",
+        report.merged - echoes, report.resolution_deg);
+  return note;
 }
 
 bool worth_explaining(const detector::ClusterDiagnostic& c, std::span<const double> tag_sizes_m) {

@@ -65,6 +65,11 @@ void require_rotations(const velodyne::CaptureReader& reader, const CaptureArgs&
 // Whether `path` names a PCD file (by its extension, any case).
 bool is_pcd(const std::string& path);
 
+// --resolution's help, for every command that reads clouds.
+inline constexpr const char* kResolutionHelp =
+    "PCD or PointCloud2: column width, degrees of azimuth (default: 0.95 x the cloud's own step "
+    "between a ring's neighbouring points; 0.2 without level ring numbers)";
+
 // A PCD file (`args.capture`) as one scan, for detect and render (detector/cloud_scan.hpp):
 // organised dumps keep their cells, other clouds are binned by azimuth (`resolution_deg`); rings
 // come from a `ring` field or are regressed from the elevations (--model's beam table, or `rings`
@@ -76,6 +81,11 @@ class PcdWithoutRings : public driver::IoError {
 };
 clouds::PcdScan load_pcd_scan(const CaptureArgs& args, int rings, double resolution_deg,
                               Scan& scan);
+
+// What a cloud's binning dropped (report.merged > 0), for a warning after "NAME: ": how many of
+// `points`, split into the farther echoes of dual-return firings and those of a column that a
+// nearer point took (the column width, report.resolution_deg, is too coarse for them).
+std::string merged_points_note(const detector::CloudScanReport& report, size_t points);
 
 // " (tag36h11 fits better)" after a rejection of other_family that names the family
 // (Detector::other_family_of); "" when it names none.

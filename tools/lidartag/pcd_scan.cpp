@@ -12,6 +12,7 @@ PcdScan describe_pcd(const velodyne::PcdCloud& pcd) {
   out.file_points = pcd.size();
   out.width = pcd.width;
   out.height = pcd.height;
+  out.width_from_points = pcd.width_from_points;
   out.format = pcd.format;
   out.rotation = pcd.rotation;
   return out;

@@ -24,6 +24,7 @@ struct PcdScan {
   std::string ring_field;           // the file's field read as the ring; empty: none
   size_t file_points = 0;           // width x height of the file
   size_t width = 0, height = 0;     // organised when height > 1
+  bool width_from_points = false;   // the file said WIDTH 0 and POINTS N: read as N x 1
   velodyne::PcdFormat format = velodyne::PcdFormat::kBinary;
   velodyne::PcdRotation rotation;  // what the header comments said (lidartag dump writes them)
 };

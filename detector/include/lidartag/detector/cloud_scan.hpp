@@ -46,8 +46,10 @@ struct CloudScanOptions {
   // Beam elevations, degrees, for a cloud without ring numbers (a model's table). Empty: estimated.
   std::vector<double> elevations_deg;
   // Column width, degrees of azimuth, when columns are made by binning azimuths (every cloud
-  // that is not organised with ring numbers). Default 0.2: a Velodyne at 10 Hz.
-  double resolution_deg = 0.2;
+  // that is not organised with ring numbers). Default 0: the cloud's own, kColumnStepShare of the
+  // median azimuth step between neighbouring points of a ring; kDefaultColumnWidthDeg for a cloud
+  // without level ring numbers. Negative or NaN: CloudError.
+  double resolution_deg = 0.0;
   // A ring field whose rings are not level (kMaxRingSpreadDeg: Livox's line numbers, each line of
   // its non-repetitive pattern sweeping every elevation; Luminar's two lasers): set aside and the
   // rings regressed instead, from `elevations_deg` or else this many beams estimated from the
@@ -59,6 +61,19 @@ struct CloudScanOptions {
 // field's rings are not level (a spinning sensor's ring holds one elevation to a few hundredths of
 // a degree, and its beams are at least 0.1 degrees apart).
 inline constexpr double kMaxRingSpreadDeg = 1.0;
+// The column width of a cloud without level ring numbers (a Velodyne at 10 Hz), degrees.
+inline constexpr double kDefaultColumnWidthDeg = 0.2;
+// The column width read from a cloud: this share of its azimuth step (a firing that comes 5 %
+// early or late still gets a column of its own; one in 20 columns is left empty), within
+// [kMinColumnWidthDeg, kMaxColumnWidthDeg]; read from at least kMinColumnSteps steps.
+inline constexpr double kColumnStepShare = 0.95;
+inline constexpr double kMinColumnWidthDeg = 0.01;
+inline constexpr double kMaxColumnWidthDeg = 2.0;
+inline constexpr size_t kMinColumnSteps = 100;
+// The level check reads the points this far or farther, metres, when there are this many of them
+// (nearer, a beam origin's offset from the axis widens a ring's elevations; see cloud_scan.cpp).
+inline constexpr double kLevelMinRangeM = 3.0;
+inline constexpr size_t kLevelMinPoints = 1000;
 
 struct CloudScanReport {
   size_t points = 0;               // points with a return placed in the scan
@@ -67,6 +82,10 @@ struct CloudScanReport {
   // Binned by azimuth (not a grid): points that fell into a cell of their ring a nearer point
   // took (the column width is too coarse for them), dropped.
   size_t merged = 0;
+  // Of `merged`: points that met a point of their ring in the same direction, the other echo of
+  // one firing (a dual-return cloud); the nearer echo is kept.
+  size_t echoes = 0;
+  double resolution_deg = 0.0;  // the column width the points were binned with (not a grid)
   // Organised with ring numbers: each point kept its column and return (rows: the rings of return
   // 0, then of return 1, as `lidartag dump --organized` writes).
   bool grid = false;

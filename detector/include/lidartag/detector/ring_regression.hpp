@@ -2,12 +2,17 @@
 // (paper Sec. IV-B, remark), so that an unorganised cloud becomes a ring-major Scan.
 #pragma once
 
+#include <cstddef>
 #include <span>
 #include <vector>
 
 #include "lidartag/driver/scan.hpp"
 
 namespace lidartag::detector {
+
+// Two points of one ring this close in azimuth and elevation, degrees, are two echoes of one
+// firing (a dual-return cloud): a sensor's firings are at least 0.05 degrees apart.
+inline constexpr double kSameFiringDeg = 0.01;
 
 struct CloudPoint {
   float x = 0, y = 0, z = 0;  // metres, sensor frame
@@ -36,14 +41,17 @@ std::vector<double> estimate_elevations(std::span<const CloudPoint> cloud, int r
 // clockwise from +x, as the sensor's). A cell hit twice keeps the nearer point. `out` is resized
 // when its dimensions differ. Returns false (and leaves `out` empty) when no elevations are given
 // or can be estimated, or the resolution is outside [0.001, 360] degrees. Points with a
-// non-finite or zero range are skipped; a NaN intensity reads as 0.
-bool regress_rings(std::span<const CloudPoint> cloud, const RingRegressionOptions& opt, Scan& out);
+// non-finite or zero range are skipped; a NaN intensity reads as 0. `echoes`, when given, counts
+// the points that met a point of their ring in the same direction (within 0.01 degrees: two
+// echoes of one firing, a dual-return cloud), of which the nearer was kept.
+bool regress_rings(std::span<const CloudPoint> cloud, const RingRegressionOptions& opt, Scan& out,
+                   size_t* echoes = nullptr);
 
 // A cloud whose points carry their ring (CloudPoint::ring, e.g. a PCD with a `ring` field) as a
 // `rings` x columns scan, columns as in regress_rings. Points whose ring is outside [0, rings) are
 // dropped. Returns false (and leaves `out` empty) when rings <= 0 or the resolution is outside
-// [0.001, 360] degrees.
+// [0.001, 360] degrees. `echoes` as in regress_rings.
 bool organise_rings(std::span<const CloudPoint> cloud, int rings, double horizontal_resolution_deg,
-                    Scan& out);
+                    Scan& out, size_t* echoes = nullptr);
 
 }  // namespace lidartag::detector

@@ -391,6 +391,12 @@ PcdCloud read_pcd(const std::string& path) {
   if (layout.counts.empty()) layout.counts.assign(n_fields, 1);
   if (layout.counts.size() != n_fields)
     throw pcd_error(path, "COUNT disagrees with FIELDS in length");
+  if (cloud.width == 0 && cloud.height <= 1 && have_points && points > 0) {
+    // A writer that filled its points but never set WIDTH (PCL's with points pushed one by one):
+    // the points are all there, as one row.
+    cloud.width = points;
+    cloud.width_from_points = true;
+  }
   if (cloud.height == 0) cloud.height = 1;
   // WIDTH x HEIGHT must not wrap around: 2^32 x 2^32 would read as an empty cloud.
   if (cloud.width > std::numeric_limits<size_t>::max() / cloud.height) {

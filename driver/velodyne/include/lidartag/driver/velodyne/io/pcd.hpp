@@ -63,6 +63,7 @@ struct PcdCloud {
   std::vector<char> types;                   // types[f]: the field's PCD TYPE, 'F', 'U' or 'I'
   std::vector<std::string> skipped_fields;   // COUNT > 1 fields and "_" padding: not read
   size_t width = 0, height = 0;              // organised when height > 1 (row-major)
+  bool width_from_points = false;            // WIDTH 0 (HEIGHT 0 or 1) and POINTS N: read as N x 1
   PcdFormat format = PcdFormat::kBinary;
   PcdRotation rotation;
 
