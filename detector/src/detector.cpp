@@ -342,11 +342,12 @@ void Detector::process_cluster(const Scan& scan, int ci, double res, const Senso
   diag.coverage = coverage_ratio(b.pose.subset, fit.pose, t, b.hull_in, b.hull);
   // A cluster for a track alone (the far edge) is held to the share of the gate that its sampling
   // lets a whole tag show: sparse rings and columns leave the hull of a whole tag well short of
-  // t^2 (0.65 at a VLP-32C's 28 m and 45 degrees), and only a board's margin made up for it. Its
-  // pre-fit bound above is skipped for the same reason.
+  // t^2 (0.65 at a VLP-32C's 28 m and 45 degrees), and only a board's margin made up for it; less
+  // a ring that one rotation's cluster may lack. Its pre-fit bound above is skipped for the same
+  // reason.
   const double min_coverage =
       track_only
-          ? opt_.pose.min_coverage * sampled_coverage(b.points, fit.pose, t, b.hull_in, b.hull)
+          ? opt_.pose.min_coverage * track_coverage_share(b.points, fit.pose, t, b.hull_in, b.hull)
           : opt_.pose.min_coverage;
   if (diag.coverage < min_coverage) return finish(Stage::kPose, Rejection::kCoverage);
   IntensityLevels levels;

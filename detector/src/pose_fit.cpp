@@ -12,6 +12,7 @@
 #include <stdexcept>
 
 #include "geometry.hpp"
+#include "lidartag/detector/cluster_validation.hpp"
 
 namespace lidartag::detector {
 namespace {
@@ -451,6 +452,13 @@ double sampled_coverage(std::span<const ClusterPoint> points, const RigidPose& p
 double coverage_bound(const std::vector<Eigen::Vector2d>& plane_hull, double t) {
   if (plane_hull.size() < 3) return 0.0;
   return geometry::polygon_area(plane_hull) / (t * t) / kCoverageBoundSlack;
+}
+
+double track_coverage_share(std::span<const ClusterPoint> points, const RigidPose& pose, double t,
+                            std::vector<Eigen::Vector2d>& buffer,
+                            std::vector<Eigen::Vector2d>& hull) {
+  const double rings = rings_in(points);
+  return sampled_coverage(points, pose, t, buffer, hull) * rings / (rings + 1.0);
 }
 
 }  // namespace lidartag::detector

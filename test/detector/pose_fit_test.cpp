@@ -11,6 +11,8 @@
 #include <numbers>
 #include <random>
 
+#include "lidartag/detector/cluster_validation.hpp"
+
 namespace lidartag::detector {
 namespace {
 
@@ -218,6 +220,31 @@ TEST(PoseFit, SampledCoverageIsWhatAWholeTagShowsWhenSampledAsItsPointsAre) {
   // One ring shows no sampling: nothing to make up for.
   const auto one = sampled_tag(t, 10.0, 0.14, 45, 0.5, 0.5);
   EXPECT_EQ(sampled_coverage(one, RigidPose{}, t, buf, hull), 1.0);
+}
+
+TEST(PoseFit, ACappedTagIsStillEvidenceForATrackAndHalfATagIsNot) {
+  // A VLP-32C's sampling at 28 m and 45 degrees: a tag whose top ring is missing from this
+  // rotation's cluster (an edge ring's few returns lost at clustering) passes the gate for a track
+  // (pose.min_coverage 0.75 of track_coverage_share: n / (n + 1) of what a whole tag shows) at
+  // every phase of the grid; half a tag fails it.
+  std::vector<Eigen::Vector2d> buf, hull;
+  const double t = 1.2;
+  for (double pr : {0.1, 0.4, 0.7})
+    for (double pc : {0.2, 0.5, 0.9}) {
+      auto capped = sampled_tag(t, 0.16, 0.14, 45, pr, pc);
+      const int top = capped.back().ring;
+      std::erase_if(capped, [&](const ClusterPoint& p) { return p.ring == top; });
+      const double share = track_coverage_share(capped, RigidPose{}, t, buf, hull);
+      const double rings = rings_in(capped);
+      EXPECT_NEAR(share,
+                  sampled_coverage(capped, RigidPose{}, t, buf, hull) * rings / (rings + 1.0),
+                  1e-12);
+      EXPECT_GE(coverage_ratio(capped, RigidPose{}, t, buf, hull), 0.75 * share) << pr << " " << pc;
+      const auto half = sampled_tag(t, 0.16, 0.14, 45, pr, pc, 0.5);
+      EXPECT_LT(coverage_ratio(half, RigidPose{}, t, buf, hull),
+                0.75 * track_coverage_share(half, RigidPose{}, t, buf, hull))
+          << pr << " " << pc;
+    }
 }
 
 TEST(PoseFit, CoverageBoundIsNeverBelowTheCoverageOfAnyPullBack) {

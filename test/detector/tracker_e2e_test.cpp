@@ -572,5 +572,24 @@ TEST(TrackerEndToEnd, AConfirmedTrackStaysConfirmedWhileItsCodeKeepsTheLead) {
   EXPECT_GE(below_score, 5);  // kept by the lead, not by the rotations' mean score
 }
 
+// Run 6 of the same cell at 28 m (code 21), the tag cut to its size: in its 6th and 16th rotations
+// the tag's cluster lacked one of the rings that cross it (coverage 0.63 of t^2, below
+// pose.min_coverage of what a whole tag shows at that sampling) and gave its track no evidence:
+// the track was confirmed only at its 10th rotation, and reported nothing in its 16th. A cluster
+// for a track alone may lack one ring (track_coverage_share): the right ID in every rotation from
+// the 6th on.
+TEST(TrackerEndToEnd, AFarTrackIsReportedInRotationsWhoseClusterLacksARing) {
+  const int run_index = 6;
+  const auto seen = run(vlp32c_far_scene(28.0, run_index), 20, eval::run_seed(run_index, 45));
+  int wrong = 0;
+  for (size_t k = 0; k < seen.size(); ++k) {
+    wrong += seen[k].wrong ? 1 : 0;
+    if (k >= 5) {
+      EXPECT_TRUE(seen[k].right) << "rotation " << k;
+    }
+  }
+  EXPECT_EQ(wrong, 0);
+}
+
 }  // namespace
 }  // namespace lidartag::detector

@@ -185,6 +185,15 @@ double coverage_ratio(std::span<const ClusterPoint> points, const RigidPose& pos
 double sampled_coverage(std::span<const ClusterPoint> points, const RigidPose& pose, double t,
                         std::vector<Eigen::Vector2d>& buffer, std::vector<Eigen::Vector2d>& hull);
 
+// The share of t^2 that a cluster for a track alone (issue 33's far edge) is held to, before
+// pose.min_coverage: what a whole tag shows at the cluster's sampling (sampled_coverage), times
+// n / (n + 1) for a cluster of n rings. One ring that crosses the tag may be missing from one
+// rotation's cluster (an edge ring's few returns, lost at clustering); the track's evidence over
+// rotations makes up for what that rotation lacks. `buffer` and `hull` are scratch space.
+double track_coverage_share(std::span<const ClusterPoint> points, const RigidPose& pose, double t,
+                            std::vector<Eigen::Vector2d>& buffer,
+                            std::vector<Eigen::Vector2d>& hull);
+
 // An upper bound of coverage_ratio before the pose fit, from the hull of the ring ends in the
 // cluster's own plane (CornerWorkspace::hull): its area over t^2, divided by kCoverageBoundSlack.
 // A rigid pull-back projects the points onto the tag's y-z plane, which cannot enlarge the hull
