@@ -122,8 +122,8 @@ void to_grid(const CloudFields& f, int rings, int returns, double scale, CloudSc
 // The column width for a cloud of level rings (CloudScanOptions::resolution_deg 0): a share of the
 // median azimuth step between neighbouring points of one ring (steps within kSameFiringDeg, two
 // echoes of one firing, left out), a little under the sensor's step so that the jitter of its
-// firing azimuths does not put two firings into one column; kDefaultColumnWidthDeg when fewer
-// than kMinColumnSteps steps are seen.
+// firing azimuths does not put two firings into one column; 0 when fewer than kMinColumnSteps
+// steps are seen.
 double column_width_of(std::span<const CloudPoint> cloud, int rings) {
   std::vector<std::pair<int, float>> az;  // ring, azimuth in degrees
   az.reserve(cloud.size());
@@ -137,7 +137,7 @@ double column_width_of(std::span<const CloudPoint> cloud, int rings) {
     const float step = az[k + 1].second - az[k].second;
     if (az[k + 1].first == az[k].first && step > kSameFiringDeg) steps.push_back(step);
   }
-  if (steps.size() < kMinColumnSteps) return kDefaultColumnWidthDeg;
+  if (steps.size() < kMinColumnSteps) return 0.0;
   const auto mid = steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2);
   std::nth_element(steps.begin(), mid, steps.end());
   return std::clamp(kColumnStepShare * double{*mid}, kMinColumnWidthDeg, kMaxColumnWidthDeg);
@@ -305,10 +305,13 @@ CloudScanReport cloud_to_scan(const CloudFields& f, const CloudScanOptions& opti
   if (!(options.resolution_deg >= 0.0))
     throw CloudError("a column width of " + std::to_string(options.resolution_deg) +
                      " degrees (0: the cloud's own)");
+  const double own = options.resolution_deg > 0.0 || f.ring.empty() || report.rings_not_level
+                         ? 0.0
+                         : column_width_of(cloud, rings);
+  report.column_from_cloud = own > 0.0;
   report.resolution_deg = options.resolution_deg > 0.0 ? options.resolution_deg
-                          : f.ring.empty() || report.rings_not_level
-                              ? kDefaultColumnWidthDeg
-                              : column_width_of(cloud, rings);
+                          : report.column_from_cloud   ? own
+                                                       : kDefaultColumnWidthDeg;
   if (!f.ring.empty()) {
     if (!organise_rings(cloud, rings, report.resolution_deg, out, &report.echoes))
       throw CloudError("cannot organise the rings (column width " +

@@ -118,9 +118,9 @@ int run_info_pcd(const InfoArgs& args) {
     fmt::print("scan:           none: {}\n", problem);
     return 0;
   }
-  const char* width_from = args.resolution_deg > 0                ? "--resolution"
-                           : rep.regressed || rep.rings_not_level ? "the default"
-                                                                  : "0.95 x its step";
+  const char* width_from = args.resolution_deg > 0 ? "--resolution"
+                           : rep.column_from_cloud ? "0.95 x its step"
+                                                   : "the default";
   const std::string columns_of =
       rep.grid ? " (the file's grid)"
                : fmt::format(" of {:.4g} degrees ({})", rep.resolution_deg, width_from);

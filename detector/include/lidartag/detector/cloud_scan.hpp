@@ -86,6 +86,8 @@ struct CloudScanReport {
   // one firing (a dual-return cloud); the nearer echo is kept.
   size_t echoes = 0;
   double resolution_deg = 0.0;  // the column width the points were binned with (not a grid)
+  // That width was read from the cloud's own step (neither given nor the default).
+  bool column_from_cloud = false;
   // Organised with ring numbers: each point kept its column and return (rows: the rings of return
   // 0, then of return 1, as `lidartag dump --organized` writes).
   bool grid = false;
